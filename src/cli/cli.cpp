@@ -1,0 +1,119 @@
+#include "cli/cli.h"
+
+#include <cctype>
+#include <cmath>
+#include <cstdio>
+#include <sstream>
+
+#include "core/system.h"
+
+namespace raylod::cli {
+
+Args::Args(std::string command, std::string usage, std::string description, std::vector<Option> options)
+    : command_(std::move(command)), usage_(std::move(usage)), description_(std::move(description)),
+      options_(std::move(options)) {}
+
+Status Args::parse(int argc, char** argv) {
+  for (int i = 1; i < argc; ++i) {
+    std::string a = argv[i];
+    if (a == "-h" || a == "--help") { help_ = true; continue; }
+    if (a.size() > 1 && a[0] == '-' && !(a.size() > 1 && (std::isdigit(static_cast<unsigned char>(a[1])) || a[1] == '.'))) {
+      std::string name = a, value;
+      bool inline_value = false;
+      if (auto eq = a.find('='); eq != std::string::npos && a.rfind("--", 0) == 0) {
+        name = a.substr(0, eq);
+        value = a.substr(eq + 1);
+        inline_value = true;
+      }
+      const Option* opt = nullptr;
+      for (const auto& o : options_) if (o.name == name || (!o.alias.empty() && o.alias == name)) opt = &o;
+      if (!opt) return Status::error("unknown option '" + name + "' (see raylod " + command_ + " --help)");
+      if (opt->takes_value) {
+        if (!inline_value) {
+          if (i + 1 >= argc) return Status::error("option " + opt->name + " needs a value");
+          value = argv[++i];
+        }
+        values_[opt->name] = value;
+      } else {
+        if (inline_value) return Status::error("option " + opt->name + " takes no value");
+        values_[opt->name] = "1";
+      }
+    } else {
+      positionals_.push_back(a);
+    }
+  }
+  return {};
+}
+
+std::string Args::help_text() const {
+  std::ostringstream out;
+  out << "usage: raylod " << command_ << " " << usage_ << "\n\n" << description_ << "\n";
+  if (!options_.empty()) {
+    out << "\noptions:\n";
+    for (const auto& o : options_) {
+      std::string left = "  " + (o.alias.empty() ? "" : o.alias + ", ") + o.name + (o.takes_value ? " " + o.metavar : "");
+      if (left.size() < 30) left.resize(30, ' ');
+      else left += "\n" + std::string(30, ' ');
+      out << left << o.help << "\n";
+    }
+  }
+  out << "  -h, --help                  show this help\n";
+  return out.str();
+}
+
+std::string Args::get(const std::string& name, const std::string& fallback) const {
+  auto it = values_.find(name);
+  return it == values_.end() ? fallback : it->second;
+}
+
+StatusOr<int64_t> Args::get_int(const std::string& name, int64_t fallback, int64_t lo, int64_t hi) const {
+  if (!has(name)) return fallback;
+  const std::string text = get(name);
+  try {
+    size_t pos = 0;
+    long long v = std::stoll(text, &pos);
+    if (pos != text.size()) throw std::invalid_argument("trailing");
+    if (v < lo || v > hi)
+      return Status::error(name + " must be between " + std::to_string(lo) + " and " + std::to_string(hi));
+    return int64_t(v);
+  } catch (...) {
+    return Status::error(name + ": '" + text + "' is not an integer");
+  }
+}
+
+StatusOr<double> Args::get_double(const std::string& name, double fallback) const {
+  if (!has(name)) return fallback;
+  const std::string text = get(name);
+  try {
+    size_t pos = 0;
+    double v = std::stod(text, &pos);
+    if (pos != text.size() || !std::isfinite(v)) throw std::invalid_argument("bad");
+    return v;
+  } catch (...) {
+    return Status::error(name + ": '" + text + "' is not a number");
+  }
+}
+
+StatusOr<uint64_t> Args::get_size(const std::string& name, uint64_t fallback) const {
+  if (!has(name)) return fallback;
+  auto v = parse_size(get(name));
+  if (!v) return v.status().with_context(name);
+  return v;
+}
+
+static std::vector<Command>& registry() {
+  static std::vector<Command> r;
+  return r;
+}
+bool register_command(const Command& c) {
+  registry().push_back(c);
+  return true;
+}
+const std::vector<Command>& commands() { return registry(); }
+
+int fail(const char* command, const Status& status) {
+  std::fprintf(stderr, "raylod %s: error: %s\n", command, status.message().c_str());
+  return 1;
+}
+
+}  // namespace raylod::cli

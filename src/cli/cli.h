@@ -1,0 +1,65 @@
+// The `raylod` command line: one executable, one file per subcommand
+// (cmd_<name>.cpp), each registering itself with RAYLOD_COMMAND.
+#pragma once
+
+#include <cstdint>
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "core/status.h"
+
+namespace raylod::cli {
+
+// Minimal option parser: "--name value", "--name=value", "-o value", flags,
+// and positionals. Unknown options are errors.
+class Args {
+ public:
+  struct Option {
+    std::string name;       // "--rays"
+    std::string alias;      // "-o" or ""
+    std::string help;       // "test rays to trace (default 5000)"
+    bool takes_value = true;
+    std::string metavar = "VALUE";
+  };
+  Args(std::string command, std::string usage, std::string description, std::vector<Option> options);
+
+  // Parses argv (after the subcommand name). Returns an error for unknown
+  // options or missing values; sets help_requested() for -h/--help.
+  Status parse(int argc, char** argv);
+  bool help_requested() const { return help_; }
+  std::string help_text() const;
+
+  bool has(const std::string& name) const { return values_.count(name) != 0; }
+  std::string get(const std::string& name, const std::string& fallback = "") const;
+  StatusOr<int64_t> get_int(const std::string& name, int64_t fallback, int64_t lo, int64_t hi) const;
+  StatusOr<double> get_double(const std::string& name, double fallback) const;
+  // Sizes like 1G or 512M (see parse_size); fallback when absent.
+  StatusOr<uint64_t> get_size(const std::string& name, uint64_t fallback) const;
+  const std::vector<std::string>& positionals() const { return positionals_; }
+
+ private:
+  std::string command_, usage_, description_;
+  std::vector<Option> options_;
+  std::map<std::string, std::string> values_;
+  std::vector<std::string> positionals_;
+  bool help_ = false;
+};
+
+struct Command {
+  const char* name;
+  const char* summary;
+  int (*run)(int argc, char** argv);  // argv[0] is the subcommand name
+};
+
+bool register_command(const Command& command);
+const std::vector<Command>& commands();
+
+// Prints "raylod <cmd>: <message>" to stderr and returns the exit code 1.
+int fail(const char* command, const Status& status);
+
+}  // namespace raylod::cli
+
+#define RAYLOD_COMMAND(name, summary, fn) \
+  static const bool raylod_command_registered_##fn = ::raylod::cli::register_command({name, summary, fn})

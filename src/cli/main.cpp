@@ -1,0 +1,54 @@
+// raylod: out-of-core ray tracing of huge meshes with view-dependent
+// simplification (Miyashita, Kanai and Kishinami; see README.md).
+#include <algorithm>
+#include <cstdio>
+#include <cstring>
+#include <exception>
+#include <string>
+
+#include "cli/cli.h"
+
+namespace {
+
+// The order a user meets the stages in, then the rest alphabetically.
+int rank(const char* name) {
+  const char* order[] = {"run", "build", "probe", "simplify", "render", "report", "info", "gen"};
+  for (int i = 0; i < 8; ++i) if (std::strcmp(order[i], name) == 0) return i;
+  return 100;
+}
+
+void print_help() {
+  std::printf("usage: raylod <command> [options]   (raylod <command> --help for details)\n\n"
+              "Ray traces huge triangle meshes out of core, simplifying them where the\n"
+              "rays cannot resolve the detail (ray differentials + octree vertex clustering).\n\ncommands:\n");
+  auto cmds = raylod::cli::commands();
+  std::sort(cmds.begin(), cmds.end(), [](const auto& a, const auto& b) {
+    return rank(a.name) != rank(b.name) ? rank(a.name) < rank(b.name) : std::strcmp(a.name, b.name) < 0;
+  });
+  for (const auto& c : cmds) std::printf("  %-10s %s\n", c.name, c.summary);
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  if (argc < 2 || !std::strcmp(argv[1], "--help") || !std::strcmp(argv[1], "-h") || !std::strcmp(argv[1], "help")) {
+    print_help();
+    return argc < 2 ? 2 : 0;
+  }
+  if (!std::strcmp(argv[1], "--version")) {
+    std::printf("raylod %s\n", RAYLOD_VERSION);
+    return 0;
+  }
+  for (const auto& c : raylod::cli::commands()) {
+    if (std::strcmp(c.name, argv[1]) == 0) {
+      try {
+        return c.run(argc - 1, argv + 1);
+      } catch (const std::exception& e) {
+        std::fprintf(stderr, "raylod %s: internal error: %s\n", c.name, e.what());
+        return 3;
+      }
+    }
+  }
+  std::fprintf(stderr, "raylod: unknown command '%s' (see raylod --help)\n", argv[1]);
+  return 2;
+}

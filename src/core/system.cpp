@@ -1,0 +1,113 @@
+#include "core/system.h"
+
+#include <fcntl.h>
+#include <unistd.h>
+
+#include <atomic>
+#include <cctype>
+#include <cstdio>
+#include <cstdlib>
+#include <cmath>
+#include <fstream>
+#include <random>
+#include <sstream>
+
+namespace raylod {
+namespace {
+
+uint64_t read_status_kib(const char* key) {
+  std::ifstream in("/proc/self/status");
+  std::string line;
+  const size_t n = std::char_traits<char>::length(key);
+  while (std::getline(in, line)) {
+    if (line.compare(0, n, key) == 0) return std::strtoull(line.c_str() + n, nullptr, 10) * 1024ull;
+  }
+  return 0;
+}
+
+}  // namespace
+
+uint64_t peak_rss_bytes() { return read_status_kib("VmHWM:"); }
+uint64_t current_rss_bytes() { return read_status_kib("VmRSS:"); }
+
+uint64_t physical_memory_bytes() {
+  long pages = sysconf(_SC_PHYS_PAGES), page = sysconf(_SC_PAGESIZE);
+  return pages > 0 && page > 0 ? uint64_t(pages) * uint64_t(page) : (uint64_t(4) << 30);
+}
+
+StatusOr<uint64_t> parse_size(const std::string& text) {
+  size_t pos = 0;
+  double value = 0;
+  try {
+    value = std::stod(text, &pos);
+  } catch (...) {
+    return Status::error("'" + text + "' is not a size (expected e.g. 512M, 2G)");
+  }
+  std::string unit = text.substr(pos);
+  for (auto& ch : unit) ch = char(std::toupper(static_cast<unsigned char>(ch)));
+  double scale = 1;
+  if (unit.empty() || unit == "B") scale = 1;
+  else if (unit == "K" || unit == "KB" || unit == "KIB") scale = 1024.0;
+  else if (unit == "M" || unit == "MB" || unit == "MIB") scale = 1024.0 * 1024;
+  else if (unit == "G" || unit == "GB" || unit == "GIB") scale = 1024.0 * 1024 * 1024;
+  else if (unit == "T" || unit == "TB" || unit == "TIB") scale = 1024.0 * 1024 * 1024 * 1024;
+  else return Status::error("'" + text + "': unknown size unit '" + unit + "' (use K, M, G or T)");
+  if (!(value > 0) || !std::isfinite(value)) return Status::error("'" + text + "': size must be positive");
+  return uint64_t(value * scale);
+}
+
+std::string format_bytes(uint64_t bytes) {
+  const char* units[] = {"B", "KiB", "MiB", "GiB", "TiB"};
+  double v = double(bytes);
+  int u = 0;
+  while (v >= 1024 && u < 4) { v /= 1024; ++u; }
+  char buf[32];
+  std::snprintf(buf, sizeof buf, u == 0 ? "%.0f %s" : "%.2f %s", v, units[u]);
+  return buf;
+}
+
+AtomicOutput::AtomicOutput(std::filesystem::path destination) : dest_(std::move(destination)) {
+  static std::atomic<uint64_t> counter{0};
+  std::random_device rd;
+  temp_ = dest_;
+  temp_ += ".tmp-" + std::to_string(getpid()) + "-" + std::to_string(counter++) + "-" + std::to_string(rd() & 0xffff);
+}
+
+AtomicOutput::~AtomicOutput() {
+  if (!committed_) {
+    std::error_code ec;
+    std::filesystem::remove(temp_, ec);
+  }
+}
+
+Status AtomicOutput::commit() {
+  int fd = ::open(temp_.c_str(), O_RDONLY);
+  if (fd < 0) return Status::error(dest_.string() + ": output was not written");
+  bool synced = ::fsync(fd) == 0;
+  ::close(fd);
+  if (!synced) return Status::error(dest_.string() + ": could not flush to disk (disk full?)");
+  std::error_code ec;
+  std::filesystem::rename(temp_, dest_, ec);
+  if (ec) return Status::error(dest_.string() + ": could not rename into place: " + ec.message());
+  committed_ = true;
+  // Make the rename itself durable.
+  auto dir = dest_.parent_path().empty() ? std::filesystem::path(".") : dest_.parent_path();
+  int dfd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY);
+  if (dfd >= 0) { ::fsync(dfd); ::close(dfd); }
+  return Status::ok();
+}
+
+std::filesystem::path default_cache_dir() {
+  if (const char* d = std::getenv("RAYLOD_CACHE_DIR"); d && *d) return d;
+  if (const char* x = std::getenv("XDG_CACHE_HOME"); x && *x) return std::filesystem::path(x) / "raylod";
+  if (const char* h = std::getenv("HOME"); h && *h) return std::filesystem::path(h) / ".cache" / "raylod";
+  return std::filesystem::temp_directory_path() / "raylod-cache";
+}
+
+uint64_t fnv1a64(const void* data, size_t bytes, uint64_t h) {
+  const auto* p = static_cast<const unsigned char*>(data);
+  for (size_t i = 0; i < bytes; ++i) { h ^= p[i]; h *= 0x100000001b3ull; }
+  return h;
+}
+
+}  // namespace raylod

@@ -1,0 +1,52 @@
+// Process and machine facts: memory, sizes, temp-file-and-rename output.
+#pragma once
+
+#include <cstdint>
+#include <filesystem>
+#include <string>
+
+#include "core/status.h"
+
+namespace raylod {
+
+// Peak resident set size of this process in bytes (VmHWM), 0 if unknown.
+uint64_t peak_rss_bytes();
+// Current resident set size in bytes (VmRSS), 0 if unknown.
+uint64_t current_rss_bytes();
+// Physical memory of the machine in bytes.
+uint64_t physical_memory_bytes();
+
+// Parses "512M", "1G", "1.5GiB", "1000000" (bytes). K/M/G/T are powers of 1024.
+StatusOr<uint64_t> parse_size(const std::string& text);
+// Formats bytes for people: "1.50 GiB".
+std::string format_bytes(uint64_t bytes);
+
+// Output written atomically: write to a temporary sibling, fsync, rename over
+// the destination on commit(). Destroying without commit() removes the
+// temporary, so a failure never leaves a half-written file under the real name.
+class AtomicOutput {
+ public:
+  explicit AtomicOutput(std::filesystem::path destination);
+  ~AtomicOutput();
+  AtomicOutput(const AtomicOutput&) = delete;
+  AtomicOutput& operator=(const AtomicOutput&) = delete;
+
+  // Path to write to (a temporary name in the destination's directory).
+  const std::filesystem::path& temp_path() const { return temp_; }
+  const std::filesystem::path& destination() const { return dest_; }
+  // fsyncs the temporary and renames it to the destination.
+  Status commit();
+
+ private:
+  std::filesystem::path dest_, temp_;
+  bool committed_ = false;
+};
+
+// raylod's cache directory: $RAYLOD_CACHE_DIR, else $XDG_CACHE_HOME/raylod,
+// else ~/.cache/raylod (created on demand by the callers).
+std::filesystem::path default_cache_dir();
+
+// FNV-1a 64-bit hash, for keys and content fingerprints (not security).
+uint64_t fnv1a64(const void* data, size_t bytes, uint64_t seed = 0xcbf29ce484222325ull);
+
+}  // namespace raylod

@@ -1,0 +1,292 @@
+#include "scene/scene.h"
+
+#include <fstream>
+#include <map>
+#include <sstream>
+
+#include <glm/gtc/matrix_transform.hpp>
+#include <nlohmann/json.hpp>
+
+#include "scene/default_scene.h"
+
+namespace raylod {
+
+using nlohmann::json;
+
+const char* to_string(MaterialType t) {
+  switch (t) {
+    case MaterialType::Diffuse: return "diffuse";
+    case MaterialType::Glossy: return "glossy";
+    case MaterialType::Mirror: return "mirror";
+    case MaterialType::Glass: return "glass";
+  }
+  return "?";
+}
+
+bool Scene::any_reflection() const {
+  for (const auto& m : materials) if (m.reflects()) return true;
+  return false;
+}
+bool Scene::any_refraction() const {
+  for (const auto& m : materials) if (m.refracts()) return true;
+  return false;
+}
+
+namespace {
+
+// Parsing helpers report the JSON path of what is wrong ("objects[0].material").
+struct Parser {
+  std::string source;
+  Status fail(const std::string& where, const std::string& what) const {
+    return Status::error(source + ": " + where + ": " + what);
+  }
+
+  Status number(const json& j, const std::string& where, double& out) const {
+    if (!j.is_number()) return fail(where, "expected a number");
+    out = j.get<double>();
+    if (!std::isfinite(out)) return fail(where, "must be finite");
+    return {};
+  }
+  Status vec3(const json& j, const std::string& where, Vec3d& out) const {
+    if (!j.is_array() || j.size() != 3) return fail(where, "expected an array of 3 numbers");
+    for (int i = 0; i < 3; ++i) RAYLOD_RETURN_IF_ERROR(number(j[i], where + "[" + std::to_string(i) + "]", out[i]));
+    return {};
+  }
+  Status color(const json& j, const std::string& where, Vec3& out) const {
+    Vec3d v;
+    RAYLOD_RETURN_IF_ERROR(vec3(j, where, v));
+    if (v.x < 0 || v.y < 0 || v.z < 0) return fail(where, "colour components must be >= 0");
+    out = Vec3(v);
+    return {};
+  }
+  Status integer(const json& j, const std::string& where, int64_t lo, int64_t hi, int64_t& out) const {
+    if (!j.is_number_integer() && !j.is_number_unsigned()) return fail(where, "expected an integer");
+    out = j.get<int64_t>();
+    if (out < lo || out > hi)
+      return fail(where, "must be between " + std::to_string(lo) + " and " + std::to_string(hi));
+    return {};
+  }
+  // Rejects keys the format does not define, so typos do not pass silently.
+  Status known_keys(const json& j, const std::string& where, std::initializer_list<const char*> keys) const {
+    if (!j.is_object()) return fail(where, "expected an object");
+    for (auto it = j.begin(); it != j.end(); ++it) {
+      bool ok = false;
+      for (const char* k : keys) ok = ok || it.key() == k;
+      if (!ok) return fail(where, "unknown key '" + it.key() + "'");
+    }
+    return {};
+  }
+};
+
+Status parse_camera(const Parser& p, const json& j, Camera& cam) {
+  RAYLOD_RETURN_IF_ERROR(p.known_keys(j, "camera", {"eye", "look_at", "up", "fov_y", "width", "height"}));
+  if (!j.contains("eye") || !j.contains("look_at")) return p.fail("camera", "needs 'eye' and 'look_at'");
+  RAYLOD_RETURN_IF_ERROR(p.vec3(j["eye"], "camera.eye", cam.eye));
+  RAYLOD_RETURN_IF_ERROR(p.vec3(j["look_at"], "camera.look_at", cam.look_at));
+  if (j.contains("up")) RAYLOD_RETURN_IF_ERROR(p.vec3(j["up"], "camera.up", cam.up));
+  if (j.contains("fov_y")) RAYLOD_RETURN_IF_ERROR(p.number(j["fov_y"], "camera.fov_y", cam.fov_y_deg));
+  int64_t v;
+  if (j.contains("width")) { RAYLOD_RETURN_IF_ERROR(p.integer(j["width"], "camera.width", 1, 32768, v)); cam.width = int(v); }
+  if (j.contains("height")) { RAYLOD_RETURN_IF_ERROR(p.integer(j["height"], "camera.height", 1, 32768, v)); cam.height = int(v); }
+  if (!(cam.fov_y_deg > 0 && cam.fov_y_deg < 180)) return p.fail("camera.fov_y", "must be in (0, 180) degrees");
+  Vec3d view = cam.look_at - cam.eye;
+  if (glm::length(view) == 0) return p.fail("camera", "eye and look_at coincide");
+  if (glm::length(glm::cross(view, cam.up)) <= 1e-9 * glm::length(view) * glm::length(cam.up))
+    return p.fail("camera.up", "is zero or parallel to the viewing direction");
+  return {};
+}
+
+Status parse_material(const Parser& p, const std::string& name, const json& j, Material& m) {
+  const std::string where = "materials." + name;
+  RAYLOD_RETURN_IF_ERROR(p.known_keys(j, where, {"type", "color", "specular", "shininess", "reflectance", "ior", "tint"}));
+  m.name = name;
+  if (!j.contains("type") || !j["type"].is_string()) return p.fail(where + ".type", "expected one of diffuse, glossy, mirror, glass");
+  const std::string type = j["type"].get<std::string>();
+  if (type == "diffuse") m.type = MaterialType::Diffuse;
+  else if (type == "glossy") m.type = MaterialType::Glossy;
+  else if (type == "mirror") m.type = MaterialType::Mirror;
+  else if (type == "glass") m.type = MaterialType::Glass;
+  else return p.fail(where + ".type", "'" + type + "' is not one of diffuse, glossy, mirror, glass");
+  if (m.type == MaterialType::Mirror || m.type == MaterialType::Glass) m.color = Vec3(0);
+  if (j.contains("color")) RAYLOD_RETURN_IF_ERROR(p.color(j["color"], where + ".color", m.color));
+  if (j.contains("specular")) RAYLOD_RETURN_IF_ERROR(p.color(j["specular"], where + ".specular", m.specular));
+  if (j.contains("tint")) RAYLOD_RETURN_IF_ERROR(p.color(j["tint"], where + ".tint", m.tint));
+  double v;
+  if (j.contains("shininess")) { RAYLOD_RETURN_IF_ERROR(p.number(j["shininess"], where + ".shininess", v)); m.shininess = float(v); }
+  if (j.contains("reflectance")) { RAYLOD_RETURN_IF_ERROR(p.number(j["reflectance"], where + ".reflectance", v)); m.reflectance = float(v); }
+  if (j.contains("ior")) { RAYLOD_RETURN_IF_ERROR(p.number(j["ior"], where + ".ior", v)); m.ior = float(v); }
+  if (!(m.shininess >= 0)) return p.fail(where + ".shininess", "must be >= 0");
+  if (!(m.reflectance >= 0 && m.reflectance <= 1)) return p.fail(where + ".reflectance", "must be in [0, 1]");
+  if (!(m.ior >= 1.0f && m.ior <= 4.0f)) return p.fail(where + ".ior", "must be in [1, 4]");
+  return {};
+}
+
+Status parse_transform(const Parser& p, const json& j, const std::string& where, glm::dmat4& out) {
+  RAYLOD_RETURN_IF_ERROR(p.known_keys(j, where, {"translate", "scale", "rotate_deg", "matrix"}));
+  if (j.contains("matrix")) {
+    if (j.size() != 1) return p.fail(where, "'matrix' cannot be combined with translate/scale/rotate_deg");
+    const json& m = j["matrix"];
+    if (!m.is_array() || m.size() != 16) return p.fail(where + ".matrix", "expected 16 numbers (row-major 4x4)");
+    for (int r = 0; r < 4; ++r)
+      for (int c = 0; c < 4; ++c)
+        RAYLOD_RETURN_IF_ERROR(p.number(m[r * 4 + c], where + ".matrix", out[c][r]));
+  } else {
+    Vec3d t(0), s(1), rdeg(0);
+    if (j.contains("translate")) RAYLOD_RETURN_IF_ERROR(p.vec3(j["translate"], where + ".translate", t));
+    if (j.contains("scale")) {
+      if (j["scale"].is_number()) { double u; RAYLOD_RETURN_IF_ERROR(p.number(j["scale"], where + ".scale", u)); s = Vec3d(u); }
+      else RAYLOD_RETURN_IF_ERROR(p.vec3(j["scale"], where + ".scale", s));
+    }
+    if (j.contains("rotate_deg")) RAYLOD_RETURN_IF_ERROR(p.vec3(j["rotate_deg"], where + ".rotate_deg", rdeg));
+    glm::dmat4 m = glm::translate(glm::dmat4(1.0), t);
+    m = glm::rotate(m, glm::radians(rdeg.z), Vec3d(0, 0, 1));
+    m = glm::rotate(m, glm::radians(rdeg.y), Vec3d(0, 1, 0));
+    m = glm::rotate(m, glm::radians(rdeg.x), Vec3d(1, 0, 0));
+    out = glm::scale(m, s);
+  }
+  double det = glm::determinant(glm::dmat3(out));
+  if (!std::isfinite(det) || std::abs(det) < 1e-18) return p.fail(where, "transform is singular");
+  return {};
+}
+
+Status parse_light(const Parser& p, const json& j, const std::string& where, Light& l) {
+  RAYLOD_RETURN_IF_ERROR(p.known_keys(j, where, {"type", "position", "direction", "color", "intensity"}));
+  const std::string type = j.contains("type") && j["type"].is_string() ? j["type"].get<std::string>() : "";
+  if (type == "point") {
+    l.type = LightType::Point;
+    if (!j.contains("position")) return p.fail(where, "a point light needs 'position'");
+    RAYLOD_RETURN_IF_ERROR(p.vec3(j["position"], where + ".position", l.position));
+  } else if (type == "directional") {
+    l.type = LightType::Directional;
+    if (!j.contains("direction")) return p.fail(where, "a directional light needs 'direction'");
+    RAYLOD_RETURN_IF_ERROR(p.vec3(j["direction"], where + ".direction", l.direction));
+    if (glm::length(l.direction) == 0) return p.fail(where + ".direction", "must not be zero");
+    l.direction = glm::normalize(l.direction);
+  } else {
+    return p.fail(where + ".type", "expected 'point' or 'directional'");
+  }
+  if (j.contains("color")) RAYLOD_RETURN_IF_ERROR(p.color(j["color"], where + ".color", l.color));
+  double v;
+  if (j.contains("intensity")) {
+    RAYLOD_RETURN_IF_ERROR(p.number(j["intensity"], where + ".intensity", v));
+    if (v < 0) return p.fail(where + ".intensity", "must be >= 0");
+    l.intensity = float(v);
+  }
+  return {};
+}
+
+}  // namespace
+
+StatusOr<Scene> parse_scene(const std::string& text, const std::filesystem::path& base_dir,
+                            const std::string& source_name) {
+  Parser p{source_name};
+  json j;
+  try {
+    j = json::parse(text);
+  } catch (const json::parse_error& e) {
+    return Status::error(source_name + ": not valid JSON: " + e.what());
+  }
+  RAYLOD_RETURN_IF_ERROR(p.known_keys(j, "scene", {"camera", "materials", "objects", "ground", "lights", "background",
+                                                  "spp", "max_depth", "seed", "comment"}));
+  Scene scene;
+  if (!j.contains("camera")) return p.fail("scene", "missing 'camera'");
+  RAYLOD_RETURN_IF_ERROR(parse_camera(p, j["camera"], scene.camera));
+
+  std::map<std::string, int> material_index;
+  if (!j.contains("materials") || !j["materials"].is_object() || j["materials"].empty())
+    return p.fail("materials", "expected an object with at least one named material");
+  for (auto it = j["materials"].begin(); it != j["materials"].end(); ++it) {
+    Material m;
+    RAYLOD_RETURN_IF_ERROR(parse_material(p, it.key(), it.value(), m));
+    material_index[m.name] = int(scene.materials.size());
+    scene.materials.push_back(m);
+  }
+  auto lookup_material = [&](const json& jm, const std::string& where, int& out) -> Status {
+    if (!jm.is_string()) return p.fail(where, "expected a material name");
+    auto found = material_index.find(jm.get<std::string>());
+    if (found == material_index.end()) return p.fail(where, "no material named '" + jm.get<std::string>() + "'");
+    out = found->second;
+    return {};
+  };
+
+  if (!j.contains("objects") || !j["objects"].is_array() || j["objects"].empty())
+    return p.fail("objects", "expected an array with at least one object");
+  for (size_t i = 0; i < j["objects"].size(); ++i) {
+    const json& jo = j["objects"][i];
+    const std::string where = "objects[" + std::to_string(i) + "]";
+    RAYLOD_RETURN_IF_ERROR(p.known_keys(jo, where, {"mesh", "material", "transform"}));
+    SceneObject obj;
+    if (!jo.contains("mesh")) return p.fail(where, "missing 'mesh'");
+    const json& jm = jo["mesh"];
+    if (jm.is_string()) {
+      std::filesystem::path mp = jm.get<std::string>();
+      if (mp.is_relative()) mp = base_dir / mp;
+      std::error_code ec;
+      if (!std::filesystem::is_regular_file(mp, ec)) return p.fail(where + ".mesh", "file not found: " + mp.string());
+      obj.mesh = mp;
+    } else if (jm.is_object()) {
+      RAYLOD_RETURN_IF_ERROR(p.known_keys(jm, where + ".mesh", {"generate", "triangles"}));
+      GeneratedMesh g;
+      if (!jm.contains("generate") || !jm["generate"].is_string()) return p.fail(where + ".mesh.generate", "expected 'teapot' or 'bottle'");
+      g.generator = jm["generate"].get<std::string>();
+      if (g.generator != "teapot" && g.generator != "bottle") return p.fail(where + ".mesh.generate", "'" + g.generator + "' is not 'teapot' or 'bottle'");
+      int64_t n = 100000;
+      if (jm.contains("triangles")) RAYLOD_RETURN_IF_ERROR(p.integer(jm["triangles"], where + ".mesh.triangles", 100, 100000000, n));
+      g.triangles = uint64_t(n);
+      obj.generate = g;
+    } else {
+      return p.fail(where + ".mesh", "expected a file name or {\"generate\": ...}");
+    }
+    if (!jo.contains("material")) return p.fail(where, "missing 'material'");
+    RAYLOD_RETURN_IF_ERROR(lookup_material(jo["material"], where + ".material", obj.material));
+    if (jo.contains("transform")) RAYLOD_RETURN_IF_ERROR(parse_transform(p, jo["transform"], where + ".transform", obj.transform));
+    scene.objects.push_back(obj);
+  }
+
+  if (j.contains("ground")) {
+    const json& jg = j["ground"];
+    RAYLOD_RETURN_IF_ERROR(p.known_keys(jg, "ground", {"height", "size", "material"}));
+    Ground g;
+    if (jg.contains("height")) RAYLOD_RETURN_IF_ERROR(p.number(jg["height"], "ground.height", g.height));
+    if (jg.contains("size")) RAYLOD_RETURN_IF_ERROR(p.number(jg["size"], "ground.size", g.size));
+    if (!(g.size > 0)) return p.fail("ground.size", "must be > 0");
+    if (!jg.contains("material")) return p.fail("ground", "missing 'material'");
+    RAYLOD_RETURN_IF_ERROR(lookup_material(jg["material"], "ground.material", g.material));
+    scene.ground = g;
+  }
+
+  if (j.contains("lights")) {
+    if (!j["lights"].is_array()) return p.fail("lights", "expected an array");
+    for (size_t i = 0; i < j["lights"].size(); ++i) {
+      Light l;
+      RAYLOD_RETURN_IF_ERROR(parse_light(p, j["lights"][i], "lights[" + std::to_string(i) + "]", l));
+      scene.lights.push_back(l);
+    }
+  }
+  if (j.contains("background")) RAYLOD_RETURN_IF_ERROR(p.color(j["background"], "background", scene.background));
+  int64_t v;
+  if (j.contains("spp")) { RAYLOD_RETURN_IF_ERROR(p.integer(j["spp"], "spp", 1, 4096, v)); scene.spp = int(v); }
+  if (j.contains("max_depth")) { RAYLOD_RETURN_IF_ERROR(p.integer(j["max_depth"], "max_depth", 0, 64, v)); scene.max_depth = int(v); }
+  if (j.contains("seed")) { RAYLOD_RETURN_IF_ERROR(p.integer(j["seed"], "seed", 0, INT64_MAX, v)); scene.seed = uint64_t(v); }
+  return scene;
+}
+
+StatusOr<Scene> load_scene(const std::filesystem::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return Status::error(path.string() + ": cannot open scene file");
+  std::stringstream ss;
+  ss << in.rdbuf();
+  auto dir = path.parent_path();
+  auto scene = parse_scene(ss.str(), dir.empty() ? std::filesystem::path(".") : dir, path.string());
+  if (scene) scene->source = path;
+  return scene;
+}
+
+const std::string& default_scene_json() {
+  static const std::string text = embedded::kDefaultSceneJson;
+  return text;
+}
+
+StatusOr<Scene> default_scene() { return parse_scene(default_scene_json(), ".", "<default scene>"); }
+
+}  // namespace raylod

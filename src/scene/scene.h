@@ -1,0 +1,112 @@
+// The JSON scene format (documented in README.md, "Scene files").
+//
+// {
+//   "camera": {"eye": [x,y,z], "look_at": [x,y,z], "up": [0,1,0],
+//              "fov_y": 40, "width": 1280, "height": 960},
+//   "materials": {"name": {"type": "diffuse"|"glossy"|"mirror"|"glass",
+//                          "color": [r,g,b], "specular": [r,g,b], "shininess": 50,
+//                          "reflectance": 1.0, "ior": 1.5, "tint": [r,g,b]}},
+//   "objects": [{"mesh": "teapot.ply" | {"generate": "teapot", "triangles": 1000000},
+//                "material": "name", "transform": {"translate": [..], "scale": s | [..],
+//                "rotate_deg": [..xyz Euler..]} | "matrix": [16 numbers, row-major]}],
+//   "ground": {"height": 0, "size": 40, "material": "name"},
+//   "lights": [{"type": "point", "position": [..], "color": [..], "intensity": 100},
+//              {"type": "directional", "direction": [..], "color": [..], "intensity": 1}],
+//   "background": [r,g,b], "spp": 4, "max_depth": 5, "seed": 1
+// }
+// Relative mesh paths resolve against the scene file's directory.
+#pragma once
+
+#include <cstdint>
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "core/math.h"
+#include "core/status.h"
+
+namespace raylod {
+
+struct Camera {
+  Vec3d eye{0, 0, 5};
+  Vec3d look_at{0, 0, 0};
+  Vec3d up{0, 1, 0};
+  double fov_y_deg = 40;
+  int width = 640;
+  int height = 480;
+};
+
+enum class MaterialType { Diffuse, Glossy, Mirror, Glass };
+const char* to_string(MaterialType t);
+
+struct Material {
+  std::string name;
+  MaterialType type = MaterialType::Diffuse;
+  Vec3 color{0.8f};        // diffuse albedo
+  Vec3 specular{0.0f};     // Phong specular colour (glossy)
+  float shininess = 50;    // Phong exponent (glossy)
+  float reflectance = 1;   // mirror reflectance
+  float ior = 1.5f;        // glass index of refraction
+  Vec3 tint{1.0f};         // glass transmission tint
+  bool reflects() const { return type == MaterialType::Mirror || type == MaterialType::Glass; }
+  bool refracts() const { return type == MaterialType::Glass; }
+};
+
+// A mesh to generate on first use (the embedded default scene), cached by
+// (generator, triangle count).
+struct GeneratedMesh {
+  std::string generator;   // "teapot" or "bottle"
+  uint64_t triangles = 0;
+};
+
+struct SceneObject {
+  std::filesystem::path mesh;             // resolved path (empty if generated)
+  std::optional<GeneratedMesh> generate;  // set when the mesh is generated
+  glm::dmat4 transform{1.0};              // object to world
+  int material = 0;                        // index into Scene::materials
+};
+
+enum class LightType { Point, Directional };
+struct Light {
+  LightType type = LightType::Point;
+  Vec3d position{0};     // point
+  Vec3d direction{0, -1, 0};  // directional: direction light travels
+  Vec3 color{1.0f};
+  float intensity = 1;
+};
+
+// An optional ground plane (y = height), a square of side `size` centred under
+// the camera's look-at point; two triangles, never simplified.
+struct Ground {
+  double height = 0;
+  double size = 40;
+  int material = 0;
+};
+
+struct Scene {
+  std::filesystem::path source;  // the scene file (empty for the embedded default)
+  Camera camera;
+  std::vector<Material> materials;
+  std::vector<SceneObject> objects;
+  std::vector<Light> lights;
+  std::optional<Ground> ground;
+  Vec3 background{0.0f};
+  int spp = 1;
+  int max_depth = 5;
+  uint64_t seed = 1;
+
+  bool any_reflection() const;
+  bool any_refraction() const;
+};
+
+// Parses a scene from JSON text; base_dir resolves relative mesh paths and
+// source_name is used in error messages. Checks referenced mesh files exist.
+StatusOr<Scene> parse_scene(const std::string& json_text, const std::filesystem::path& base_dir,
+                            const std::string& source_name);
+StatusOr<Scene> load_scene(const std::filesystem::path& path);
+// The default scene compiled into the binary (data/default_scene.json).
+StatusOr<Scene> default_scene();
+const std::string& default_scene_json();
+
+}  // namespace raylod

@@ -1,0 +1,131 @@
+// The disk-backed octree store written by `raylod build` (method step A1 at
+// out-of-core scale). Only the node table with per-node quadrics is held in
+// memory; the triangles live in pages on disk, one page per occupied cell of
+// the page level, read back on demand (checksummed).
+//
+// Geometry: the root cell is a cube (root_lo, root_size) around the mesh.
+// A cell at level L has side root_size / 2^L and is named by the Morton code
+// of its integer coordinates (3*L bits). Every triangle corner is binned into
+// the cell containing that vertex (Luebke-Erikson clustering); the quadric of
+// a cell is the sum, over corners in it, of the plane quadric of the corner's
+// triangle (Lindstrom, eq. 4), with the plane normal the average of the
+// triangle's vertex normals where the file has normals, else the face normal.
+// Quadrics and sums are in double, relative to `origin` (the mesh centre).
+#pragma once
+
+#include <cstdint>
+#include <filesystem>
+#include <memory>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "core/math.h"
+#include "core/status.h"
+#include "streaming/mesh_reader.h"
+
+namespace raylod {
+
+// Symmetric 4x4 plane quadric Q = [[A, -b], [-b^T, c]] (eq. 4), A symmetric 3x3.
+struct Quadric {
+  double a00 = 0, a01 = 0, a02 = 0, a11 = 0, a12 = 0, a22 = 0;
+  double b0 = 0, b1 = 0, b2 = 0;
+  double c = 0;
+};
+// Quadric of the plane with unit normal n through point x (relative coordinates), times weight.
+Quadric quadric_from_plane(const Vec3d& n, const Vec3d& x, double weight = 1.0);
+void quadric_add(Quadric& q, const Quadric& r);
+// Sum of squared plane distances of v: v^T A v - 2 b.v + c.
+double quadric_error(const Quadric& q, const Vec3d& v);
+
+struct CellKey {
+  uint32_t level = 0;
+  uint64_t code = 0;  // Morton code at `level`
+  bool operator==(const CellKey&) const = default;
+  auto operator<=>(const CellKey&) const = default;
+  CellKey parent() const { return {level - 1, code >> 3}; }
+};
+
+// One occupied octree node (levels 0..quadric_depth).
+struct NodeRecord {
+  uint64_t code = 0;          // Morton code at its level
+  Quadric quadric;            // relative to StoreHeader::origin
+  Vec3d vertex_sum{0};        // sum of corner positions, relative to origin
+  Vec3d normal_sum{0};        // sum of corner normals, area-weighted
+  uint64_t corner_count = 0;  // triangle corners binned into this cell
+};
+
+// Where the triangles of one page-level cell are on disk.
+struct PageInfo {
+  uint64_t code = 0;          // Morton code at page_level
+  uint64_t offset = 0;        // byte offset of the page in the store file
+  uint32_t triangle_count = 0;
+  uint32_t checksum = 0;      // of the page bytes
+  Bbox bounds;                // tight bounds of the page's triangles (world coordinates)
+};
+
+struct StoreOptions {
+  uint64_t memory_limit = 0;  // bytes; 0 = a quarter of physical memory
+  int max_depth = 12;         // deepest level that may keep quadrics
+  int threads = 0;            // 0 = all cores
+};
+
+struct StoreHeader {
+  uint32_t version = 1;
+  std::string source_path;    // the mesh it was built from
+  uint64_t source_bytes = 0, source_mtime_ns = 0, source_hash = 0;
+  StoreOptions options;
+  uint64_t triangle_count = 0;
+  bool has_normals = false;
+  Vec3d origin{0};            // quadrics and sums are relative to this point
+  Vec3d root_lo{0};           // root cube corner (world)
+  double root_size = 0;       // root cube side (world)
+  int quadric_depth = 0;      // deepest level with NodeRecords
+  int page_level = 0;         // level whose cells are the pages
+  Bbox bounds;                // mesh bounds (world)
+};
+
+class OctreeStore {
+ public:
+  static StatusOr<std::unique_ptr<OctreeStore>> open(const std::filesystem::path& path);
+  virtual ~OctreeStore() = default;
+
+  virtual const StoreHeader& header() const = 0;
+  // Occupied nodes at `level` (0..quadric_depth), sorted by code.
+  virtual std::span<const NodeRecord> level(int level) const = 0;
+  // The node with this key, or nullptr if the cell is empty or below quadric_depth.
+  virtual const NodeRecord* find(const CellKey& key) const = 0;
+  virtual std::span<const PageInfo> pages() const = 0;
+  // Reads page i into batch (cleared first); fails with a clear message if
+  // its checksum does not match.
+  virtual Status read_page(size_t i, TriangleBatch& batch) const = 0;
+
+  // Cell geometry helpers.
+  double cell_size(int level) const { return header().root_size / double(uint64_t(1) << level); }
+  double cell_diagonal(int level) const { return cell_size(level) * 1.7320508075688772; }
+  CellKey cell_of(const Vec3d& world_point, int level) const;
+  Bbox cell_bounds(const CellKey& key) const;
+};
+
+// Morton code helpers (3 interleaved 21-bit coordinates).
+uint64_t morton_encode(uint32_t x, uint32_t y, uint32_t z);
+void morton_decode(uint64_t code, uint32_t& x, uint32_t& y, uint32_t& z);
+
+// Default store path for a mesh: "MESH.raylod" beside the mesh file.
+std::filesystem::path default_store_path(const std::filesystem::path& mesh);
+
+struct BuildReport {
+  bool reused = false;        // an up-to-date store was already there
+  std::string reason;         // why it was (re)built or reused
+  double seconds = 0;
+  uint64_t triangles = 0;
+  uint64_t peak_rss = 0;
+};
+// Builds (or reuses, if up to date for the same mesh and options) the store.
+StatusOr<BuildReport> build_store(const std::filesystem::path& mesh, const std::filesystem::path& store,
+                                  const StoreOptions& options);
+// True if `store` exists, opens, and matches the mesh's size, mtime and hash.
+bool store_is_current(const std::filesystem::path& mesh, const std::filesystem::path& store,
+                      const StoreOptions& options, std::string* reason = nullptr);
+
+}  // namespace raylod
