@@ -1,0 +1,132 @@
+// Scene files: the embedded default parses, relative paths resolve against the
+// scene file, and malformed scenes fail with messages that say what is wrong.
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+
+#include "scene/scene.h"
+
+namespace raylod {
+namespace {
+
+namespace fs = std::filesystem;
+
+fs::path temp_dir() {
+  fs::path d = fs::temp_directory_path() / ("raylod-scene-test-" + std::to_string(::getpid()));
+  fs::create_directories(d);
+  return d;
+}
+
+const char* kMinimal = R"({
+  "camera": {"eye": [0, 1, 5], "look_at": [0, 0, 0], "fov_y": 40, "width": 64, "height": 48},
+  "materials": {"red": {"type": "diffuse", "color": [0.8, 0.1, 0.1]},
+                "glass": {"type": "glass", "ior": 1.5, "tint": [0.9, 1, 0.9]}},
+  "objects": [{"mesh": {"generate": "teapot", "triangles": 5000}, "material": "red",
+               "transform": {"translate": [1, 2, 3], "scale": 2}}],
+  "lights": [{"type": "point", "position": [0, 5, 0], "intensity": 10},
+             {"type": "directional", "direction": [0, -2, 0]}],
+  "spp": 2, "max_depth": 3, "seed": 7
+})";
+
+TEST(Scene, DefaultSceneParses) {
+  auto scene = default_scene();
+  ASSERT_TRUE(scene.is_ok()) << scene.status().message();
+  EXPECT_EQ(scene->camera.width, 1280);
+  EXPECT_EQ(scene->camera.height, 960);
+  ASSERT_EQ(scene->objects.size(), 1u);
+  ASSERT_TRUE(scene->objects[0].generate.has_value());
+  EXPECT_EQ(scene->objects[0].generate->generator, "teapot");
+  EXPECT_TRUE(scene->ground.has_value());
+  EXPECT_FALSE(scene->lights.empty());
+}
+
+TEST(Scene, ParsesAllFields) {
+  auto scene = parse_scene(kMinimal, ".", "minimal.json");
+  ASSERT_TRUE(scene.is_ok()) << scene.status().message();
+  EXPECT_EQ(scene->spp, 2);
+  EXPECT_EQ(scene->max_depth, 3);
+  EXPECT_EQ(scene->seed, 7u);
+  ASSERT_EQ(scene->materials.size(), 2u);
+  EXPECT_TRUE(scene->any_refraction());
+  EXPECT_TRUE(scene->any_reflection());
+  const auto& t = scene->objects[0].transform;
+  // Scale 2 then translate (1, 2, 3): the origin maps to the translation.
+  glm::dvec4 o = t * glm::dvec4(0, 0, 0, 1);
+  EXPECT_DOUBLE_EQ(o.x, 1);
+  EXPECT_DOUBLE_EQ(o.z, 3);
+  glm::dvec4 x = t * glm::dvec4(1, 0, 0, 1);
+  EXPECT_DOUBLE_EQ(x.x, 3);
+  ASSERT_EQ(scene->lights.size(), 2u);
+  EXPECT_NEAR(glm::length(scene->lights[1].direction), 1.0, 1e-12);
+}
+
+TEST(Scene, DiffuseOnlySceneCallsForNoSpecularRays) {
+  std::string text = kMinimal;
+  const std::string glass = "\"glass\": {\"type\": \"glass\"";
+  text.replace(text.find(glass), glass.size(), "\"glass\": {\"type\": \"glossy\"");
+  auto scene = parse_scene(text, ".", "s.json");
+  ASSERT_TRUE(scene.is_ok()) << scene.status().message();
+  EXPECT_FALSE(scene->any_refraction());
+  EXPECT_FALSE(scene->any_reflection());
+}
+
+TEST(Scene, RelativeMeshPathResolvesAgainstSceneFile) {
+  fs::path dir = temp_dir() / "sub";
+  fs::create_directories(dir);
+  std::ofstream(dir / "m.ply") << "ply\n";
+  std::ofstream(dir / "s.json") << R"({"camera": {"eye": [0,0,5], "look_at": [0,0,0]},
+    "materials": {"m": {"type": "mirror"}}, "objects": [{"mesh": "m.ply", "material": "m"}]})";
+  auto scene = load_scene(dir / "s.json");
+  ASSERT_TRUE(scene.is_ok()) << scene.status().message();
+  EXPECT_EQ(fs::canonical(scene->objects[0].mesh), fs::canonical(dir / "m.ply"));
+}
+
+struct BadCase {
+  const char* name;
+  std::string from, to;  // replace `from` in kMinimal by `to`
+  const char* expected;  // substring of the error
+};
+
+class BadScene : public ::testing::TestWithParam<BadCase> {};
+
+TEST_P(BadScene, FailsWithClearMessage) {
+  const BadCase& c = GetParam();
+  std::string text = kMinimal;
+  auto pos = text.find(c.from);
+  ASSERT_NE(pos, std::string::npos) << c.from;
+  text.replace(pos, c.from.size(), c.to);
+  auto scene = parse_scene(text, ".", "bad.json");
+  ASSERT_FALSE(scene.is_ok()) << c.name;
+  EXPECT_NE(scene.status().message().find("bad.json"), std::string::npos) << scene.status().message();
+  EXPECT_NE(scene.status().message().find(c.expected), std::string::npos) << scene.status().message();
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    Cases, BadScene,
+    ::testing::Values(
+        BadCase{"syntax", "\"spp\": 2,", "\"spp\": 2,,", "not valid JSON"},
+        BadCase{"missing_mesh", "{\"generate\": \"teapot\", \"triangles\": 5000}", "\"nope/missing.ply\"", "file not found"},
+        BadCase{"unknown_material", "\"material\": \"red\"", "\"material\": \"blue\"", "no material named 'blue'"},
+        BadCase{"bad_type", "\"type\": \"diffuse\"", "\"type\": \"plastic\"", "'plastic' is not one of"},
+        BadCase{"fov", "\"fov_y\": 40", "\"fov_y\": 190", "fov_y"},
+        BadCase{"eye_equals_target", "\"eye\": [0, 1, 5]", "\"eye\": [0, 0, 0]", "coincide"},
+        BadCase{"vec_size", "\"look_at\": [0, 0, 0]", "\"look_at\": [0, 0]", "array of 3 numbers"},
+        BadCase{"typo_key", "\"spp\": 2", "\"sppp\": 2", "unknown key 'sppp'"},
+        BadCase{"negative_color", "[0.8, 0.1, 0.1]", "[0.8, -0.1, 0.1]", ">= 0"},
+        BadCase{"ior", "\"ior\": 1.5", "\"ior\": 0.5", "ior"},
+        BadCase{"light_type", "\"type\": \"point\"", "\"type\": \"spot\"", "'point' or 'directional'"},
+        BadCase{"zero_direction", "[0, -2, 0]", "[0, 0, 0]", "must not be zero"},
+        BadCase{"singular_transform", "\"scale\": 2", "\"scale\": 0", "singular"},
+        BadCase{"spp_range", "\"spp\": 2", "\"spp\": 0", "spp"},
+        BadCase{"generator", "\"generate\": \"teapot\"", "\"generate\": \"cow\"", "'cow'"}),
+    [](const auto& info) { return std::string(info.param.name); });
+
+TEST(Scene, MissingFileIsAnError) {
+  auto scene = load_scene("/nonexistent/scene.json");
+  ASSERT_FALSE(scene.is_ok());
+  EXPECT_NE(scene.status().message().find("/nonexistent/scene.json"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace raylod
