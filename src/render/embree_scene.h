@@ -1,0 +1,132 @@
+// The renderer's geometry: world-space indexed triangle meshes (loaded by
+// streaming a mesh file and welding identical corners) in one Embree 3 scene.
+#pragma once
+
+#include <cstdint>
+#include <filesystem>
+#include <functional>
+#include <memory>
+#include <span>
+#include <string>
+#include <vector>
+
+#include <embree3/rtcore.h>
+
+#include "core/math.h"
+#include "core/status.h"
+#include "render/camera.h"
+#include "scene/scene.h"
+
+namespace raylod {
+
+// A world-space triangle mesh with shared vertices, as Embree consumes it.
+struct TriangleMesh {
+  std::vector<Vec3> positions;    // world space
+  std::vector<Vec3> normals;      // empty, or one unit vertex normal per position (world space)
+  std::vector<uint32_t> indices;  // 3 per triangle; counter-clockwise seen from the front
+  int material = 0;               // index into Scene::materials
+  std::string name;               // for messages: the file name, or "ground"
+  size_t triangle_count() const { return indices.size() / 3; }
+  // Bytes held by the arrays (what the renderer keeps resident besides the BVH).
+  uint64_t bytes() const;
+};
+
+// Welds a triangle soup -- corner k of triangle i is positions[3 i + k] -- into
+// shared vertices: corners with bit-identical position (and normal, if
+// normals is not empty) become one vertex. Triangle order is kept, so
+// triangle ids match the soup's. normals is empty or positions.size().
+TriangleMesh weld_triangles(std::span<const Vec3> positions, std::span<const Vec3> normals);
+
+// Streams a mesh file with open_mesh (PLY, STL, OBJ, Draco), welds it and
+// transforms it to world space: positions by object_to_world, normals by its
+// inverse transpose; a mirroring transform (negative determinant) reverses
+// the winding so that front faces stay front faces. on_triangles (optional)
+// is told how many triangles each batch added, for progress bars.
+StatusOr<TriangleMesh> load_triangle_mesh(const std::filesystem::path& path, const glm::dmat4& object_to_world,
+                                          int material, const std::function<void(uint64_t)>& on_triangles = {});
+
+// Triangle count a mesh file declares in its header (faces; for polygon
+// meshes a lower bound on triangles). Reads the header only.
+StatusOr<uint64_t> declared_triangle_count(const std::filesystem::path& path);
+
+// The scene's ground plane: a square of side ground.size at y = ground.height,
+// centred under the camera's look-at point, as two triangles facing +y.
+TriangleMesh make_ground_mesh(const Ground& ground, const Camera& camera);
+
+// How the BVH is built, by scene size: Embree's high-quality (spatial split)
+// builder pays off for small scenes; large ones use the medium builder, and
+// very large ones also the compact layout, which stores triangle indices
+// instead of vertex copies in the leaves (about half the BVH memory, slower
+// traversal).
+struct BvhConfig {
+  uint64_t high_quality_below = 2'000'000;  // triangles
+  uint64_t compact_from = 20'000'000;       // triangles
+  // Embree's robust mode: watertight-ish traversal, so that rays through
+  // shared edges of a closed glass mesh do not leak between triangles.
+  bool robust = true;
+};
+
+struct BvhInfo {
+  uint64_t triangles = 0;
+  uint64_t vertices = 0;
+  uint64_t mesh_bytes = 0;         // vertex and index arrays (shared with Embree, not copied)
+  uint64_t bvh_bytes = 0;          // Embree's allocations after the build (the BVH)
+  uint64_t bvh_peak_bytes = 0;     // Embree's peak allocation during the build
+  double build_seconds = 0;
+  std::string quality;             // "high", "medium", "medium+compact"
+  Bbox bounds;
+};
+
+// A closest hit: distance along the ray, geometry (mesh index) and triangle,
+// and Embree's barycentrics: P = (1 - u - v) V0 + u V1 + v V2.
+struct Hit {
+  double t = 0;
+  uint32_t geom = RTC_INVALID_GEOMETRY_ID;
+  uint32_t prim = 0;
+  float u = 0, v = 0;
+};
+
+class EmbreeScene {
+ public:
+  // Builds one Embree scene holding every mesh (geometry id = index in
+  // meshes). The meshes are moved in and shared with Embree, not copied.
+  static StatusOr<std::unique_ptr<EmbreeScene>> build(std::vector<TriangleMesh> meshes, const BvhConfig& config = {});
+  ~EmbreeScene();
+  EmbreeScene(const EmbreeScene&) = delete;
+  EmbreeScene& operator=(const EmbreeScene&) = delete;
+
+  RTCScene handle() const { return scene_; }
+  const std::vector<TriangleMesh>& meshes() const { return meshes_; }
+  const TriangleMesh& mesh(uint32_t geom) const { return meshes_[geom]; }
+  // Global triangle id of (geom, prim): triangles numbered mesh after mesh.
+  uint64_t triangle_id(uint32_t geom, uint32_t prim) const { return first_triangle_[geom] + prim; }
+  const BvhInfo& info() const { return info_; }
+
+  // Closest hit on (tnear, tfar); false if none.
+  bool intersect(const Ray& ray, double tnear, double tfar, Hit& hit) const;
+  // True if anything lies on the ray within (tnear, tfar).
+  bool occluded(const Ray& ray, double tnear, double tfar) const;
+
+ private:
+  EmbreeScene() = default;
+  RTCDevice device_ = nullptr;
+  RTCScene scene_ = nullptr;
+  std::vector<TriangleMesh> meshes_;
+  std::vector<uint64_t> first_triangle_;
+  BvhInfo info_;
+ public:
+  struct Monitor;  // Embree error and memory callbacks (implementation detail)
+ private:
+  std::unique_ptr<Monitor> monitor_;
+};
+
+// Surface quantities at a hit, in double.
+struct SurfacePoint {
+  Vec3d position{0};   // on the triangle, from the barycentrics (not o + t d)
+  Vec3d geometric{0};  // unit face normal, right-hand rule over the winding
+  Vec3d shading{0};    // unit interpolated vertex normal, or the face normal
+  double edge_distance = 0;  // distance to the nearest triangle edge (wireframe)
+};
+SurfacePoint surface_point(const EmbreeScene& scene, const Hit& hit);
+
+}  // namespace raylod

@@ -1,0 +1,245 @@
+// Whitted-style integrator (Whitted 1980) with exact dielectric Fresnel
+// terms; see integrator.h for which effects exist and when they switch on.
+#include "render/integrator.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+namespace raylod {
+
+namespace {
+constexpr double kInf = std::numeric_limits<double>::infinity();
+bool nonzero(const Vec3& c) { return c.x > 0 || c.y > 0 || c.z > 0; }
+float max_channel(const Vec3& c) { return std::max({c.x, c.y, c.z}); }
+}  // namespace
+
+std::string Effects::describe() const {
+  std::string s;
+  auto add = [&](const std::string& e) { s += (s.empty() ? "" : ", ") + e; };
+  if (diffuse) add("diffuse");
+  if (glossy) add("glossy highlights");
+  if (shadows) add("shadows (" + std::to_string(lights) + (lights == 1 ? " light)" : " lights)"));
+  if (reflection) add("reflection");
+  if (refraction) add("refraction");
+  return s.empty() ? "ambient only" : s;
+}
+
+Effects effects_for(const Scene& scene, std::span<const int> used_materials) {
+  Effects e;
+  e.lights = int(scene.lights.size());
+  const bool lit = !scene.lights.empty();
+  const bool bounces = scene.max_depth > 0;
+  for (int idx : used_materials) {
+    const Material& m = scene.materials.at(size_t(idx));
+    if (lit && nonzero(m.color)) e.diffuse = true;
+    if (lit && nonzero(m.specular) && m.shininess >= 0) e.glossy = true;
+    if (bounces && m.type == MaterialType::Mirror && m.reflectance > 0) e.reflection = true;
+    if (bounces && m.type == MaterialType::Glass) e.reflection = e.refraction = true;
+  }
+  e.shadows = e.diffuse || e.glossy;
+  return e;
+}
+
+Vec3d reflect(const Vec3d& d, const Vec3d& n) { return d - 2.0 * glm::dot(d, n) * n; }
+
+bool refract(const Vec3d& d, const Vec3d& n, double eta, Vec3d& out) {
+  const double cos_i = -glm::dot(d, n);
+  const double sin2_t = eta * eta * std::max(0.0, 1.0 - cos_i * cos_i);
+  if (sin2_t >= 1.0) return false;
+  const double cos_t = std::sqrt(1.0 - sin2_t);
+  out = glm::normalize(eta * d + (eta * cos_i - cos_t) * n);
+  return true;
+}
+
+double fresnel_dielectric(double cos_i, double eta) {
+  cos_i = std::clamp(cos_i, 0.0, 1.0);
+  const double sin2_t = eta * eta * (1.0 - cos_i * cos_i);
+  if (sin2_t >= 1.0) return 1.0;
+  const double cos_t = std::sqrt(1.0 - sin2_t);
+  // Fresnel equations divided through by n_t.
+  const double rs = (eta * cos_i - cos_t) / (eta * cos_i + cos_t);
+  const double rp = (cos_i - eta * cos_t) / (cos_i + eta * cos_t);
+  return 0.5 * (rs * rs + rp * rp);
+}
+
+double ray_offset(const Vec3d& p, double offset_scale) {
+  return offset_scale * std::max({1.0, std::abs(p.x), std::abs(p.y), std::abs(p.z)});
+}
+
+SpecularScatter scatter_specular(const Material& m, const Vec3d& dir, const SurfacePoint& sp, double offset) {
+  SpecularScatter s;
+  s.entering = glm::dot(dir, sp.geometric) < 0;
+  // Normals facing the incoming ray. An interpolated normal can face away
+  // from the ray at grazing angles on a coarse mesh; the face normal is used then.
+  const Vec3d ng = s.entering ? sp.geometric : -sp.geometric;
+  Vec3d ns = s.entering ? sp.shading : -sp.shading;
+  if (glm::dot(ns, dir) >= 0) ns = ng;
+  const Vec3d above = sp.position + offset * ng, below = sp.position - offset * ng;
+
+  // A direction bent by the shading normal may cross the true surface; fall
+  // back to the face normal so reflected rays stay outside and refracted rays inside.
+  Vec3d r = reflect(dir, ns);
+  if (glm::dot(r, ng) <= 0) r = reflect(dir, ng);
+  s.reflected = Ray{above, glm::normalize(r)};
+
+  if (m.type == MaterialType::Mirror) {
+    s.reflects = m.reflectance > 0;
+    s.reflect_weight = Vec3(m.reflectance);
+    return s;
+  }
+  if (m.type != MaterialType::Glass) return s;
+
+  const double eta = s.entering ? 1.0 / m.ior : double(m.ior);
+  Vec3d n_used = ns, t;
+  bool ok = refract(dir, ns, eta, t);
+  if (ok && glm::dot(t, ng) >= 0) {
+    n_used = ng;
+    ok = refract(dir, ng, eta, t);
+  }
+  s.reflects = true;
+  if (!ok) {
+    s.total_internal_reflection = true;
+    s.reflect_weight = Vec3(1.0f);
+    return s;
+  }
+  const double f = fresnel_dielectric(-glm::dot(dir, n_used), eta);
+  s.reflect_weight = Vec3(float(f));
+  s.refracts = true;
+  s.refracted = Ray{below, t};
+  // The tint is applied once per pass through the glass, on the way in.
+  s.refract_weight = float(1.0 - f) * (s.entering ? m.tint : Vec3(1.0f));
+  return s;
+}
+
+Integrator::Integrator(const EmbreeScene& geometry, const Scene& scene, const PinholeCamera& camera,
+                       const Effects& effects, const IntegratorConfig& config)
+    : geometry_(geometry), scene_(scene), camera_(camera), effects_(effects), config_(config) {}
+
+CameraSample Integrator::sample(double px, double py, RayCounters& counters) const {
+  CameraSample out;
+  const Ray ray = camera_.generate(px, py);
+  ++counters.camera;
+  Hit hit;
+  if (!geometry_.intersect(ray, 0.0, kInf, hit)) {
+    out.color = scene_.background;
+    return out;
+  }
+  const SurfacePoint sp = surface_point(geometry_, hit);
+  out.hit = true;
+  out.depth = hit.t;
+  out.triangle = geometry_.triangle_id(hit.geom, hit.prim);
+  Vec3d n = glm::dot(sp.shading, ray.direction) < 0 ? sp.shading : -sp.shading;
+  out.normal = Vec3(n);
+  out.color = shade(ray, hit, sp, 0, Vec3(1.0f), counters);
+  if (config_.wireframe && sp.edge_distance < 0.5 * hit.t * camera_.pixel_angle()) out.color *= 0.12f;
+  return out;
+}
+
+Vec3 Integrator::radiance(const Ray& ray, int depth, const Vec3& throughput, RayCounters& counters) const {
+  Hit hit;
+  if (!geometry_.intersect(ray, 0.0, kInf, hit)) return scene_.background;
+  return shade(ray, hit, surface_point(geometry_, hit), depth, throughput, counters);
+}
+
+Vec3 Integrator::shade(const Ray& ray, const Hit& hit, const SurfacePoint& sp, int depth, const Vec3& throughput,
+                       RayCounters& counters) const {
+  const Material& m = scene_.materials[size_t(geometry_.mesh(hit.geom).material)];
+  const Vec3d& dir = ray.direction;
+  const double offset = ray_offset(sp.position, config_.offset_scale);
+  Vec3 result(0.0f);
+
+  const bool has_diffuse = nonzero(m.color);
+  if (has_diffuse) result += config_.ambient * scene_.background * m.color;
+  if ((effects_.diffuse && has_diffuse) || (effects_.glossy && nonzero(m.specular))) {
+    // Opaque shading is two-sided: light the side the ray came from.
+    const Vec3d ng = glm::dot(dir, sp.geometric) < 0 ? sp.geometric : -sp.geometric;
+    Vec3d ns = glm::dot(dir, sp.shading) < 0 ? sp.shading : -sp.shading;
+    result += direct_light(m, dir, sp.position, ng, ns, offset, counters);
+  }
+
+  if (depth >= config_.max_depth || !m.reflects()) return result;
+  const SpecularScatter s = scatter_specular(m, dir, sp, offset);
+  if (s.reflects && effects_.reflection) {
+    const Vec3 t = throughput * s.reflect_weight;
+    if (max_channel(t) >= config_.min_throughput) {
+      ++counters.reflection;
+      result += s.reflect_weight * radiance(s.reflected, depth + 1, t, counters);
+    }
+  }
+  if (s.refracts && effects_.refraction) {
+    const Vec3 t = throughput * s.refract_weight;
+    if (max_channel(t) >= config_.min_throughput) {
+      ++counters.refraction;
+      result += s.refract_weight * radiance(s.refracted, depth + 1, t, counters);
+    }
+  }
+  return result;
+}
+
+Vec3 Integrator::direct_light(const Material& m, const Vec3d& dir, const Vec3d& p, const Vec3d& ng, const Vec3d& ns,
+                              double offset, RayCounters& counters) const {
+  Vec3 sum(0.0f);
+  const bool diffuse = effects_.diffuse && nonzero(m.color);
+  const bool glossy = effects_.glossy && nonzero(m.specular);
+  for (const Light& light : scene_.lights) {
+    Vec3d l;
+    double dist;
+    Vec3 e = light.color * light.intensity;
+    if (light.type == LightType::Point) {
+      l = light.position - p;
+      dist = glm::length(l);
+      if (!(dist > 0)) continue;
+      l /= dist;
+      e /= float(dist * dist);
+    } else {
+      l = -light.direction;
+      dist = kInf;
+    }
+    // A light behind the surface contributes nothing: no shadow ray for it.
+    if (glm::dot(l, ng) <= 0) continue;
+    const double cos_theta = glm::dot(ns, l);
+    double spec = 0;
+    if (glossy) spec = std::pow(std::max(0.0, glm::dot(reflect(-l, ns), -dir)), double(m.shininess));
+    if (cos_theta <= 0 && spec <= 0) continue;
+    ++counters.shadow;
+    const Ray shadow{p + offset * ng, l};
+    if (geometry_.occluded(shadow, 0.0, std::isfinite(dist) ? dist - 2 * offset : kInf)) continue;
+    Vec3 c(0.0f);
+    if (diffuse && cos_theta > 0) c += m.color * float(cos_theta);
+    if (spec > 0) c += m.specular * float(spec);
+    sum += c * e;
+  }
+  return sum;
+}
+
+std::vector<ChainVertex> trace_specular_chain(const EmbreeScene& geometry, const Scene& scene, Ray ray, int max_events,
+                                              double offset_scale) {
+  std::vector<ChainVertex> chain;
+  for (int i = 0; i < max_events; ++i) {
+    Hit hit;
+    if (!geometry.intersect(ray, 0.0, kInf, hit)) {
+      chain.push_back({ray.origin, ChainVertex::Event::Escape, ray.direction});
+      break;
+    }
+    const SurfacePoint sp = surface_point(geometry, hit);
+    const Material& m = scene.materials[size_t(geometry.mesh(hit.geom).material)];
+    if (!m.reflects()) {
+      chain.push_back({sp.position, ChainVertex::Event::Opaque, ray.direction});
+      break;
+    }
+    const SpecularScatter s = scatter_specular(m, ray.direction, sp, ray_offset(sp.position, offset_scale));
+    if (s.refracts) {
+      chain.push_back({sp.position, ChainVertex::Event::Refract, s.refracted.direction});
+      ray = s.refracted;
+    } else {
+      chain.push_back({sp.position,
+                       s.total_internal_reflection ? ChainVertex::Event::TotalInternalReflection : ChainVertex::Event::Reflect,
+                       s.reflected.direction});
+      ray = s.reflected;
+    }
+  }
+  return chain;
+}
+
+}  // namespace raylod

@@ -1,0 +1,135 @@
+// Whitted-style integrator (Whitted 1980): diffuse and Phong glossy shading
+// from point and directional lights with shadow rays, perfect mirror
+// reflection, and glass with exact dielectric Fresnel reflection and
+// refraction (total internal reflection included) and a transmission tint,
+// up to the scene's max depth.
+//
+// Simulate only what the scene calls for: the Effects are derived from the
+// materials the geometry actually uses and from the lights, and the
+// integrator never spawns a ray kind whose effect is off (no shadow rays
+// without lights, no reflection rays without a mirror or glass, no
+// refraction rays without glass). Phong highlights are evaluated from the
+// lights and cost no rays.
+#pragma once
+
+#include <cstdint>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "render/camera.h"
+#include "render/embree_scene.h"
+#include "scene/scene.h"
+
+namespace raylod {
+
+struct Effects {
+  int lights = 0;
+  bool diffuse = false;     // direct diffuse lighting (lights, and a material with a diffuse colour)
+  bool glossy = false;      // Phong highlights (lights, and a material with a specular colour)
+  bool shadows = false;     // shadow rays (on whenever direct lighting is)
+  bool reflection = false;  // reflection rays (a mirror or glass material, max_depth > 0)
+  bool refraction = false;  // refraction rays (a glass material, max_depth > 0)
+  // "diffuse, glossy highlights, shadows (2 lights), reflection, refraction" or "ambient only".
+  std::string describe() const;
+};
+
+// Effects for a scene whose geometry uses the given material indices.
+Effects effects_for(const Scene& scene, std::span<const int> used_materials);
+
+// Rays traced, by kind.
+struct RayCounters {
+  uint64_t camera = 0, shadow = 0, reflection = 0, refraction = 0;
+  uint64_t total() const { return camera + shadow + reflection + refraction; }
+  RayCounters& operator+=(const RayCounters& o) {
+    camera += o.camera; shadow += o.shadow; reflection += o.reflection; refraction += o.refraction;
+    return *this;
+  }
+};
+
+struct IntegratorConfig {
+  int max_depth = 5;  // secondary bounces after the camera ray
+  // Secondary rays whose throughput (largest channel) is below this are not
+  // traced: they cannot change an 8-bit pixel (glass: 4% reflections nest).
+  float min_throughput = 1e-3f;
+  // Whitted's ambient term k_a I_a: I_a = ambient * background colour,
+  // k_a = the diffuse colour. Stands in for sky light, costs no rays.
+  float ambient = 0.15f;
+  // Darken camera hits within half a pixel footprint of a triangle edge:
+  // shows the triangle density (the paper's wireframe figure).
+  bool wireframe = false;
+  // Secondary rays start this far off the surface, relative to the largest
+  // coordinate of the hit point (float intersection error is ~1e-7 of it).
+  double offset_scale = 1e-5;
+};
+
+// What a camera sample saw, with its first hit for the AOVs.
+struct CameraSample {
+  Vec3 color{0};
+  bool hit = false;
+  double depth = 0;          // distance along the camera ray to the first hit
+  Vec3 normal{0};            // shading normal at the first hit, facing the camera
+  uint64_t triangle = 0;     // global triangle id of the first hit
+};
+
+// --- Optics (exact, unit vectors) ---
+// Mirror direction of d about the unit normal n.
+Vec3d reflect(const Vec3d& d, const Vec3d& n);
+// Refracts unit d at unit normal n facing against d (d . n < 0), with
+// eta = n_incident / n_transmitted (Snell's law). False on total internal reflection.
+bool refract(const Vec3d& d, const Vec3d& n, double eta, Vec3d& out);
+// Unpolarised Fresnel reflectance of a dielectric interface (average of the
+// s and p terms), cos_i = cosine of the incidence angle, eta as above;
+// 1 under total internal reflection.
+double fresnel_dielectric(double cos_i, double eta);
+
+// The specular continuation at a mirror or glass hit, as the integrator
+// computes it: directions with spawn origins offset to the correct side of
+// the surface, and weights (Fresnel, reflectance, tint).
+struct SpecularScatter {
+  bool reflects = false, refracts = false;
+  bool total_internal_reflection = false;
+  bool entering = false;  // the ray hit the front face (outside -> inside)
+  Ray reflected, refracted;
+  Vec3 reflect_weight{0}, refract_weight{0};
+};
+SpecularScatter scatter_specular(const Material& m, const Vec3d& direction, const SurfacePoint& sp, double offset);
+
+// Spawn offset for a hit point (see IntegratorConfig::offset_scale).
+double ray_offset(const Vec3d& p, double offset_scale);
+
+class Integrator {
+ public:
+  Integrator(const EmbreeScene& geometry, const Scene& scene, const PinholeCamera& camera, const Effects& effects,
+             const IntegratorConfig& config);
+  // Traces the camera ray through continuous pixel position (px, py).
+  CameraSample sample(double px, double py, RayCounters& counters) const;
+  // Radiance arriving along ray; depth = bounces so far (0 for camera rays).
+  Vec3 radiance(const Ray& ray, int depth, const Vec3& throughput, RayCounters& counters) const;
+
+ private:
+  Vec3 shade(const Ray& ray, const Hit& hit, const SurfacePoint& sp, int depth, const Vec3& throughput,
+             RayCounters& counters) const;
+  Vec3 direct_light(const Material& m, const Vec3d& dir, const Vec3d& p, const Vec3d& ng, const Vec3d& ns,
+                    double offset, RayCounters& counters) const;
+
+  const EmbreeScene& geometry_;
+  const Scene& scene_;
+  PinholeCamera camera_;
+  Effects effects_;
+  IntegratorConfig config_;
+};
+
+// Follows a ray through mirror and glass surfaces the way the integrator
+// does, always taking the refracted branch when there is one (the reflected
+// one under total internal reflection or at a mirror), until it escapes or
+// hits an opaque material. For tests and diagnostics.
+struct ChainVertex {
+  Vec3d position{0};
+  enum class Event { Refract, Reflect, TotalInternalReflection, Opaque, Escape } event = Event::Escape;
+  Vec3d direction_out{0};  // direction after the event (the ray's, for Escape)
+};
+std::vector<ChainVertex> trace_specular_chain(const EmbreeScene& geometry, const Scene& scene, Ray ray, int max_events,
+                                              double offset_scale = 1e-5);
+
+}  // namespace raylod

@@ -1,0 +1,347 @@
+// The render driver: meshes -> memory check -> Embree BVH -> parallel tiles
+// -> image files. Determinism: every pixel draws its samples from its own
+// generator seeded by (scene seed, pixel), and sums them in a fixed order, so
+// the image does not depend on the thread count or the tile schedule.
+#include "render/renderer.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <mutex>
+#include <optional>
+
+#include <OpenImageIO/imageio.h>
+#include <nlohmann/json.hpp>
+#include <tbb/blocked_range.h>
+#include <tbb/global_control.h>
+#include <tbb/parallel_for.h>
+
+#include "core/progress.h"
+#include "core/system.h"
+
+namespace raylod {
+
+namespace {
+
+double seconds_since(std::chrono::steady_clock::time_point t) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
+}
+
+uint64_t splitmix64(uint64_t& state) {
+  uint64_t z = (state += 0x9e3779b97f4a7c15ull);
+  z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
+  z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
+  return z ^ (z >> 31);
+}
+double uniform01(uint64_t& state) { return double(splitmix64(state) >> 11) * 0x1.0p-53; }
+
+// The per-pixel generator's start state: a hash of the scene seed and the pixel.
+uint64_t pixel_state(uint64_t seed, int x, int y) {
+  uint64_t s = seed ^ 0x5851f42d4c957f2dull;
+  splitmix64(s);
+  s ^= (uint64_t(uint32_t(y)) << 32) | uint32_t(x);
+  splitmix64(s);
+  return s;
+}
+
+// spp = sx * sy strata, as square as the divisors of spp allow.
+void strata(int spp, int& sx, int& sy) {
+  sx = 1;
+  for (int d = 1; d * d <= spp; ++d)
+    if (spp % d == 0) sx = d;
+  sy = spp / sx;
+}
+
+float linear_to_srgb(float v) {
+  v = std::clamp(v, 0.0f, 1.0f);
+  return v <= 0.0031308f ? 12.92f * v : 1.055f * std::pow(v, 1.0f / 2.4f) - 0.055f;
+}
+
+bool is_float_format(const std::filesystem::path& path) {
+  std::string ext = path.extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char ch) { return char(std::tolower(ch)); });
+  return ext == ".exr" || ext == ".hdr" || ext == ".tif" || ext == ".tiff" || ext == ".pfm";
+}
+
+// Writes raw pixel data of the given type through OIIO to a temporary name,
+// then renames it into place.
+Status write_pixels(const std::filesystem::path& path, const OIIO::ImageSpec& spec, const void* data,
+                    OIIO::TypeDesc type) {
+  // The writer is chosen from the destination's name; the temporary name
+  // ("out.png.tmp-...") is then only the file it writes to.
+  auto out = OIIO::ImageOutput::create(path.string());
+  if (!out) return Status::error(path.string() + ": cannot write images of this type (" + OIIO::geterror() + ")");
+  AtomicOutput atomic(path);
+  if (!out->open(atomic.temp_path().string(), spec))
+    return Status::error(path.string() + ": cannot open for writing: " + out->geterror());
+  if (!out->write_image(type, data)) return Status::error(path.string() + ": write failed: " + out->geterror());
+  if (!out->close()) return Status::error(path.string() + ": write failed: " + out->geterror());
+  return atomic.commit();
+}
+
+}  // namespace
+
+std::string render_stats_json(const RenderStats& s) {
+  nlohmann::json j;
+  j["width"] = s.width;
+  j["height"] = s.height;
+  j["spp"] = s.spp;
+  j["threads"] = s.threads;
+  j["triangles"] = s.triangles;
+  j["vertices"] = s.vertices;
+  j["effects"] = {{"lights", s.effects.lights}, {"diffuse", s.effects.diffuse}, {"glossy", s.effects.glossy},
+                  {"shadows", s.effects.shadows}, {"reflection", s.effects.reflection},
+                  {"refraction", s.effects.refraction}};
+  j["rays"] = {{"camera", s.rays.camera}, {"shadow", s.rays.shadow}, {"reflection", s.rays.reflection},
+               {"refraction", s.rays.refraction}, {"total", s.rays.total()}};
+  j["seconds"] = {{"load", s.load_seconds}, {"bvh", s.bvh_seconds}, {"render", s.render_seconds}};
+  j["rays_per_second"] = s.rays_per_second();
+  j["bytes"] = {{"estimated", s.estimated_bytes}, {"mesh", s.mesh_bytes}, {"bvh", s.bvh_bytes},
+                {"bvh_build_peak", s.bvh_peak_bytes}, {"peak_rss", s.peak_rss}};
+  j["bvh_quality"] = s.bvh_quality;
+  return j.dump(2);
+}
+
+// Per triangle: the welded mesh (12 B of indices, ~0.5 vertices of 24 B with
+// normals, plus vector growth slack) and Embree's build peak (its BVH plus
+// the build's primitive references), measured with tools/bench_render on the
+// 1M..30M teapots and rounded up.
+uint64_t estimate_render_memory(uint64_t triangles, const BvhConfig& config) {
+  const double mesh = 40.0;
+  double bvh = 150.0;                                        // medium quality
+  if (triangles < config.high_quality_below) bvh = 230.0;    // spatial splits duplicate references
+  else if (triangles >= config.compact_from) bvh = 110.0;    // index-only leaves
+  return uint64_t(16ull << 20) + uint64_t(double(triangles) * (mesh + bvh));
+}
+
+uint64_t triangles_that_fit(uint64_t bytes, const BvhConfig& config) {
+  uint64_t lo = 0, hi = uint64_t(1) << 40;
+  while (lo < hi) {  // the estimate is not monotone across layout thresholds; take the largest fitting count
+    const uint64_t mid = lo + (hi - lo + 1) / 2;
+    if (estimate_render_memory(mid, config) <= bytes) lo = mid;
+    else hi = mid - 1;
+  }
+  return lo;
+}
+
+StatusOr<std::vector<TriangleMesh>> load_scene_meshes(const Scene& scene, const RenderOptions& options,
+                                                      RenderStats& stats) {
+  const auto start = std::chrono::steady_clock::now();
+  if (options.mesh_override.size() > scene.objects.size())
+    return Status::error(std::to_string(options.mesh_override.size()) + " replacement meshes given, but the scene has " +
+                         std::to_string(scene.objects.size()) + " object(s)");
+  std::vector<std::filesystem::path> paths;
+  uint64_t declared = scene.ground ? 2 : 0;
+  for (size_t i = 0; i < scene.objects.size(); ++i) {
+    std::filesystem::path p = scene.objects[i].mesh;
+    if (i < options.mesh_override.size() && !options.mesh_override[i].empty()) p = options.mesh_override[i];
+    if (p.empty()) {
+      const auto& g = scene.objects[i].generate;
+      return Status::error("objects[" + std::to_string(i) + "]: the generated mesh" +
+                           (g ? " '" + g->generator + "' (" + std::to_string(g->triangles) + " triangles)" : std::string()) +
+                           " has not been generated yet (resolve_generated_meshes)");
+    }
+    RAYLOD_ASSIGN_OR_RETURN(uint64_t n, declared_triangle_count(p));
+    declared += n;
+    paths.push_back(p);
+  }
+  stats.estimated_bytes = estimate_render_memory(declared, options.bvh);
+  if (options.memory_limit > 0 && stats.estimated_bytes > options.memory_limit) {
+    return Status::error("the scene has " + std::to_string(declared) + " triangles, which need about " +
+                         format_bytes(stats.estimated_bytes) + " for the mesh and its BVH, more than the memory limit of " +
+                         format_bytes(options.memory_limit) + "; about " +
+                         std::to_string(triangles_that_fit(options.memory_limit, options.bvh)) +
+                         " triangles would fit. Use `raylod run`, which simplifies the mesh first.");
+  }
+
+  std::vector<TriangleMesh> meshes;
+  std::optional<Progress> progress;
+  if (options.progress) progress.emplace("load", declared, "triangles");
+  for (size_t i = 0; i < paths.size(); ++i) {
+    auto mesh = load_triangle_mesh(paths[i], scene.objects[i].transform, scene.objects[i].material,
+                                   [&](uint64_t n) { if (progress) progress->advance(n); });
+    if (!mesh) return mesh.status();
+    meshes.push_back(std::move(mesh.value()));
+  }
+  if (progress) progress->finish();
+  if (scene.ground) meshes.push_back(make_ground_mesh(*scene.ground, scene.camera));
+  stats.load_seconds = seconds_since(start);
+  return meshes;
+}
+
+RenderResult render_embree_scene(const EmbreeScene& geometry, const Scene& scene, const RenderOptions& options) {
+  const auto start = std::chrono::steady_clock::now();
+  const int width = scene.camera.width, height = scene.camera.height;
+  const PinholeCamera camera = make_pinhole_camera(scene.camera);
+  std::vector<int> used;
+  for (const auto& m : geometry.meshes())
+    if (m.triangle_count() > 0) used.push_back(m.material);
+  const Effects effects = effects_for(scene, used);
+  IntegratorConfig config = options.integrator;
+  config.max_depth = scene.max_depth;
+  config.wireframe = options.wireframe;
+  const Integrator integrator(geometry, scene, camera, effects, config);
+  const int spp = options.spp > 0 ? options.spp : scene.spp;
+  int sx, sy;
+  strata(spp, sx, sy);
+
+  RenderResult result;
+  result.color = Image(width, height, 3);
+  if (options.aov_depth) result.depth = Image(width, height, 1);
+  if (options.aov_normal) result.normal = Image(width, height, 3);
+  if (options.aov_triangle_id) result.triangle_id.assign(size_t(width) * height, kNoTriangle);
+
+  const int tile = std::max(1, options.tile_size);
+  const int tiles_x = (width + tile - 1) / tile, tiles_y = (height + tile - 1) / tile;
+  std::optional<Progress> progress;
+  if (options.progress) progress.emplace("render", uint64_t(tiles_x) * tiles_y, "tiles");
+  std::mutex counters_mutex;
+  RayCounters counters;
+  tbb::parallel_for(tbb::blocked_range<int>(0, tiles_x * tiles_y, 1), [&](const tbb::blocked_range<int>& r) {
+    RayCounters local;
+    for (int t = r.begin(); t != r.end(); ++t) {
+      const int x0 = (t % tiles_x) * tile, y0 = (t / tiles_x) * tile;
+      const int x1 = std::min(width, x0 + tile), y1 = std::min(height, y0 + tile);
+      for (int y = y0; y < y1; ++y) {
+        for (int x = x0; x < x1; ++x) {
+          uint64_t state = pixel_state(scene.seed, x, y);
+          Vec3 sum(0.0f);
+          CameraSample first;
+          // Stratified jittered samples: one in each of the sx * sy cells.
+          for (int s = 0; s < spp; ++s) {
+            const double jx = uniform01(state), jy = uniform01(state);
+            const double px = x + ((s % sx) + jx) / sx, py = y + ((s / sx) + jy) / sy;
+            CameraSample cs = integrator.sample(px, py, local);
+            sum += cs.color;
+            if (s == 0) first = cs;
+          }
+          float* c = result.color.at(x, y);
+          const Vec3 mean = sum / float(spp);
+          c[0] = mean.x; c[1] = mean.y; c[2] = mean.z;
+          // AOVs come from the pixel's first sample (no blending across edges).
+          if (options.aov_depth) *result.depth.at(x, y) = first.hit ? float(first.depth) : 0.0f;
+          if (options.aov_normal) {
+            float* n = result.normal.at(x, y);
+            n[0] = first.normal.x; n[1] = first.normal.y; n[2] = first.normal.z;
+          }
+          if (options.aov_triangle_id && first.hit)
+            result.triangle_id[size_t(y) * width + x] = uint32_t(std::min<uint64_t>(first.triangle, kNoTriangle - 1));
+        }
+      }
+      if (progress) progress->advance(1);
+    }
+    std::lock_guard<std::mutex> lock(counters_mutex);
+    counters += local;
+  });
+  if (progress) progress->finish();
+
+  RenderStats& st = result.stats;
+  st.rays = counters;
+  st.effects = effects;
+  st.width = width;
+  st.height = height;
+  st.spp = spp;
+  st.threads = int(tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism));
+  const BvhInfo& info = geometry.info();
+  st.triangles = info.triangles;
+  st.vertices = info.vertices;
+  st.mesh_bytes = info.mesh_bytes;
+  st.bvh_bytes = info.bvh_bytes;
+  st.bvh_peak_bytes = info.bvh_peak_bytes;
+  st.bvh_quality = info.quality;
+  st.bvh_seconds = info.build_seconds;
+  st.render_seconds = seconds_since(start);
+  st.peak_rss = peak_rss_bytes();
+  return result;
+}
+
+StatusOr<RenderResult> render(const Scene& scene, const RenderOptions& options) {
+  std::optional<tbb::global_control> threads;
+  if (options.threads > 0) threads.emplace(tbb::global_control::max_allowed_parallelism, size_t(options.threads));
+  auto log = [&](const std::string& m) { if (options.log) options.log(m); };
+
+  RenderStats load_stats;
+  RAYLOD_ASSIGN_OR_RETURN(auto meshes, load_scene_meshes(scene, options, load_stats));
+  uint64_t tris = 0;
+  for (const auto& m : meshes) tris += m.triangle_count();
+  log("loaded " + std::to_string(tris) + " triangles in " + std::to_string(load_stats.load_seconds) + " s");
+  RAYLOD_ASSIGN_OR_RETURN(auto geometry, EmbreeScene::build(std::move(meshes), options.bvh));
+  const BvhInfo& info = geometry->info();
+  log("BVH (" + info.quality + " quality): " + format_bytes(info.bvh_bytes) + ", built in " +
+      std::to_string(info.build_seconds) + " s; mesh arrays " + format_bytes(info.mesh_bytes));
+  {
+    std::vector<int> used;
+    for (const auto& m : geometry->meshes()) used.push_back(m.material);
+    log("effects on: " + effects_for(scene, used).describe());
+  }
+  RenderResult result = render_embree_scene(*geometry, scene, options);
+  result.stats.load_seconds = load_stats.load_seconds;
+  result.stats.estimated_bytes = load_stats.estimated_bytes;
+  result.stats.peak_rss = peak_rss_bytes();
+  return result;
+}
+
+Status write_image(const std::filesystem::path& path, const Image& image) {
+  if (image.empty()) return Status::error(path.string() + ": empty image");
+  if (is_float_format(path)) {
+    OIIO::ImageSpec spec(image.width, image.height, image.channels, OIIO::TypeDesc::FLOAT);
+    if (image.channels == 1) spec.channelnames = {"Z"};
+    return write_pixels(path, spec, image.pixels.data(), OIIO::TypeDesc::FLOAT);
+  }
+  std::vector<uint8_t> bytes(image.pixels.size());
+  for (size_t i = 0; i < bytes.size(); ++i)
+    bytes[i] = uint8_t(std::lround(linear_to_srgb(image.pixels[i]) * 255.0f));
+  OIIO::ImageSpec spec(image.width, image.height, image.channels, OIIO::TypeDesc::UINT8);
+  spec.attribute("oiio:ColorSpace", "sRGB");
+  return write_pixels(path, spec, bytes.data(), OIIO::TypeDesc::UINT8);
+}
+
+StatusOr<Image> read_image(const std::filesystem::path& path) {
+  auto in = OIIO::ImageInput::open(path.string());
+  if (!in) return Status::error(path.string() + ": cannot read image: " + OIIO::geterror());
+  const OIIO::ImageSpec& spec = in->spec();
+  Image image(spec.width, spec.height, spec.nchannels);
+  if (!in->read_image(0, 0, 0, spec.nchannels, OIIO::TypeDesc::FLOAT, image.pixels.data()))
+    return Status::error(path.string() + ": cannot read image: " + in->geterror());
+  const bool encoded = spec.format.basetype == OIIO::TypeDesc::UINT8 || spec.format.basetype == OIIO::TypeDesc::UINT16;
+  in->close();
+  if (encoded) {  // back to linear, the inverse of write_image
+    for (float& v : image.pixels)
+      v = v <= 0.04045f ? v / 12.92f : std::pow((v + 0.055f) / 1.055f, 2.4f);
+  }
+  return image;
+}
+
+Status write_triangle_id_image(const std::filesystem::path& path, int width, int height,
+                               const std::vector<uint32_t>& ids) {
+  if (ids.size() != size_t(width) * height) return Status::error(path.string() + ": triangle id buffer has the wrong size");
+  OIIO::ImageSpec spec(width, height, 1, OIIO::TypeDesc::UINT32);
+  spec.channelnames = {"id"};
+  return write_pixels(path, spec, ids.data(), OIIO::TypeDesc::UINT32);
+}
+
+std::filesystem::path aov_path(const std::filesystem::path& output, const std::string& aov) {
+  std::filesystem::path p = output;
+  p.replace_extension();
+  p += "." + aov + ".exr";
+  return p;
+}
+
+StatusOr<std::vector<std::filesystem::path>> write_aovs(const std::filesystem::path& output, const RenderResult& r) {
+  std::vector<std::filesystem::path> written;
+  if (!r.depth.empty()) {
+    written.push_back(aov_path(output, "depth"));
+    RAYLOD_RETURN_IF_ERROR(write_image(written.back(), r.depth));
+  }
+  if (!r.normal.empty()) {
+    written.push_back(aov_path(output, "normal"));
+    RAYLOD_RETURN_IF_ERROR(write_image(written.back(), r.normal));
+  }
+  if (!r.triangle_id.empty()) {
+    written.push_back(aov_path(output, "triangle-id"));
+    RAYLOD_RETURN_IF_ERROR(write_triangle_id_image(written.back(), r.color.width, r.color.height, r.triangle_id));
+  }
+  return written;
+}
+
+}  // namespace raylod

@@ -1,0 +1,110 @@
+// `raylod render` as a library: load the scene's meshes, check memory, build
+// one Embree BVH, trace the image in parallel tiles, write it with
+// OpenImageIO. Also used by `raylod run` and tools/bench_render.
+#pragma once
+
+#include <cstdint>
+#include <filesystem>
+#include <functional>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "core/status.h"
+#include "render/embree_scene.h"
+#include "render/integrator.h"
+#include "scene/scene.h"
+
+namespace raylod {
+
+// A float image, channels interleaved, row 0 at the top.
+struct Image {
+  int width = 0, height = 0, channels = 0;
+  std::vector<float> pixels;
+  Image() = default;
+  Image(int w, int h, int c) : width(w), height(h), channels(c), pixels(size_t(w) * h * c, 0.0f) {}
+  bool empty() const { return pixels.empty(); }
+  float* at(int x, int y) { return &pixels[(size_t(y) * width + x) * channels]; }
+  const float* at(int x, int y) const { return &pixels[(size_t(y) * width + x) * channels]; }
+};
+
+struct RenderOptions {
+  int spp = 0;                  // samples per pixel; 0 = the scene's spp
+  int threads = 0;              // 0 = all hardware threads (TBB default)
+  uint64_t memory_limit = 0;    // bytes for meshes + BVH; 0 = no limit
+  // mesh_override[i] replaces the mesh of scene.objects[i] (empty path = keep).
+  std::vector<std::filesystem::path> mesh_override;
+  bool wireframe = false;       // darken pixels near triangle edges (triangle density)
+  bool aov_depth = false;       // camera-ray hit distance, 1 channel (0 where nothing is hit)
+  bool aov_normal = false;      // shading normal facing the camera, 3 channels
+  bool aov_triangle_id = false; // global triangle id of the first hit (kNoTriangle where none)
+  int tile_size = 32;
+  bool progress = true;         // progress bars on stderr
+  // Informational messages (effects on, BVH quality, ...); null = silent.
+  std::function<void(const std::string&)> log;
+  BvhConfig bvh;
+  IntegratorConfig integrator;  // max_depth and wireframe are taken from the scene / above
+};
+
+struct RenderStats {
+  RayCounters rays;
+  Effects effects;
+  int width = 0, height = 0, spp = 0, threads = 0;
+  uint64_t triangles = 0, vertices = 0;
+  uint64_t estimated_bytes = 0;  // estimate_render_memory() before loading
+  uint64_t mesh_bytes = 0, bvh_bytes = 0, bvh_peak_bytes = 0;
+  uint64_t peak_rss = 0;         // of the process, after rendering
+  std::string bvh_quality;
+  double load_seconds = 0, bvh_seconds = 0, render_seconds = 0;
+  // Rays per second of render time, all kinds.
+  double rays_per_second() const { return render_seconds > 0 ? double(rays.total()) / render_seconds : 0; }
+};
+// The stats as a JSON object (for --stats-json and benchmarks).
+std::string render_stats_json(const RenderStats& stats);
+
+inline constexpr uint32_t kNoTriangle = 0xffffffffu;
+
+struct RenderResult {
+  Image color;                       // linear RGB
+  Image depth, normal;               // empty unless asked for
+  std::vector<uint32_t> triangle_id; // empty unless asked for; width * height
+  RenderStats stats;
+};
+
+// Resident bytes the renderer needs for a scene of this many triangles:
+// welded mesh arrays plus the Embree BVH (with the layout BvhConfig picks),
+// measured on the teapot meshes (tools/bench_render) and rounded up.
+uint64_t estimate_render_memory(uint64_t triangles, const BvhConfig& config = {});
+// The largest triangle count whose estimate fits in bytes.
+uint64_t triangles_that_fit(uint64_t bytes, const BvhConfig& config = {});
+
+// Loads every object's mesh (or its override) into world space, plus the
+// ground plane; checks the memory estimate against options.memory_limit
+// before reading any triangle. Fills the load part of stats.
+StatusOr<std::vector<TriangleMesh>> load_scene_meshes(const Scene& scene, const RenderOptions& options,
+                                                      RenderStats& stats);
+
+// Renders a prebuilt scene (for reuse across renders, tests and benchmarks).
+// Geometry material indices refer to scene.materials; the camera, lights,
+// background, spp, max_depth and seed come from scene.
+RenderResult render_embree_scene(const EmbreeScene& geometry, const Scene& scene, const RenderOptions& options);
+
+// The whole render: load, memory check, BVH build, trace.
+StatusOr<RenderResult> render(const Scene& scene, const RenderOptions& options);
+
+// Writes an image, format chosen by the extension (anything OpenImageIO
+// writes). Float formats (EXR, HDR, TIFF, PFM) get linear floats; 8/16-bit
+// formats (PNG, JPEG, ...) get sRGB-encoded values clamped to [0, 1].
+// Atomic: written under a temporary name, then renamed.
+Status write_image(const std::filesystem::path& path, const Image& image);
+// Reads an image as linear float (the inverse of write_image), for tests and tools.
+StatusOr<Image> read_image(const std::filesystem::path& path);
+// A triangle-id buffer as a one-channel 32-bit unsigned EXR.
+Status write_triangle_id_image(const std::filesystem::path& path, int width, int height,
+                               const std::vector<uint32_t>& ids);
+// "out.png" + "depth" -> "out.depth.exr" (AOVs are always EXR).
+std::filesystem::path aov_path(const std::filesystem::path& output, const std::string& aov);
+// Writes the AOVs present in result next to output; returns the paths written.
+StatusOr<std::vector<std::filesystem::path>> write_aovs(const std::filesystem::path& output, const RenderResult& result);
+
+}  // namespace raylod
