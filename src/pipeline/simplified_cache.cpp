@@ -1,0 +1,278 @@
+#include "pipeline/simplified_cache.h"
+
+#include <fcntl.h>
+#include <sys/file.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <chrono>
+#include <fstream>
+#include <set>
+#include <sstream>
+
+#include <nlohmann/json.hpp>
+
+#include "core/system.h"
+
+namespace raylod {
+namespace fs = std::filesystem;
+
+namespace {
+
+// flock() on the cache's lock file for the lifetime of the object; serialises
+// index changes between concurrent runs (readers and writers alike: entries
+// are small and the critical sections short).
+class CacheLock {
+ public:
+  explicit CacheLock(const fs::path& dir) {
+    fd_ = ::open((dir / "lock").c_str(), O_RDWR | O_CREAT, 0644);
+    if (fd_ >= 0) ::flock(fd_, LOCK_EX);
+  }
+  ~CacheLock() {
+    if (fd_ >= 0) { ::flock(fd_, LOCK_UN); ::close(fd_); }
+  }
+  CacheLock(const CacheLock&) = delete;
+  CacheLock& operator=(const CacheLock&) = delete;
+
+ private:
+  int fd_ = -1;
+};
+
+int64_t now_ns() {
+  return std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::system_clock::now().time_since_epoch()).count();
+}
+
+std::string hex64(uint64_t v) {
+  char buf[17];
+  std::snprintf(buf, sizeof buf, "%016llx", (unsigned long long)v);
+  return buf;
+}
+
+Status write_text_atomically(const fs::path& path, const std::string& text) {
+  AtomicOutput out(path);
+  {
+    std::ofstream f(out.temp_path(), std::ios::binary);
+    f << text;
+    if (!f.good()) return Status::error(path.string() + ": cannot write");
+  }
+  return out.commit();
+}
+
+std::optional<CacheEntry> read_meta(const fs::path& json_path) {
+  std::ifstream in(json_path);
+  if (!in) return std::nullopt;
+  try {
+    nlohmann::json j = nlohmann::json::parse(in);
+    CacheEntry e;
+    e.key = j.at("key").get<std::string>();
+    e.store_hash = std::stoull(j.at("store_hash").get<std::string>(), nullptr, 16);
+    e.content_hash = std::stoull(j.at("content_hash").get<std::string>(), nullptr, 16);
+    e.triangles = j.at("triangles").get<uint64_t>();
+    e.footprint_scale = j.at("footprint_scale").get<double>();
+    e.last_used_ns = j.at("last_used_ns").get<int64_t>();
+    fs::path dir = json_path.parent_path();
+    e.mesh = dir / (e.key + ".drc");
+    e.cut = dir / (e.key + ".cut");
+    std::error_code ec;
+    e.bytes = fs::file_size(json_path, ec);
+    if (auto s = fs::file_size(e.mesh, ec); !ec) e.bytes += s;
+    if (auto s = fs::file_size(e.cut, ec); !ec) e.bytes += s;
+    return e;
+  } catch (...) {
+    return std::nullopt;
+  }
+}
+
+Status write_meta(const fs::path& dir, const CacheEntry& e) {
+  nlohmann::json j;
+  j["key"] = e.key;
+  j["store_hash"] = hex64(e.store_hash);
+  j["content_hash"] = hex64(e.content_hash);
+  j["triangles"] = e.triangles;
+  j["footprint_scale"] = e.footprint_scale;
+  j["last_used_ns"] = e.last_used_ns;
+  return write_text_atomically(dir / (e.key + ".json"), j.dump(2) + "\n");
+}
+
+void remove_entry_files(const fs::path& dir, const std::string& key) {
+  std::error_code ec;
+  for (const char* ext : {".json", ".drc", ".cut"}) fs::remove(dir / (key + ext), ec);
+}
+
+// Verifies an entry's files are all there and the mesh matches its hash.
+bool verify(const CacheEntry& e, std::string* why) {
+  std::error_code ec;
+  if (!fs::is_regular_file(e.mesh, ec) || !fs::is_regular_file(e.cut, ec)) {
+    if (why) *why = "entry " + e.key + " is incomplete";
+    return false;
+  }
+  auto h = hash_file(e.mesh);
+  if (!h.is_ok() || *h != e.content_hash) {
+    if (why) *why = "entry " + e.key + " is corrupt (content hash mismatch)";
+    return false;
+  }
+  return true;
+}
+
+}  // namespace
+
+StatusOr<uint64_t> hash_file(const fs::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return Status::error(path.string() + ": cannot open");
+  std::vector<char> buf(1 << 20);
+  uint64_t h = 0xcbf29ce484222325ull;
+  while (in) {
+    in.read(buf.data(), std::streamsize(buf.size()));
+    h = fnv1a64(buf.data(), size_t(in.gcount()), h);
+  }
+  return h;
+}
+
+bool cut_is_at_least_as_fine(const Cut& cached, const Cut& wanted, std::string* reason) {
+  if (cached.store_hash != wanted.store_hash) {
+    if (reason) *reason = "made from another store";
+    return false;
+  }
+  // Both cuts are sorted antichains; a cached cell is fine if some wanted
+  // cell is itself or one of its ancestors. Look ancestors up in a set.
+  std::set<CellKey> wanted_cells;
+  for (const auto& c : wanted.cells) wanted_cells.insert(c.key);
+  for (const auto& c : cached.cells) {
+    bool covered = false;
+    for (CellKey k = c.key;; k = k.parent()) {
+      if (wanted_cells.count(k)) { covered = true; break; }
+      if (k.level == 0) break;
+    }
+    if (!covered) {
+      if (reason) {
+        *reason = "cell (level " + std::to_string(c.key.level) + ", code " + std::to_string(c.key.code) +
+                  ") is collapsed there but the new view needs it finer";
+      }
+      return false;
+    }
+  }
+  return true;
+}
+
+StatusOr<SimplifiedCache> SimplifiedCache::open(const fs::path& dir, uint64_t size_limit) {
+  std::error_code ec;
+  fs::create_directories(dir / "simplified", ec);
+  if (ec) return Status::error(dir.string() + ": cannot create cache directory: " + ec.message());
+  return SimplifiedCache(dir, size_limit);
+}
+
+std::string SimplifiedCache::key_for(const Cut& cut) {
+  uint64_t h = fnv1a64(&cut.store_hash, sizeof cut.store_hash);
+  for (const auto& c : cut.cells) {
+    h = fnv1a64(&c.key.level, sizeof c.key.level, h);
+    h = fnv1a64(&c.key.code, sizeof c.key.code, h);
+  }
+  return hex64(cut.store_hash).substr(0, 8) + "-" + hex64(h);
+}
+
+std::vector<CacheEntry> SimplifiedCache::entries() const {
+  std::vector<CacheEntry> out;
+  std::error_code ec;
+  for (const auto& f : fs::directory_iterator(dir_ / "simplified", ec)) {
+    if (f.path().extension() != ".json") continue;
+    if (auto e = read_meta(f.path())) out.push_back(*e);
+  }
+  std::sort(out.begin(), out.end(), [](const auto& a, const auto& b) { return a.key < b.key; });
+  return out;
+}
+
+std::optional<CacheEntry> SimplifiedCache::find_exact(const std::string& key, std::string* note) {
+  CacheLock lock(dir_);
+  auto e = read_meta(dir_ / "simplified" / (key + ".json"));
+  if (!e) return std::nullopt;
+  std::string why;
+  if (!verify(*e, &why)) {
+    remove_entry_files(dir_ / "simplified", key);
+    if (note) *note = why + "; removed, will rebuild";
+    return std::nullopt;
+  }
+  return e;
+}
+
+std::optional<CacheEntry> SimplifiedCache::find_reusable(const Cut& wanted, std::string* why) {
+  CacheLock lock(dir_);
+  std::optional<CacheEntry> best;
+  std::string best_reason;
+  for (const auto& e : entries()) {
+    if (e.store_hash != wanted.store_hash) continue;
+    auto cut = read_cut(e.cut);
+    if (!cut.is_ok()) continue;
+    if (!cut_is_at_least_as_fine(*cut, wanted)) continue;
+    std::string bad;
+    if (!verify(e, &bad)) {
+      remove_entry_files(dir_ / "simplified", e.key);
+      continue;
+    }
+    if (!best || e.triangles < best->triangles) {
+      best = e;
+      best_reason = "every cell it collapsed is also collapsed by the new view's cut (" +
+                    std::to_string(cut->cells.size()) + " cells checked); " + std::to_string(e.triangles) +
+                    " triangles, the coarsest such entry";
+    }
+  }
+  if (best && why) *why = best_reason;
+  return best;
+}
+
+StatusOr<CacheEntry> SimplifiedCache::insert(const Cut& cut, const fs::path& drc_file, uint64_t triangles) {
+  CacheEntry e;
+  e.key = key_for(cut);
+  fs::path dir = dir_ / "simplified";
+  e.mesh = dir / (e.key + ".drc");
+  e.cut = dir / (e.key + ".cut");
+  e.store_hash = cut.store_hash;
+  e.triangles = triangles;
+  e.footprint_scale = cut.footprint_scale;
+  e.last_used_ns = now_ns();
+  RAYLOD_ASSIGN_OR_RETURN(e.content_hash, hash_file(drc_file));
+  {
+    CacheLock lock(dir_);
+    // Mesh and cut first, metadata last: an entry exists only once its .json does.
+    RAYLOD_RETURN_IF_ERROR(write_cut(e.cut, cut));
+    std::error_code ec;
+    fs::path staged = e.mesh;
+    staged += ".tmp-insert";
+    fs::copy_file(drc_file, staged, fs::copy_options::overwrite_existing, ec);
+    if (ec) return Status::error(e.mesh.string() + ": cannot copy into cache: " + ec.message());
+    fs::rename(staged, e.mesh, ec);
+    if (ec) return Status::error(e.mesh.string() + ": cannot rename into cache: " + ec.message());
+    RAYLOD_RETURN_IF_ERROR(write_meta(dir, e));
+  }
+  evict();
+  if (auto fresh = read_meta(dir / (e.key + ".json"))) return *fresh;
+  return e;  // evicted at once (larger than the whole limit): still usable by this run
+}
+
+void SimplifiedCache::touch(const CacheEntry& entry) {
+  CacheLock lock(dir_);
+  CacheEntry e = entry;
+  e.last_used_ns = now_ns();
+  (void)write_meta(dir_ / "simplified", e);
+}
+
+void SimplifiedCache::evict() {
+  CacheLock lock(dir_);
+  auto all = entries();
+  uint64_t total = 0;
+  for (const auto& e : all) total += e.bytes;
+  std::sort(all.begin(), all.end(), [](const auto& a, const auto& b) { return a.last_used_ns < b.last_used_ns; });
+  // Keep the most recently used entry even if it alone exceeds the limit.
+  for (size_t i = 0; i + 1 < all.size() && total > limit_; ++i) {
+    remove_entry_files(dir_ / "simplified", all[i].key);
+    total -= all[i].bytes;
+  }
+  // Leftovers of killed runs: temporary files older than an hour.
+  std::error_code ec;
+  auto cutoff = fs::file_time_type::clock::now() - std::chrono::hours(1);
+  for (const auto& f : fs::directory_iterator(dir_ / "simplified", ec)) {
+    if (f.path().filename().string().find(".tmp-") != std::string::npos && f.last_write_time(ec) < cutoff)
+      fs::remove(f.path(), ec);
+  }
+}
+
+}  // namespace raylod

@@ -1,0 +1,81 @@
+// The cache of simplified meshes that `raylod run` reuses across views.
+//
+// Layout under the cache directory:
+//   simplified/<key>.drc    the simplified mesh (Draco)
+//   simplified/<key>.cut    the cut it was made from (for the reuse rule)
+//   simplified/<key>.json   metadata: store hash, options, triangle count,
+//                           content hash of the .drc, last use
+//   lock                    flock()ed while the index is read or changed
+//
+// Every file is written under a temporary name and renamed, so a killed run
+// leaves either a complete entry or none. An entry whose .drc no longer
+// matches its recorded content hash is corrupt: it is removed and rebuilt,
+// never rendered.
+#pragma once
+
+#include <cstdint>
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "core/status.h"
+#include "streaming/cut_file.h"
+
+namespace raylod {
+
+struct CacheEntry {
+  std::string key;
+  std::filesystem::path mesh;   // the .drc
+  std::filesystem::path cut;    // the .cut
+  uint64_t store_hash = 0;
+  uint64_t triangles = 0;
+  uint64_t bytes = 0;           // .drc + .cut + .json
+  uint64_t content_hash = 0;    // of the .drc
+  double footprint_scale = 1;
+  int64_t last_used_ns = 0;
+};
+
+// The reuse rule: a cached mesh made with cut `cached` is at least as fine as
+// the view with cut `wanted` needs if every cell it collapsed is also
+// collapsed (itself or inside a collapsed ancestor) by the wanted cut. Then
+// wherever the new probe asks for detail, the cached mesh still has it.
+// Returns false and a reason (the first cell that is too coarse) otherwise.
+bool cut_is_at_least_as_fine(const Cut& cached, const Cut& wanted, std::string* reason = nullptr);
+
+class SimplifiedCache {
+ public:
+  // Opens (creating if needed) the cache at dir with a size limit in bytes.
+  static StatusOr<SimplifiedCache> open(const std::filesystem::path& dir, uint64_t size_limit);
+
+  const std::filesystem::path& dir() const { return dir_; }
+  uint64_t size_limit() const { return limit_; }
+
+  // Key of a cut for a store: stable hash of the store hash and the cut cells.
+  static std::string key_for(const Cut& cut);
+
+  // Exact hit for this key, verified (content hash); a corrupt entry is
+  // removed and reported through `note`.
+  std::optional<CacheEntry> find_exact(const std::string& key, std::string* note = nullptr);
+  // The coarsest verified entry for the same store whose cut is at least as
+  // fine as `wanted` needs; `why` says which and why.
+  std::optional<CacheEntry> find_reusable(const Cut& wanted, std::string* why = nullptr);
+  // Moves a finished .drc (written elsewhere, e.g. a temporary file) into the
+  // cache with its cut, then evicts least-recently-used entries over the limit.
+  StatusOr<CacheEntry> insert(const Cut& cut, const std::filesystem::path& drc_file, uint64_t triangles);
+  // Marks an entry used now (LRU order).
+  void touch(const CacheEntry& entry);
+  std::vector<CacheEntry> entries() const;
+  // Removes least-recently-used entries until the total is within the limit.
+  void evict();
+
+ private:
+  SimplifiedCache(std::filesystem::path dir, uint64_t limit) : dir_(std::move(dir)), limit_(limit) {}
+  std::filesystem::path dir_;
+  uint64_t limit_ = 0;
+};
+
+// Hash of a file's content (for corruption checks).
+StatusOr<uint64_t> hash_file(const std::filesystem::path& path);
+
+}  // namespace raylod
