@@ -1,14 +1,36 @@
 // Streaming mesh readers: PLY (ASCII, binary little/big endian), STL (ASCII,
 // binary), OBJ, and Draco (.drc). A reader yields the mesh as a sequence of
-// triangle batches (polygons triangulated as fans) and never holds the whole
-// face list in memory.
+// triangle batches (polygons triangulated as fans around their first corner)
+// and never holds the whole face list in memory.
 //
-// Memory bound (per open reader): O(batch_triangles) for the batch buffers,
-// plus, for indexed formats (PLY, OBJ), the vertex table, which is memory-
-// mapped from the file (binary PLY) or from a temporary file next to the
-// system temp dir (ASCII PLY, OBJ) so that it is paged by the OS rather than
-// resident. Draco files are decoded whole (they are the small, simplified
-// meshes this project writes).
+// Memory bound (per open reader), for B = ReaderOptions::batch_triangles and
+// P = the largest polygon's corner count in the file:
+//   * heap: the caller's TriangleBatch, at most B + P - 3 triangles, i.e.
+//     36 bytes per triangle without normals and 72 with them (the reader
+//     stops filling a batch once it holds >= B triangles; a polygon is never
+//     split across batches), plus O(P + header size) reader state;
+//   * vertex table: binary PLY indexes vertices in place in the memory-mapped
+//     file (stride = vertex record size); ASCII PLY and OBJ first spill their
+//     vertices (12 bytes per position, 12 per normal, as float) to an unlinked
+//     scratch file in $TMPDIR that is then memory-mapped. These pages are file
+//     backed and clean, so the OS pages them out under memory pressure;
+//   * the input file itself is memory-mapped; face/facet data is read once
+//     sequentially (MADV_SEQUENTIAL) and the pages behind the cursor are
+//     dropped from the process after every batch (MADV_DONTNEED).
+//   STL needs no vertex table (triangles are stored whole). Draco files are
+//   decoded whole (they are the small, simplified meshes this project writes).
+//
+// Validation: every bad input is an error naming the file and, for text
+// formats, the line: truncated data, bad headers, wrong counts in headers
+// (too little or too much data), indices out of range, NaN/Inf coordinates,
+// zero-length or non-finite normals, polygons with fewer than 3 corners,
+// unsupported PLY property types, empty meshes. Vertices are checked where
+// a face uses them (an unreferenced binary PLY vertex is not inspected).
+// Format decisions: STL facet normals are parsed and must be finite (NaN is
+// an error, a zero normal is accepted, since many exporters write 0 0 0) but
+// are otherwise ignored (has_normals = false). OBJ normals are used only if
+// every face gives one for every corner; otherwise the mesh is read without
+// normals (MeshHeader::has_normals says which).
 #pragma once
 
 #include <cstdint>
@@ -77,5 +99,13 @@ struct MeshSummary {
   Bbox bounds;
 };
 StatusOr<MeshSummary> summarize_mesh(const std::filesystem::path& path);
+
+// Format-specific openers (open_mesh dispatches to these by extension); they
+// check the content, not the extension.
+StatusOr<std::unique_ptr<MeshReader>> open_ply_reader(const std::filesystem::path& path, ReaderOptions options = {});
+StatusOr<std::unique_ptr<MeshReader>> open_stl_reader(const std::filesystem::path& path, ReaderOptions options = {});
+StatusOr<std::unique_ptr<MeshReader>> open_obj_reader(const std::filesystem::path& path, ReaderOptions options = {});
+// The format implied by a path's extension (case-insensitive), or an error.
+StatusOr<MeshFormat> mesh_format_from_extension(const std::filesystem::path& path);
 
 }  // namespace raylod

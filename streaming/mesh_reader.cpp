@@ -1,0 +1,68 @@
+// open_mesh: dispatch by extension to the format readers, and the full-pass
+// summary behind `raylod info`.
+#include "streaming/mesh_reader.h"
+
+#include <cctype>
+#include <string>
+
+#include "streaming/draco_io.h"
+
+namespace raylod {
+
+const char* to_string(MeshFormat f) {
+  switch (f) {
+    case MeshFormat::Ply: return "PLY";
+    case MeshFormat::Stl: return "STL";
+    case MeshFormat::Obj: return "OBJ";
+    case MeshFormat::Draco: return "Draco";
+  }
+  return "unknown";
+}
+
+StatusOr<MeshFormat> mesh_format_from_extension(const std::filesystem::path& path) {
+  std::string ext = path.extension().string();
+  for (char& c : ext) c = char(std::tolower(static_cast<unsigned char>(c)));
+  if (ext == ".ply") return MeshFormat::Ply;
+  if (ext == ".stl") return MeshFormat::Stl;
+  if (ext == ".obj") return MeshFormat::Obj;
+  if (ext == ".drc") return MeshFormat::Draco;
+  return Status::error(path.string() + ": unknown mesh format '" + ext +
+                       "' (expected .ply, .stl, .obj or .drc)");
+}
+
+StatusOr<std::unique_ptr<MeshReader>> open_mesh(const std::filesystem::path& path, ReaderOptions options) {
+  RAYLOD_ASSIGN_OR_RETURN(MeshFormat format, mesh_format_from_extension(path));
+  std::error_code ec;
+  if (!std::filesystem::exists(path, ec)) return Status::error(path.string() + ": no such file");
+  switch (format) {
+    case MeshFormat::Ply: return open_ply_reader(path, options);
+    case MeshFormat::Stl: return open_stl_reader(path, options);
+    case MeshFormat::Obj: return open_obj_reader(path, options);
+    case MeshFormat::Draco: return open_draco_reader(path, options);
+  }
+  return Status::error(path.string() + ": unknown mesh format");
+}
+
+StatusOr<MeshSummary> summarize_mesh(const std::filesystem::path& path) {
+  RAYLOD_ASSIGN_OR_RETURN(std::unique_ptr<MeshReader> reader, open_mesh(path));
+  MeshSummary s;
+  s.header = reader->header();
+  TriangleBatch batch;
+  while (true) {
+    RAYLOD_ASSIGN_OR_RETURN(bool more, reader->next(batch));
+    if (!more) break;
+    s.triangle_count += batch.size();
+    // Float bounds per batch, then one double expand: exact, since every
+    // coordinate is a float.
+    Vec3 lo(std::numeric_limits<float>::infinity()), hi(-std::numeric_limits<float>::infinity());
+    for (const Vec3& p : batch.positions) {
+      lo = glm::min(lo, p);
+      hi = glm::max(hi, p);
+    }
+    s.bounds.expand(lo);
+    s.bounds.expand(hi);
+  }
+  return s;
+}
+
+}  // namespace raylod

@@ -1,0 +1,99 @@
+// Small text-scanning helpers shared by the ASCII readers (PLY, STL, OBJ):
+// physical-line cursor over a mapped file, whitespace tokenizer, and number
+// parsing with std::from_chars (locale-independent, no allocation).
+#pragma once
+
+#include <charconv>
+#include <cstdint>
+#include <cstring>
+#include <string_view>
+
+namespace raylod::text {
+
+inline bool is_space(char c) { return c == ' ' || c == '\t' || c == '\r' || c == '\f' || c == '\v'; }
+
+// Iterates physical lines of `text` from `offset`, stripping "\n" / "\r\n".
+class LineCursor {
+ public:
+  LineCursor() = default;
+  LineCursor(std::string_view text, size_t offset = 0, uint64_t first_line = 1)
+      : text_(text), pos_(offset), next_line_(first_line) {}
+  // False at the end of the text.
+  bool next(std::string_view& line) {
+    if (pos_ >= text_.size()) return false;
+    const char* begin = text_.data() + pos_;
+    const void* nl = std::memchr(begin, '\n', text_.size() - pos_);
+    size_t len = nl ? size_t(static_cast<const char*>(nl) - begin) : text_.size() - pos_;
+    pos_ += len + (nl ? 1 : 0);
+    if (len > 0 && begin[len - 1] == '\r') --len;
+    line = std::string_view(begin, len);
+    line_ = next_line_++;
+    return true;
+  }
+  uint64_t line_number() const { return line_; }  // of the line last returned
+  size_t offset() const { return pos_; }           // just past the line last returned
+  bool at_end() const { return pos_ >= text_.size(); }
+
+ private:
+  std::string_view text_;
+  size_t pos_ = 0;
+  uint64_t next_line_ = 1, line_ = 0;
+};
+
+// Whitespace-separated tokens of one line.
+struct Tokens {
+  std::string_view rest;
+  explicit Tokens(std::string_view line) : rest(line) {}
+  bool next(std::string_view& tok) {
+    size_t i = 0;
+    while (i < rest.size() && is_space(rest[i])) ++i;
+    if (i == rest.size()) { rest = {}; return false; }
+    size_t j = i;
+    while (j < rest.size() && !is_space(rest[j])) ++j;
+    tok = rest.substr(i, j - i);
+    rest.remove_prefix(j);
+    return true;
+  }
+  // True if only whitespace is left.
+  bool done() {
+    while (!rest.empty() && is_space(rest.front())) rest.remove_prefix(1);
+    return rest.empty();
+  }
+};
+
+// Whole-token parses; "+1.5" is accepted, "1.5x" is not. NaN/Inf parse (the
+// callers report them as non-finite with the line number).
+inline bool parse_number(std::string_view tok, double& out) {
+  if (!tok.empty() && tok.front() == '+') tok.remove_prefix(1);
+  if (tok.empty()) return false;
+  auto r = std::from_chars(tok.data(), tok.data() + tok.size(), out);
+  return r.ec == std::errc() && r.ptr == tok.data() + tok.size();
+}
+inline bool parse_number(std::string_view tok, float& out) {
+  if (!tok.empty() && tok.front() == '+') tok.remove_prefix(1);
+  if (tok.empty()) return false;
+  auto r = std::from_chars(tok.data(), tok.data() + tok.size(), out);
+  return r.ec == std::errc() && r.ptr == tok.data() + tok.size();
+}
+inline bool parse_number(std::string_view tok, int64_t& out) {
+  if (!tok.empty() && tok.front() == '+') tok.remove_prefix(1);
+  if (tok.empty()) return false;
+  auto r = std::from_chars(tok.data(), tok.data() + tok.size(), out);
+  return r.ec == std::errc() && r.ptr == tok.data() + tok.size();
+}
+
+inline bool iequals(std::string_view a, std::string_view b) {
+  if (a.size() != b.size()) return false;
+  for (size_t i = 0; i < a.size(); ++i) {
+    char x = a[i], y = b[i];
+    if (x >= 'A' && x <= 'Z') x = char(x - 'A' + 'a');
+    if (y >= 'A' && y <= 'Z') y = char(y - 'A' + 'a');
+    if (x != y) return false;
+  }
+  return true;
+}
+
+// Shortens a token for an error message.
+inline std::string_view clip(std::string_view s, size_t n = 40) { return s.size() > n ? s.substr(0, n) : s; }
+
+}  // namespace raylod::text
