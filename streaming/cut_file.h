@@ -3,6 +3,7 @@
 #pragma once
 
 #include <cstdint>
+#include <cstdio>
 #include <filesystem>
 #include <map>
 #include <string>
@@ -36,5 +37,8 @@ Status write_cut(const std::filesystem::path& path, const Cut& cut);  // atomic
 StatusOr<Cut> read_cut(const std::filesystem::path& path);
 // True if the file starts with the cut magic (for `raylod info`).
 bool is_cut_file(const std::filesystem::path& path);
+// Prints the summary `raylod info CUT` shows: cells marked per level, rays
+// traced by kind, hits, pages read.
+Status print_cut_info(const std::filesystem::path& path, std::FILE* out);
 
 }  // namespace raylod

@@ -1,0 +1,42 @@
+// A small bounding volume hierarchy over boxes, in double: the page-level
+// index of the store tracer (one leaf per page, traversed front to back) and
+// the triangle index inside each loaded page.
+#pragma once
+
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include "core/math.h"
+
+namespace raylod {
+
+struct BvhNode {
+  Bbox box;
+  uint32_t first = 0;  // leaf: first index into Bvh::order; inner: index of the left child (right = first + 1)
+  uint32_t count = 0;  // items in a leaf; 0 for an inner node
+  bool leaf() const { return count > 0; }
+};
+
+struct Bvh {
+  std::vector<BvhNode> nodes;   // nodes[0] is the root (absent if there are no items)
+  std::vector<uint32_t> order;  // item indices, grouped by leaf
+  bool empty() const { return nodes.empty(); }
+  size_t bytes() const { return nodes.capacity() * sizeof(BvhNode) + order.capacity() * sizeof(uint32_t); }
+};
+
+// Median split along the longest axis of the centroids, down to leaf_size
+// items per leaf. Deterministic for a given input.
+Bvh build_bvh(std::span<const Bbox> boxes, uint32_t leaf_size = 4);
+
+// Per-ray constants for the slab test.
+struct RayBoxPrecomp {
+  Vec3d origin{0};
+  Vec3d inv_dir{0};
+};
+RayBoxPrecomp ray_box_precomp(const Vec3d& origin, const Vec3d& direction);
+
+// Slab test: true if the ray enters box within [tmin, tmax]; tnear is the entry distance (>= tmin).
+bool intersect_box(const Bbox& box, const RayBoxPrecomp& r, double tmin, double tmax, double& tnear);
+
+}  // namespace raylod

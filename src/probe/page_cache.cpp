@@ -1,0 +1,97 @@
+// LRU page cache (see page_cache.h).
+#include "probe/page_cache.h"
+
+#include <algorithm>
+
+namespace raylod {
+
+size_t Page::bytes() const {
+  return sizeof(Page) + positions.capacity() * sizeof(Vec3) + normals.capacity() * sizeof(Vec3) + bvh.bytes();
+}
+
+Page make_page(TriangleBatch&& batch) {
+  Page page;
+  page.positions = std::move(batch.positions);
+  page.normals = std::move(batch.normals);
+  if (page.normals.size() != page.positions.size()) page.normals.clear();
+  const size_t n = page.triangle_count();
+  std::vector<Bbox> boxes(n);
+  for (size_t i = 0; i < n; ++i)
+    for (int k = 0; k < 3; ++k) boxes[i].expand(page.positions[3 * i + k]);
+  page.bvh = build_bvh(boxes, 4);
+  return page;
+}
+
+PageCache::PageCache(uint64_t capacity_bytes) : capacity_(capacity_bytes) {}
+
+StatusOr<std::shared_ptr<const Page>> PageCache::get(const OctreeStore& store, uint32_t index) {
+  const Key key{&store, index};
+  std::unique_lock lock(mutex_);
+  if (auto it = entries_.find(key); it != entries_.end()) {
+    ++counters_.hits;
+    if (it->second.page) {
+      lru_.splice(lru_.begin(), lru_, it->second.lru);
+      return it->second.page;
+    }
+    std::shared_future<Result> pending = it->second.loading;
+    lock.unlock();
+    return pending.get();  // another thread is reading it
+  }
+  ++counters_.misses;
+  std::promise<Result> promise;
+  entries_[key].loading = promise.get_future().share();
+  lock.unlock();
+
+  Result result = Status::ok();
+  uint64_t bytes_read = 0;
+  if (index >= store.pages().size()) {
+    result = Status::error("page " + std::to_string(index) + " does not exist");
+  } else {
+    TriangleBatch batch;
+    Status s = store.read_page(index, batch);
+    if (!s) {
+      result = s.with_context(store.header().source_path + " store, page " + std::to_string(index));
+    } else {
+      bytes_read = (batch.positions.size() + batch.normals.size()) * sizeof(Vec3);
+      result = std::shared_ptr<const Page>(std::make_shared<Page>(make_page(std::move(batch))));
+    }
+  }
+
+  lock.lock();
+  promise.set_value(result);
+  auto it = entries_.find(key);
+  if (!result) {
+    entries_.erase(it);  // not cached: a later request reports the error again
+    return result;
+  }
+  Entry& e = it->second;
+  e.page = result.value();
+  e.loading = {};
+  e.bytes = e.page->bytes();
+  lru_.push_front(key);
+  e.lru = lru_.begin();
+  counters_.pages_read += 1;
+  counters_.bytes_read += bytes_read;
+  counters_.resident_bytes += e.bytes;
+  counters_.peak_bytes = std::max(counters_.peak_bytes, counters_.resident_bytes);
+  evict_locked();
+  return result;
+}
+
+void PageCache::evict_locked() {
+  while (counters_.resident_bytes > capacity_ && lru_.size() > 1) {
+    const Key victim = lru_.back();
+    lru_.pop_back();
+    auto it = entries_.find(victim);
+    counters_.resident_bytes -= it->second.bytes;
+    entries_.erase(it);
+    ++counters_.evictions;
+  }
+}
+
+PageCacheCounters PageCache::counters() const {
+  std::lock_guard lock(mutex_);
+  return counters_;
+}
+
+}  // namespace raylod

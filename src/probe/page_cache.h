@@ -1,0 +1,82 @@
+// An LRU cache of store pages (the triangles of one page-level cell each),
+// bounded by a memory budget, with a triangle BVH built per page on load.
+// Thread-safe: concurrent requests for the same page load it once. Pages
+// are handed out as shared_ptr, so an evicted page stays valid for the rays
+// still using it; resident memory is the budget plus the pages in use
+// (at most one per tracing thread).
+#pragma once
+
+#include <cstdint>
+#include <future>
+#include <list>
+#include <memory>
+#include <mutex>
+#include <unordered_map>
+#include <vector>
+
+#include "core/status.h"
+#include "probe/bvh.h"
+#include "streaming/octree_store.h"
+
+namespace raylod {
+
+// One loaded page: triangle corners (3 per triangle, object space), optional
+// vertex normals, and a BVH over the triangles.
+struct Page {
+  std::vector<Vec3> positions;
+  std::vector<Vec3> normals;  // empty if the store has no normals
+  Bvh bvh;
+  size_t triangle_count() const { return positions.size() / 3; }
+  size_t bytes() const;
+};
+
+// Builds a Page (with its BVH) from a batch of triangles.
+Page make_page(TriangleBatch&& batch);
+
+struct PageCacheCounters {
+  uint64_t pages_read = 0;      // pages read from disk (misses that loaded)
+  uint64_t bytes_read = 0;      // triangle bytes read from disk
+  uint64_t hits = 0;            // requests served from memory (or from a load in flight)
+  uint64_t misses = 0;          // requests that had to read the page
+  uint64_t evictions = 0;
+  uint64_t peak_bytes = 0;      // largest resident size of the cache
+  uint64_t resident_bytes = 0;  // now
+};
+
+class PageCache {
+ public:
+  // capacity_bytes: memory budget for resident pages (at least one page is
+  // always kept, whatever its size).
+  explicit PageCache(uint64_t capacity_bytes);
+
+  // The page, from memory or read from the store (checksummed by the store;
+  // a corrupt page is an error naming the store and the page, never traced).
+  StatusOr<std::shared_ptr<const Page>> get(const OctreeStore& store, uint32_t page);
+
+  PageCacheCounters counters() const;
+  uint64_t capacity() const { return capacity_; }
+
+ private:
+  using Key = std::pair<const OctreeStore*, uint32_t>;
+  struct KeyHash {
+    size_t operator()(const Key& k) const {
+      return std::hash<const void*>()(k.first) ^ (size_t(k.second) * 0x9e3779b97f4a7c15ull);
+    }
+  };
+  using Result = StatusOr<std::shared_ptr<const Page>>;
+  struct Entry {
+    std::shared_future<Result> loading;  // valid while the page is being read
+    std::shared_ptr<const Page> page;    // set once loaded
+    std::list<Key>::iterator lru;
+    uint64_t bytes = 0;
+  };
+  void evict_locked();
+
+  uint64_t capacity_;
+  mutable std::mutex mutex_;
+  std::unordered_map<Key, Entry, KeyHash> entries_;
+  std::list<Key> lru_;  // most recently used first; loaded pages only
+  PageCacheCounters counters_;
+};
+
+}  // namespace raylod

@@ -1,0 +1,591 @@
+// The probe (Miyashita, Kanai & Kishinami, steps A2-A4) with Igehy ray
+// differentials; the policy for unreached cells is documented in probe.h.
+#include "probe/probe.h"
+
+#include <algorithm>
+#include <array>
+#include <chrono>
+#include <cmath>
+#include <cstring>
+#include <optional>
+#include <unordered_map>
+#include <unordered_set>
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
+
+#include "core/progress.h"
+#include "core/system.h"
+#include "probe/store_tracer.h"
+#include "render/camera.h"
+
+namespace raylod {
+
+namespace {
+
+constexpr double kInf = std::numeric_limits<double>::infinity();
+constexpr int kNoObject = -1;
+constexpr int kGround = -2;
+
+uint64_t splitmix64(uint64_t& state) {
+  uint64_t z = (state += 0x9e3779b97f4a7c15ull);
+  z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
+  z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
+  return z ^ (z >> 31);
+}
+double uniform01(uint64_t& state) { return double(splitmix64(state) >> 11) * 0x1.0p-53; }
+
+// Largest singular value of a 3x3 matrix (power iteration on L^T L).
+double max_singular_value(const Mat3d& l) {
+  const Mat3d m = glm::transpose(l) * l;
+  Vec3d v(0.5773502691896258);
+  double lambda = 0;
+  for (int i = 0; i < 64; ++i) {
+    Vec3d w = m * v;
+    const double len = glm::length(w);
+    if (!(len > 0)) return 0;
+    lambda = len;
+    v = w / len;
+  }
+  return std::sqrt(lambda);
+}
+
+struct ObjectXf {
+  glm::dmat4 m, minv;
+  Mat3d linv, normal;  // inverse linear part; inverse transpose for normals
+  double sigma = 1;    // largest stretch of the transform (world length per store length)
+  size_t store = 0;
+  int material = 0;
+};
+
+enum Kind { kPrimary, kReflection, kRefraction };
+
+struct HitRecord {
+  uint32_t object = 0;
+  std::array<Vec3d, 3> corners{};  // hit triangle's corners, store coordinates
+  double footprint = 0;            // store units; if estimated, without the factor m
+  double ratio = -1;               // f / (a_ray * path length) of a measured secondary hit
+  bool estimated = false;
+};
+
+struct ProbeRayCounters {
+  uint64_t v[10] = {};
+  enum { primary, reflection, refraction, tir, hits, hits_ground, misses, dropped, page_visits, triangle_tests };
+};
+const char* const kCounterNames[10] = {"rays_primary", "rays_reflection", "rays_refraction",
+                                       "total_internal_reflections", "hits", "hits_ground", "misses",
+                                       "differentials_dropped", "page_visits", "triangle_tests"};
+
+struct RayOutcome {
+  std::vector<HitRecord> hits;
+  ProbeRayCounters counters;
+  Status status;
+};
+
+struct PathRay {
+  RayDifferential rd;
+  int depth = 0;
+  Kind kind = kPrimary;
+  double path_length = 0;
+  int skip_object = kNoObject;
+  TriangleRef skip_ref;
+};
+
+struct WorldHit {
+  double t = kInf;
+  int object = kNoObject;
+  TriangleHit tri;
+};
+
+class ProbeTracer {
+ public:
+  ProbeTracer(const Scene& scene, std::span<const ProbeStore> stores, std::span<const ProbeObject> objects,
+              const ProbeConfig& config, PageCache& cache)
+      : scene_(scene), config_(config), camera_(make_pinhole_camera(scene.camera)) {
+    for (const ProbeStore& s : stores) tracers_.emplace_back(*s.store, cache);
+    Bbox world;
+    for (const ProbeObject& o : objects) {
+      ObjectXf x;
+      x.m = o.transform;
+      x.minv = glm::inverse(o.transform);
+      const Mat3d l(o.transform);
+      x.linv = glm::inverse(l);
+      x.normal = glm::transpose(x.linv);
+      x.sigma = max_singular_value(l);
+      x.store = o.store;
+      x.material = o.material;
+      xf_.push_back(x);
+      const Bbox b = tracers_[o.store].bounds();
+      if (!b.empty())
+        for (int c = 0; c < 8; ++c)
+          world.expand(Vec3d(x.m * glm::dvec4(c & 1 ? b.hi.x : b.lo.x, c & 2 ? b.hi.y : b.lo.y,
+                                              c & 4 ? b.hi.z : b.lo.z, 1.0)));
+    }
+    // Secondary rays start this far along: far below any feature of the
+    // meshes, far above double rounding at their coordinates.
+    tmin_scale_ = world.empty() ? 0 : 1e-9 * glm::length(world.extent());
+    tmin_abs_ = world.empty() ? 0 : 1e-14 * std::max(glm::length(world.lo), glm::length(world.hi));
+  }
+
+  const PinholeCamera& camera() const { return camera_; }
+  const std::vector<ObjectXf>& transforms() const { return xf_; }
+
+  RayOutcome trace_test_ray(uint64_t index) const {
+    RayOutcome out;
+    uint64_t state = config_.seed * 0x2545f4914f6cdd1dull ^ (index + 1) * 0x9e3779b97f4a7c15ull;
+    splitmix64(state);
+    const PinholeCamera& cam = camera_;
+    // A random position inside a random pixel.
+    const double ix = std::floor(uniform01(state) * cam.width), iy = std::floor(uniform01(state) * cam.height);
+    const double px = std::min(ix, double(cam.width - 1)) + uniform01(state);
+    const double py = std::min(iy, double(cam.height - 1)) + uniform01(state);
+    PathRay first;
+    first.rd = camera_ray_differential(cam, px, py);
+    // The ray's own pixel angle: its beam widens by this per unit of path.
+    const double beam = std::min(glm::length(first.rd.dd_dx), glm::length(first.rd.dd_dy));
+    std::vector<PathRay> stack{first};
+    while (!stack.empty()) {
+      PathRay pr = std::move(stack.back());
+      stack.pop_back();
+      ++out.counters.v[pr.kind == kPrimary ? ProbeRayCounters::primary
+                       : pr.kind == kReflection ? ProbeRayCounters::reflection : ProbeRayCounters::refraction];
+      WorldHit wh;
+      const double tmin = pr.depth == 0 ? 0 : tmin_scale_ + tmin_abs_;
+      out.status = intersect(pr.rd.ray.origin, pr.rd.ray.direction, tmin, pr.skip_object, pr.skip_ref, wh, out.counters);
+      if (!out.status) return out;
+      if (wh.object == kNoObject) { ++out.counters.v[ProbeRayCounters::misses]; continue; }
+
+      HitSurface sp;
+      int material;
+      if (wh.object == kGround) {
+        sp.point = pr.rd.ray.at(wh.t);
+        sp.geometric_normal = sp.normal = Vec3d(0, 1, 0);
+        material = scene_.ground->material;
+      } else {
+        const ObjectXf& x = xf_[size_t(wh.object)];
+        std::array<Vec3d, 3> p, n;
+        for (int k = 0; k < 3; ++k) {
+          p[k] = Vec3d(x.m * glm::dvec4(wh.tri.p[k], 1.0));
+          if (wh.tri.has_normals) {
+            const Vec3d nk = x.normal * wh.tri.n[k];
+            const double len = glm::length(nk);
+            n[k] = len > 0 ? nk / len : Vec3d(0);
+          }
+        }
+        sp = triangle_surface_point(p[0], p[1], p[2], wh.tri.has_normals ? n.data() : nullptr, wh.tri.b1, wh.tri.b2,
+                                    config_.limits);
+        material = x.material;
+      }
+      RayDifferential r = pr.rd;
+      transfer(r, wh.t, sp.geometric_normal, config_.limits);
+      const double path = pr.path_length + wh.t;
+
+      if (wh.object == kGround) {
+        ++out.counters.v[ProbeRayCounters::hits_ground];
+      } else {
+        ++out.counters.v[ProbeRayCounters::hits];
+        const ObjectXf& x = xf_[size_t(wh.object)];
+        HitRecord h;
+        h.object = uint32_t(wh.object);
+        h.corners = wh.tri.p;
+        if (r.has_differentials) {
+          // The footprint in store units: the differentials mapped back by the inverse transform.
+          h.footprint = std::max(glm::length(x.linv * r.dp_dx), glm::length(x.linv * r.dp_dy));
+          if (pr.kind != kPrimary && beam > 0 && path > 0) h.ratio = footprint(r) / (beam * path);
+        } else {
+          h.estimated = true;
+          h.footprint = beam * path / x.sigma;
+          ++out.counters.v[ProbeRayCounters::dropped];
+        }
+        out.hits.push_back(h);
+      }
+
+      if (pr.depth >= scene_.max_depth) continue;
+      const Material& mat = scene_.materials[size_t(material)];
+      auto spawn = [&](const RayDifferential& next, Kind kind) {
+        PathRay s;
+        s.rd = next;
+        s.depth = pr.depth + 1;
+        s.kind = kind;
+        s.path_length = path;
+        s.skip_object = wh.object;
+        s.skip_ref = wh.tri.ref;
+        stack.push_back(std::move(s));
+      };
+      if (mat.refracts()) {
+        Refraction rf = refract(r, sp, mat.ior, config_.limits);
+        if (rf.total_internal_reflection) {
+          ++out.counters.v[ProbeRayCounters::tir];
+          spawn(rf.ray, kReflection);
+        } else {
+          spawn(rf.ray, kRefraction);
+          spawn(reflect(r, sp, config_.limits), kReflection);
+        }
+      } else if (mat.reflects()) {
+        spawn(reflect(r, sp, config_.limits), kReflection);
+      }
+    }
+    return out;
+  }
+
+ private:
+  Status intersect(const Vec3d& o, const Vec3d& d, double tmin, int skip_object, TriangleRef skip_ref, WorldHit& out,
+                   ProbeRayCounters& counters) const {
+    TraceCounters tc;
+    for (size_t i = 0; i < xf_.size(); ++i) {
+      const ObjectXf& x = xf_[i];
+      const Vec3d oo(x.minv * glm::dvec4(o, 1.0));
+      const Vec3d od = x.linv * d;  // not normalised: t stays the world distance
+      TriangleHit h;
+      RAYLOD_RETURN_IF_ERROR(tracers_[x.store].intersect(oo, od, tmin, out.t,
+                                                         int(i) == skip_object ? skip_ref : TriangleRef{}, h, &tc));
+      if (h.found()) {
+        out.t = h.t;
+        out.object = int(i);
+        out.tri = h;
+      }
+    }
+    if (scene_.ground && skip_object != kGround && d.y != 0) {
+      // The ground: a square of side size at y = height, centred under look_at.
+      const double t = (scene_.ground->height - o.y) / d.y;
+      if (t > tmin && t < out.t) {
+        const Vec3d p = o + t * d;
+        const double half = 0.5 * scene_.ground->size;
+        if (std::abs(p.x - scene_.camera.look_at.x) <= half && std::abs(p.z - scene_.camera.look_at.z) <= half) {
+          out.t = t;
+          out.object = kGround;
+          out.tri = TriangleHit{};
+        }
+      }
+    }
+    counters.v[ProbeRayCounters::page_visits] += tc.page_visits;
+    counters.v[ProbeRayCounters::triangle_tests] += tc.triangle_tests;
+    return {};
+  }
+
+  const Scene& scene_;
+  const ProbeConfig& config_;
+  PinholeCamera camera_;
+  std::vector<StoreTracer> tracers_;
+  std::vector<ObjectXf> xf_;
+  double tmin_scale_ = 0, tmin_abs_ = 0;
+};
+
+// The four side planes of the view frustum (inward normals through the eye).
+struct Frustum {
+  Vec3d eye{0}, forward{0};
+  std::array<Vec3d, 4> normals{};
+  bool outside(const std::array<Vec3d, 8>& c) const {
+    auto all_below = [&](const Vec3d& n) {
+      for (const Vec3d& p : c)
+        if (glm::dot(n, p - eye) >= 0) return false;
+      return true;
+    };
+    if (all_below(forward)) return true;  // wholly behind the eye
+    for (const Vec3d& n : normals)
+      if (all_below(n)) return true;
+    return false;
+  }
+};
+
+Frustum make_frustum(const PinholeCamera& cam) {
+  Frustum f;
+  f.eye = cam.eye;
+  f.forward = cam.forward;
+  const double w = cam.width, h = cam.height;
+  const Vec3d tl = cam.direction_unnormalized(0, 0), tr = cam.direction_unnormalized(w, 0);
+  const Vec3d bl = cam.direction_unnormalized(0, h), br = cam.direction_unnormalized(w, h);
+  const std::array<std::pair<Vec3d, Vec3d>, 4> edges{{{tl, bl}, {tr, br}, {tl, tr}, {bl, br}}};
+  for (int i = 0; i < 4; ++i) {
+    Vec3d n = glm::normalize(glm::cross(edges[i].first, edges[i].second));
+    if (glm::dot(n, cam.forward) < 0) n = -n;
+    f.normals[i] = n;
+  }
+  return f;
+}
+
+double distance_to_box(const Vec3d& p, const Bbox& b) {
+  const Vec3d q = glm::max(b.lo - p, glm::max(Vec3d(0), p - b.hi));
+  return glm::length(q);
+}
+
+}  // namespace
+
+uint64_t store_fingerprint(const OctreeStore& store) {
+  const StoreHeader& h = store.header();
+  uint64_t fp = fnv1a64(h.source_path.data(), h.source_path.size());
+  auto mix = [&](const auto& v) { fp = fnv1a64(&v, sizeof(v), fp); };
+  mix(h.version);
+  mix(h.source_bytes);
+  mix(h.source_mtime_ns);
+  mix(h.source_hash);
+  mix(h.triangle_count);
+  mix(h.quadric_depth);
+  mix(h.page_level);
+  mix(h.root_lo);
+  mix(h.root_size);
+  mix(store.pages().size());
+  return fp;
+}
+
+std::string probe_key(const Scene& scene, const OctreeStore& store, std::span<const ProbeObject> objects,
+                      size_t store_index, const ProbeConfig& config) {
+  uint64_t k = store_fingerprint(store);
+  auto mix = [&](const auto& v) { k = fnv1a64(&v, sizeof(v), k); };
+  const Camera& c = scene.camera;
+  mix(c.eye);
+  mix(c.look_at);
+  mix(c.up);
+  mix(c.fov_y_deg);
+  mix(c.width);
+  mix(c.height);
+  mix(scene.max_depth);
+  mix(store_index);
+  for (const ProbeObject& o : objects) {
+    mix(o.transform);
+    mix(o.store);
+    const Material& m = scene.materials[size_t(o.material)];
+    mix(m.type);
+    mix(m.ior);
+  }
+  const bool ground = scene.ground.has_value();
+  mix(ground);
+  if (ground) {
+    mix(scene.ground->height);
+    mix(scene.ground->size);
+    mix(scene.materials[size_t(scene.ground->material)].type);
+  }
+  const bool lights = !scene.lights.empty();
+  mix(lights);
+  mix(config.rays);
+  mix(config.seed);
+  mix(config.footprint_scale);
+  mix(config.calibration_quantile);
+  mix(config.shadow_factor);
+  mix(config.limits.min_cos);
+  mix(config.limits.max_squared);
+  mix(config.limits.min_normal_length);
+  char buf[17];
+  std::snprintf(buf, sizeof(buf), "%016llx", static_cast<unsigned long long>(k));
+  return buf;
+}
+
+StatusOr<ProbeResult> run_probe(const Scene& scene, std::span<const ProbeStore> stores,
+                                std::span<const ProbeObject> objects, const ProbeConfig& config) {
+  for (const ProbeObject& o : objects) {
+    if (o.store >= stores.size() || !stores[o.store].store)
+      return Status::error("probe: object refers to store " + std::to_string(o.store) + ", which is not given");
+    if (o.material < 0 || size_t(o.material) >= scene.materials.size())
+      return Status::error("probe: object material index out of range");
+  }
+  if (!(config.footprint_scale > 0)) return Status::error("probe: footprint scale must be > 0");
+  const auto t_start = std::chrono::steady_clock::now();
+  PageCache cache(config.cache_bytes);
+  ProbeTracer tracer(scene, stores, objects, config, cache);
+
+  // A2/A3: trace the test rays. Each ray has its own seed and its own result
+  // slot, so the outcome does not depend on the number of threads.
+  std::vector<RayOutcome> outcomes(config.rays);
+  {
+    std::optional<Progress> progress;
+    if (config.progress) progress.emplace("probe", config.rays, "rays");
+    tbb::task_arena arena(config.threads > 0 ? config.threads : tbb::task_arena::automatic);
+    arena.execute([&] {
+      tbb::parallel_for(tbb::blocked_range<uint64_t>(0, config.rays, 16), [&](const tbb::blocked_range<uint64_t>& r) {
+        for (uint64_t i = r.begin(); i != r.end(); ++i) outcomes[i] = tracer.trace_test_ray(i);
+        if (progress) progress->advance(r.size());
+      });
+    });
+    if (progress) progress->finish();
+  }
+  ProbeResult result;
+  ProbeRayCounters total;
+  for (const RayOutcome& o : outcomes) {
+    if (!o.status) return o.status;
+    for (int k = 0; k < 10; ++k) total.v[k] += o.counters.v[k];
+  }
+  for (int k = 0; k < 10; ++k) result.counters[kCounterNames[k]] = total.v[k];
+  const PageCacheCounters cc = cache.counters();
+  result.counters["pages_read"] = cc.pages_read;
+  result.counters["bytes_read"] = cc.bytes_read;
+  result.counters["cache_hits"] = cc.hits;
+  result.counters["cache_misses"] = cc.misses;
+  result.counters["cache_evictions"] = cc.evictions;
+  result.counters["cache_peak_bytes"] = cc.peak_bytes;
+  const auto t_traced = std::chrono::steady_clock::now();
+  result.trace_seconds = std::chrono::duration<double>(t_traced - t_start).count();
+
+  // The policy's magnification m: a low quantile of measured secondary hits.
+  std::vector<double> ratios;
+  for (const RayOutcome& o : outcomes)
+    for (const HitRecord& h : o.hits)
+      if (h.ratio >= 0) ratios.push_back(h.ratio);
+  double m = 1;
+  if (!ratios.empty()) {
+    std::sort(ratios.begin(), ratios.end());
+    const size_t q = size_t(std::floor(config.calibration_quantile * double(ratios.size() - 1)));
+    m = std::min(1.0, ratios[q]);
+  }
+  result.magnification = m;
+  result.counters["magnification_ppm"] = uint64_t(std::llround(m * 1e6));
+
+  // Scene facts the policy needs.
+  const PinholeCamera& cam = tracer.camera();
+  const Frustum frustum = make_frustum(cam);
+  double a_min = kInf;  // smallest angle between neighbouring pixels' rays (at the image corners)
+  for (double px : {0.0, 0.5 * cam.width, double(cam.width)})
+    for (double py : {0.0, 0.5 * cam.height, double(cam.height)}) {
+      const RayDerivatives d = cam.derivatives(px, py);
+      a_min = std::min({a_min, glm::length(d.dd_dx), glm::length(d.dd_dy)});
+    }
+  bool specular = false;
+  for (const ProbeObject& o : objects) specular |= scene.materials[size_t(o.material)].reflects();
+  if (scene.ground) specular |= scene.materials[size_t(scene.ground->material)].reflects();
+  const bool lights = !scene.lights.empty();
+  const double K = config.footprint_scale;
+  const auto& xf = tracer.transforms();
+
+  // A4: one cut per store.
+  for (size_t s = 0; s < stores.size(); ++s) {
+    const OctreeStore& st = *stores[s].store;
+    const int Q = st.header().quadric_depth;
+    Cut cut;
+    cut.store_hash = store_fingerprint(st);
+    cut.store_path = stores[s].path.string();
+    cut.key = probe_key(scene, st, objects, s, config);
+    cut.rays = config.rays;
+    cut.seed = config.seed;
+    cut.footprint_scale = K;
+    cut.counters = result.counters;
+
+    // Measured footprints at the finest level, attached to the hit triangles' corner cells.
+    struct Measured { double f = kInf; uint32_t hits = 0; };
+    std::unordered_map<uint64_t, Measured> measured;
+    double min_fp = kInf;
+    uint64_t store_hits = 0;
+    auto hit_footprint = [&](const HitRecord& h) { return h.estimated ? h.footprint * m : h.footprint; };
+    for (const RayOutcome& o : outcomes)
+      for (const HitRecord& h : o.hits) {
+        if (xf[h.object].store != s) continue;
+        ++store_hits;
+        const double f = hit_footprint(h);
+        min_fp = std::min(min_fp, f);
+        uint64_t codes[3];
+        for (int k = 0; k < 3; ++k) {
+          codes[k] = st.cell_of(h.corners[k], Q).code;
+          if ((k > 0 && codes[k] == codes[0]) || (k > 1 && codes[k] == codes[1])) continue;
+          Measured& e = measured[codes[k]];
+          e.f = std::min(e.f, f);
+          ++e.hits;
+        }
+      }
+    cut.min_footprint = std::isfinite(min_fp) ? float(min_fp) : 0.0f;
+    cut.counters["store_hits"] = store_hits;
+
+    // The policy's estimate for a cell no ray reached (probe.h).
+    auto estimate = [&](const CellKey& key) {
+      const Bbox b = st.cell_bounds(key);
+      double need = kInf;
+      for (const ObjectXf& x : xf) {
+        if (x.store != s) continue;
+        std::array<Vec3d, 8> c;
+        Bbox wb;
+        for (int i = 0; i < 8; ++i) {
+          c[i] = Vec3d(x.m * glm::dvec4(i & 1 ? b.hi.x : b.lo.x, i & 2 ? b.hi.y : b.lo.y, i & 4 ? b.hi.z : b.lo.z, 1.0));
+          wb.expand(c[i]);
+        }
+        double e = a_min * distance_to_box(cam.eye, wb) / x.sigma;
+        if (specular || !frustum.outside(c)) e *= m;
+        else if (lights) e *= config.shadow_factor;
+        else e = kInf;
+        need = std::min(need, e);
+      }
+      return need;
+    };
+
+    // need() bottom-up: measured or estimated at level Q, min over children above.
+    std::vector<std::vector<double>> need(size_t(Q) + 1);
+    {
+      const auto nodes = st.level(Q);
+      need[size_t(Q)].assign(nodes.size(), kInf);
+      tbb::task_arena arena(config.threads > 0 ? config.threads : tbb::task_arena::automatic);
+      arena.execute([&] {
+        tbb::parallel_for(tbb::blocked_range<size_t>(0, nodes.size(), 1024), [&](const tbb::blocked_range<size_t>& r) {
+          for (size_t i = r.begin(); i != r.end(); ++i) {
+            auto it = measured.find(nodes[i].code);
+            need[size_t(Q)][i] = it != measured.end() ? it->second.f : estimate(CellKey{uint32_t(Q), nodes[i].code});
+          }
+        });
+      });
+    }
+    for (int L = Q - 1; L >= 0; --L) {
+      const auto parents = st.level(L), children = st.level(L + 1);
+      need[size_t(L)].assign(parents.size(), kInf);
+      size_t j = 0;
+      for (size_t i = 0; i < parents.size(); ++i) {
+        while (j < children.size() && (children[j].code >> 3) < parents[i].code) ++j;
+        for (; j < children.size() && (children[j].code >> 3) == parents[i].code; ++j)
+          need[size_t(L)][i] = std::min(need[size_t(L)][i], need[size_t(L) + 1][j]);
+      }
+    }
+    // The cut: the largest cells with diagonal < K * need (collapsibility is
+    // monotone: a child's need is >= its parent's and its diagonal smaller).
+    std::vector<std::vector<char>> collapsed(size_t(Q) + 1);
+    for (int L = 0; L <= Q; ++L) {
+      const auto nodes = st.level(L);
+      collapsed[size_t(L)].assign(nodes.size(), 0);
+      const double diag = st.cell_diagonal(L);
+      size_t j = 0;
+      for (size_t i = 0; i < nodes.size(); ++i) {
+        bool parent_collapsed = false;
+        if (L > 0) {
+          const auto parents = st.level(L - 1);
+          while (j < parents.size() && parents[j].code < (nodes[i].code >> 3)) ++j;
+          parent_collapsed = j < parents.size() && parents[j].code == (nodes[i].code >> 3) && collapsed[size_t(L) - 1][j];
+        }
+        if (parent_collapsed) { collapsed[size_t(L)][i] = 1; continue; }
+        if (diag < K * need[size_t(L)][i]) {
+          collapsed[size_t(L)][i] = 1;
+          cut.cells.push_back({CellKey{uint32_t(L), nodes[i].code}, 0.0f, 0});
+        }
+      }
+    }
+    std::sort(cut.cells.begin(), cut.cells.end(), [](const CollapsedCell& a, const CollapsedCell& b) { return a.key < b.key; });
+    // Footprints and hit counts of the marked cells (each hit counted once per cell).
+    std::unordered_map<uint64_t, size_t> cell_index;  // (level << 58 | code) -> index
+    auto pack = [](uint32_t level, uint64_t code) { return (uint64_t(level) << 58) ^ code; };
+    for (size_t i = 0; i < cut.cells.size(); ++i) cell_index[pack(cut.cells[i].key.level, cut.cells[i].key.code)] = i;
+    uint64_t hit_cells = 0;
+    for (const RayOutcome& o : outcomes)
+      for (const HitRecord& h : o.hits) {
+        if (xf[h.object].store != s) continue;
+        size_t found[3];
+        int nfound = 0;
+        for (int k = 0; k < 3; ++k) {
+          const uint64_t code = st.cell_of(h.corners[k], Q).code;
+          for (int L = Q; L >= 0; --L) {
+            auto it = cell_index.find(pack(uint32_t(L), code >> (3 * (Q - L))));
+            if (it == cell_index.end()) continue;
+            if (std::find(found, found + nfound, it->second) == found + nfound) found[nfound++] = it->second;
+            break;
+          }
+        }
+        for (int k = 0; k < nfound; ++k) {
+          CollapsedCell& c = cut.cells[found[k]];
+          const float f = float(hit_footprint(h));
+          c.min_footprint = c.hits == 0 ? f : std::min(c.min_footprint, f);
+          ++c.hits;
+        }
+      }
+    for (const CollapsedCell& c : cut.cells) hit_cells += c.hits > 0;
+    cut.counters["cells_marked"] = cut.cells.size();
+    cut.counters["cells_marked_with_hits"] = hit_cells;
+    cut.counters["quadric_depth"] = uint64_t(Q);
+    result.cuts.push_back(std::move(cut));
+  }
+  result.cut_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_traced).count();
+  return result;
+}
+
+}  // namespace raylod

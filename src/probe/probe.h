@@ -1,0 +1,118 @@
+// The probe (method steps A2-A4): trace test rays with Igehy ray
+// differentials through the scene against the full-resolution triangles in
+// the stores, and mark the octree cells that no ray can resolve.
+//
+// Test rays: N rays through uniformly random positions inside uniformly
+// random pixels (seeded per ray, so the result does not depend on threads).
+// Reflection rays are traced only from mirror and glass surfaces, refraction
+// rays only from glass (Material::reflects / refracts), up to scene.max_depth
+// bounces; glass spawns both, as a Whitted renderer does; total internal
+// reflection is a reflection. The ground plane is traced (it occludes and
+// may be a mirror) but never marked: it is not simplified.
+//
+// At every hit the footprint f = ||dP|| (METHOD.md eq. 2, ray_differential.h)
+// is measured in the store's (object) coordinates and attached to the hit
+// triangle (A3); the triangle's corners lie in the cells whose collapse
+// would move them, so each hit constrains the cells of its three corners.
+// A cell may be collapsed iff its diagonal < K * need(cell), where need is
+// the smallest footprint any ray may have inside it (A4, "finest need wins");
+// the cut is the set of largest such cells (levels <= quadric_depth).
+//
+// need() of a finest cell (level quadric_depth):
+//   - with hits: the smallest measured footprint among them;
+//   - without hits (most cells: a few thousand rays miss most of them), the
+//     policy below. need() of a coarser cell is the minimum over its children,
+//     so one finely needed child keeps all its ancestors uncollapsed.
+//
+// Policy for cells no test ray reached. A visible cell must not be collapsed
+// more coarsely than the view can afford, and we do not know which unreached
+// cells are visible, so every cell a ray path could reach gets a LOWER BOUND
+// of its footprint, from the pinhole model: a pixel's beam from the eye has
+// width (distance * pixel angle) and its footprint on any surface is at least
+// that (a slanted surface only stretches it by 1/cos). With
+//   d = distance from the eye to the cell's box (0 if the eye is inside),
+//   a = the smallest angle between neighbouring pixels' rays in the image,
+//   m = min(1, the calibration_quantile of f / (a_ray * path length) over
+//       all measured secondary hits),
+// the estimate is m * a * d. m < 1 only where measured reflection/refraction
+// paths focus (a concave mirror or glass lens magnifies the view); then
+// unreached cells are assumed to be as magnified as the most magnified
+// measured paths. Secondary paths are never shorter than d, so the bound
+// also holds for cells reached through mirrors and glass.
+// Cells that no ray path can reach -- outside the view frustum in a scene
+// with no mirror or glass (so no secondary ray can turn towards them) -- only
+// matter for shadows: with lights they get shadow_factor times the estimate
+// (their silhouette keeps shadows within a few pixels), without lights they
+// are collapsed hard (need = infinity).
+// Hits whose differentials were dropped (grazing, critical angle, degenerate
+// normals; ray_differential.h) get the same estimate along their own path:
+// m * a_ray * path length.
+#pragma once
+
+#include <cstdint>
+#include <filesystem>
+#include <map>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "core/status.h"
+#include "probe/page_cache.h"
+#include "probe/ray_differential.h"
+#include "scene/scene.h"
+#include "streaming/cut_file.h"
+#include "streaming/octree_store.h"
+
+namespace raylod {
+
+struct ProbeConfig {
+  uint64_t rays = 5000;            // test rays (the paper uses 5,000)
+  uint64_t seed = 1;
+  double footprint_scale = 1.0;    // K: collapse cells with diagonal < K * footprint
+  int threads = 0;                 // 0 = all cores
+  uint64_t cache_bytes = uint64_t(256) << 20;  // page cache budget
+  DifferentialLimits limits;
+  double calibration_quantile = 0.02;  // of the secondary hits' magnification (policy above)
+  double shadow_factor = 4.0;          // unreachable cells in scenes with lights
+  bool progress = false;               // progress bar on stderr
+};
+
+// A store to probe, and where it lives (recorded in the cut).
+struct ProbeStore {
+  const OctreeStore* store = nullptr;
+  std::filesystem::path path;
+};
+
+// One scene object: its store (index into the stores span), its transform
+// from store coordinates to world, its material (index into scene.materials).
+struct ProbeObject {
+  size_t store = 0;
+  glm::dmat4 transform{1.0};
+  int material = 0;
+};
+
+struct ProbeResult {
+  std::vector<Cut> cuts;  // one per store, in the order of the stores span
+  // Global counters: rays_primary, rays_reflection, rays_refraction,
+  // total_internal_reflections, hits, hits_ground, misses,
+  // differentials_dropped, page_visits, triangle_tests, pages_read,
+  // bytes_read, cache_hits, cache_misses, cache_evictions, cache_peak_bytes.
+  std::map<std::string, uint64_t> counters;
+  double magnification = 1;  // m of the policy
+  double trace_seconds = 0, cut_seconds = 0;
+};
+
+// Runs the probe. Fails with a clear message if a page of a store cannot be
+// read (a corrupt store is reported, never traced through).
+StatusOr<ProbeResult> run_probe(const Scene& scene, std::span<const ProbeStore> stores,
+                                std::span<const ProbeObject> objects, const ProbeConfig& config);
+
+// Fingerprint of a store's content and layout (what a cut is valid for).
+uint64_t store_fingerprint(const OctreeStore& store);
+// The cut's key: a hash of the store fingerprint, the camera, the scene's
+// specular set-up (materials, max depth, ground), the object's placements and
+// the probe options, as 16 hex digits.
+std::string probe_key(const Scene& scene, const OctreeStore& store, std::span<const ProbeObject> objects,
+                      size_t store_index, const ProbeConfig& config);
+
+}  // namespace raylod
