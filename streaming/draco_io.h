@@ -27,7 +27,15 @@ struct DracoWriteReport {
   int position_bits = 0, normal_bits = 0;
   double max_position_error = 0;  // bound implied by the quantisation
   uint64_t bytes = 0;
+  double max_normal_error = 0;    // radians; bound implied by the octahedral normal quantisation
+  double requested_position_error = 0;  // the target position_bits was chosen for (0 if given)
 };
+// Smallest position_bits (1..30) whose quantisation error bound for a mesh
+// whose bounding box's largest side is `extent` and largest coordinate
+// magnitude is `max_abs` is at most max_error (30 if none is).
+int choose_position_bits(double extent, double max_abs, double max_error);
+// The bound for those bits: sqrt(3) * (extent / (2^bits - 1) / 2 + float rounding).
+double position_error_bound(double extent, double max_abs, int bits);
 
 // Encodes the mesh (degenerate triangles must be removed by the caller) and
 // writes it atomically.

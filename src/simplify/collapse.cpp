@@ -1,0 +1,346 @@
+// Collapse of the cut cells to their representative vertices (method step A5;
+// Luebke and Erikson 1997 vertex clustering with Lindstrom 2000 QEM
+// representatives, eqs. 3-4).
+//
+// Why reverse-wound twins are kept: when a cell collapses across a thin wall,
+// both sides' triangles land on the same output vertices with opposite
+// orientations. Dropping one of them would leave its edges with one incident
+// face where the input had two, i.e. open a hole in a closed surface; keeping
+// both keeps every edge paired, and a ray tracer sees the same surface from
+// either side. Same-orientation duplicates are exact copies and are dropped.
+#include "simplify/collapse.h"
+
+#include <algorithm>
+#include <cassert>
+#include <chrono>
+#include <cmath>
+#include <cstring>
+#include <numeric>
+#include <optional>
+
+#include "core/progress.h"
+#include "core/system.h"
+
+namespace raylod {
+namespace {
+
+// Float bits with -0 folded into +0, for exact vertex identity.
+uint32_t float_bits(float f) {
+  f += 0.0f;
+  uint32_t u;
+  std::memcpy(&u, &f, 4);
+  return u;
+}
+
+uint64_t mix64(uint64_t h) {
+  h ^= h >> 33; h *= 0xff51afd7ed558ccdull;
+  h ^= h >> 33; h *= 0xc4ceb9fe1a85ec53ull;
+  return h ^ (h >> 33);
+}
+
+uint64_t hash_vertex(const Vec3& p, const Vec3& n, bool with_normal) {
+  uint64_t h = mix64((uint64_t(float_bits(p.x)) << 32) ^ float_bits(p.y));
+  h = mix64(h ^ (uint64_t(float_bits(p.z)) << 17));
+  if (with_normal) {
+    h = mix64(h ^ ((uint64_t(float_bits(n.x)) << 32) | float_bits(n.y)));
+    h = mix64(h ^ float_bits(n.z));
+  }
+  return h;
+}
+
+bool same_bits(const Vec3& a, const Vec3& b) {
+  return float_bits(a.x) == float_bits(b.x) && float_bits(a.y) == float_bits(b.y) && float_bits(a.z) == float_bits(b.z);
+}
+
+Vec3 canonical(const Vec3& v) { return Vec3(v.x + 0.0f, v.y + 0.0f, v.z + 0.0f); }
+
+// Zero area at float precision: height below 2^-24 of the longest edge, i.e.
+// |cross| <= 2^-24 * longest_edge^2 (also true when two corners coincide).
+bool zero_area(const Vec3& a, const Vec3& b, const Vec3& c) {
+  const Vec3d e0 = Vec3d(b) - Vec3d(a), e1 = Vec3d(c) - Vec3d(a), e2 = Vec3d(c) - Vec3d(b);
+  const double longest2 = std::max({glm::dot(e0, e0), glm::dot(e1, e1), glm::dot(e2, e2)});
+  const double cross = glm::length(glm::cross(e0, e1));
+  return !(cross > 0x1p-24 * longest2);
+}
+
+std::array<uint32_t, 3> rotate_min_first(const std::array<uint32_t, 3>& t) {
+  if (t[1] < t[0] && t[1] < t[2]) return {t[1], t[2], t[0]};
+  if (t[2] < t[0] && t[2] < t[1]) return {t[2], t[0], t[1]};
+  return t;
+}
+
+}  // namespace
+
+Representative make_representative(const NodeRecord& node, const Bbox& cell_bounds_world, const Vec3d& origin,
+                                   const QemSolveConfig& config) {
+  Representative r;
+  const Bbox cell{cell_bounds_world.lo - origin, cell_bounds_world.hi - origin};
+  const Vec3d mean = node.corner_count ? node.vertex_sum / double(node.corner_count) : cell.center();
+  const QemSolution s = solve_representative_vertex(node.quadric, mean, cell, config);
+  r.position = origin + s.position;
+  r.rank = s.rank;
+  r.clamped = s.clamped;
+  r.fallback_normal = dominant_normal(node.quadric);
+  return r;
+}
+
+// ---------------------------------------------------------------- CutLookup
+
+CutLookup::CutLookup(const Vec3d& root_lo, double root_size, std::span<const CellKey> cells)
+    : root_lo_(root_lo), root_size_(root_size), by_level_(22) {
+  for (size_t i = 0; i < cells.size(); ++i) {
+    const CellKey& k = cells[i];
+    assert(k.level <= 21);
+    by_level_[k.level].emplace(k.code, uint32_t(i));
+    deepest_ = std::max(deepest_, int(k.level));
+  }
+  for (int l = deepest_; l >= 0; --l) if (!by_level_[l].empty()) levels_.push_back(l);
+}
+
+uint32_t CutLookup::find(const Vec3d& p) const {
+  if (levels_.empty()) return kKeepVertex;
+  // Cell coordinates at the deepest cut level; an ancestor at level L is the
+  // code shifted right by 3 (deepest - L) (multiplying by 2^L is exact, so
+  // this equals binning at L directly).
+  const double scale = double(uint64_t(1) << deepest_);
+  const uint32_t max_coord = uint32_t((uint64_t(1) << deepest_) - 1);
+  uint32_t c[3];
+  for (int a = 0; a < 3; ++a) {
+    const double t = std::floor((p[a] - root_lo_[a]) / root_size_ * scale);
+    c[a] = t <= 0 ? 0u : (t >= double(max_coord) ? max_coord : uint32_t(t));
+  }
+  const uint64_t code = morton_encode(c[0], c[1], c[2]);
+  for (int level : levels_) {
+    const auto& m = by_level_[level];
+    auto it = m.find(code >> (3 * (deepest_ - level)));
+    if (it != m.end()) return it->second;
+  }
+  return kKeepVertex;
+}
+
+// ---------------------------------------------------------- CollapseBuilder
+
+CollapseBuilder::CollapseBuilder(std::span<const Representative> reps, bool input_has_normals)
+    : reps_(reps), has_normals_(input_has_normals) {
+  rep_pos_.reserve(reps.size());
+  for (const auto& r : reps) rep_pos_.push_back(Vec3(r.position));
+  rep_normal_sum_.assign(reps.size(), Vec3d(0));
+  rep_weight_sum_.assign(reps.size(), 0.0);
+  table_.assign(1024, kKeepVertex);
+}
+
+void CollapseBuilder::grow_table() {
+  std::vector<uint32_t> t(table_.size() * 2, kKeepVertex);
+  const size_t mask = t.size() - 1;
+  for (uint32_t id : table_) {
+    if (id == kKeepVertex) continue;
+    size_t i = hash_vertex(kept_pos_[id], has_normals_ ? kept_normal_[id] : Vec3(0), has_normals_) & mask;
+    while (t[i] != kKeepVertex) i = (i + 1) & mask;
+    t[i] = id;
+  }
+  table_.swap(t);
+}
+
+uint32_t CollapseBuilder::kept_vertex(const Vec3& p_in, const Vec3& n_in) {
+  const Vec3 p = canonical(p_in), n = has_normals_ ? canonical(n_in) : Vec3(0);
+  const size_t mask = table_.size() - 1;
+  size_t i = hash_vertex(p, n, has_normals_) & mask;
+  while (table_[i] != kKeepVertex) {
+    const uint32_t id = table_[i];
+    if (same_bits(kept_pos_[id], p) && (!has_normals_ || same_bits(kept_normal_[id], n))) return id;
+    i = (i + 1) & mask;
+  }
+  const uint32_t id = uint32_t(kept_pos_.size());
+  assert(uint64_t(id) + reps_.size() < kKeepVertex);
+  kept_pos_.push_back(p);
+  if (has_normals_) kept_normal_.push_back(n);
+  else kept_normal_sum_.push_back(Vec3d(0));
+  table_[i] = id;
+  if (2 * kept_pos_.size() > table_.size()) grow_table();  // load factor <= 1/2
+  return id;
+}
+
+void CollapseBuilder::add(const TriangleBatch& batch, std::span<const uint32_t> cell) {
+  assert(cell.size() == batch.positions.size());
+  const bool batch_normals = has_normals_ && batch.normals.size() == batch.positions.size();
+  const uint32_t nreps = uint32_t(reps_.size());
+  for (size_t t = 0; t < batch.size(); ++t) {
+    const Vec3* p = &batch.positions[3 * t];
+    const Vec3 n_none(0);
+    const Vec3* n = batch_normals ? &batch.normals[3 * t] : nullptr;
+    // Area-weighted normals come from the input triangle, before collapse.
+    const Vec3d cross = glm::cross(Vec3d(p[1]) - Vec3d(p[0]), Vec3d(p[2]) - Vec3d(p[0]));
+    const double area2 = glm::length(cross);
+    std::array<uint32_t, 3> id;
+    for (int k = 0; k < 3; ++k) {
+      const uint32_t c = cell[3 * t + k];
+      if (c != kKeepVertex) {
+        assert(c < nreps);
+        id[k] = c;
+        rep_normal_sum_[c] += n ? area2 * Vec3d(n[k]) : cross;
+        rep_weight_sum_[c] += area2;
+      } else {
+        const uint32_t kv = kept_vertex(p[k], n ? n[k] : n_none);
+        id[k] = nreps + kv;
+        if (!has_normals_) kept_normal_sum_[kv] += cross;
+      }
+    }
+    ++stats_.input_triangles;
+    if (id[0] == id[1] || id[1] == id[2] || id[0] == id[2]) { ++stats_.dropped_collapsed; continue; }
+    auto pos = [&](uint32_t i) -> const Vec3& { return i < nreps ? rep_pos_[i] : kept_pos_[i - nreps]; };
+    if (zero_area(pos(id[0]), pos(id[1]), pos(id[2]))) { ++stats_.dropped_zero_area; continue; }
+    tris_.push_back(id);
+  }
+  stats_.peak_bytes = std::max(stats_.peak_bytes, memory_bytes());
+}
+
+uint64_t CollapseBuilder::memory_bytes() const {
+  return rep_pos_.capacity() * sizeof(Vec3) + rep_normal_sum_.capacity() * sizeof(Vec3d) +
+         rep_weight_sum_.capacity() * sizeof(double) + kept_pos_.capacity() * sizeof(Vec3) +
+         kept_normal_.capacity() * sizeof(Vec3) + kept_normal_sum_.capacity() * sizeof(Vec3d) +
+         table_.capacity() * sizeof(uint32_t) + tris_.capacity() * sizeof(tris_[0]);
+}
+
+IndexedMesh CollapseBuilder::finish(CollapseStats* stats_out) {
+  const uint32_t nreps = uint32_t(reps_.size());
+  // Same-orientation duplicates: sort the triangles by their rotation that
+  // starts at the smallest id (a stable sort keeps the first occurrence).
+  std::vector<std::array<uint32_t, 3>> keys(tris_.size());
+  for (size_t i = 0; i < tris_.size(); ++i) keys[i] = rotate_min_first(tris_[i]);
+  std::vector<uint32_t> order(tris_.size());
+  std::iota(order.begin(), order.end(), 0u);
+  std::stable_sort(order.begin(), order.end(), [&](uint32_t a, uint32_t b) { return keys[a] < keys[b]; });
+  std::vector<bool> keep(tris_.size(), true);
+  std::vector<std::array<uint32_t, 3>> unique_keys;
+  for (size_t j = 0; j < order.size(); ++j) {
+    if (j > 0 && keys[order[j]] == keys[order[j - 1]]) { keep[order[j]] = false; ++stats_.dropped_duplicate; }
+    else unique_keys.push_back(keys[order[j]]);
+  }
+  for (const auto& k : unique_keys) {
+    // The reverse of (a, b, c) with a smallest is (a, c, b), also a-first.
+    if (std::binary_search(unique_keys.begin(), unique_keys.end(), std::array<uint32_t, 3>{k[0], k[2], k[1]}))
+      ++stats_.reverse_twins;
+  }
+  std::vector<std::array<uint32_t, 3>>().swap(keys);
+  std::vector<uint32_t>().swap(order);
+  std::vector<std::array<uint32_t, 3>>().swap(unique_keys);
+
+  // Compact the vertices in order of first use.
+  IndexedMesh mesh;
+  std::vector<uint32_t> remap(size_t(nreps) + kept_pos_.size(), kKeepVertex);
+  size_t kept_count = 0;
+  for (size_t i = 0; i < tris_.size(); ++i) if (keep[i]) ++kept_count;
+  mesh.indices.reserve(3 * kept_count);
+  for (size_t i = 0; i < tris_.size(); ++i) {
+    if (!keep[i]) continue;
+    for (uint32_t v : tris_[i]) {
+      if (remap[v] == kKeepVertex) {
+        remap[v] = uint32_t(mesh.positions.size());
+        Vec3d normal;
+        double weight;
+        Vec3d fallback(0, 1, 0);
+        if (v < nreps) {
+          ++stats_.representatives_used;
+          mesh.positions.push_back(rep_pos_[v]);
+          normal = rep_normal_sum_[v];
+          weight = rep_weight_sum_[v];
+          fallback = reps_[v].fallback_normal;
+        } else {
+          ++stats_.kept_vertices;
+          const uint32_t k = v - nreps;
+          mesh.positions.push_back(kept_pos_[k]);
+          normal = has_normals_ ? Vec3d(kept_normal_[k]) : kept_normal_sum_[k];
+          weight = has_normals_ ? 1.0 : glm::length(normal);
+        }
+        const double len = glm::length(normal);
+        Vec3d unit;
+        if (len > 1e-6 * weight && len > 0 && std::isfinite(len)) {
+          unit = normal / len;
+        } else {
+          ++stats_.normal_fallbacks;
+          unit = glm::length(fallback) > 0 ? glm::normalize(fallback) : Vec3d(0, 1, 0);
+        }
+        mesh.normals.push_back(Vec3(unit));
+      }
+      mesh.indices.push_back(remap[v]);
+    }
+  }
+  stats_.output_triangles = mesh.triangle_count();
+  stats_.output_vertices = mesh.positions.size();
+  stats_.peak_bytes = std::max(stats_.peak_bytes, memory_bytes() + remap.size() * 4 + tris_.size() / 8 +
+                                                      mesh.positions.capacity() * 24 + mesh.indices.capacity() * 4);
+  if (stats_out) *stats_out = stats_;
+  return mesh;
+}
+
+// ---------------------------------------------------------------- simplify
+
+SimplifyEstimate estimate_simplify(const OctreeStore& store, const Cut& cut) {
+  SimplifyEstimate e;
+  uint64_t found = 0;
+  for (const auto& c : cut.cells) {
+    if (const NodeRecord* n = store.find(c.key)) { e.collapsed_corners += n->corner_count; ++found; }
+  }
+  const uint64_t t = store.header().triangle_count;
+  const uint64_t removed = std::min<uint64_t>(t, e.collapsed_corners / 3);
+  e.triangles = std::min<uint64_t>(t, t - removed + 2 * found);
+  e.vertices = e.triangles / 2 + found;
+  e.bytes = e.triangles * kCollapseBytesPerTriangle + e.vertices * kCollapseBytesPerVertex +
+            found * (sizeof(Representative) + 48);
+  return e;
+}
+
+StatusOr<SimplifyResult> simplify(const OctreeStore& store, const Cut& cut, const SimplifyConfig& config) {
+  const auto start = std::chrono::steady_clock::now();
+  const StoreHeader& h = store.header();
+  SimplifyResult result;
+  result.cut_cells = cut.cells.size();
+
+  if (config.memory_limit) {
+    const SimplifyEstimate e = estimate_simplify(store, cut);
+    if (e.bytes > config.memory_limit)
+      return Status::error("the simplified mesh (about " + std::to_string(e.triangles) + " triangles) needs about " +
+                           format_bytes(e.bytes) + ", over the memory limit of " + format_bytes(config.memory_limit) +
+                           "; raise --memory-limit or collapse more cells");
+  }
+
+  // Representatives of the cut cells the store has nodes for.
+  std::vector<CellKey> keys;
+  std::vector<Representative> reps;
+  keys.reserve(cut.cells.size());
+  reps.reserve(cut.cells.size());
+  for (const auto& c : cut.cells) {
+    const NodeRecord* node = c.key.level <= uint32_t(h.quadric_depth) ? store.find(c.key) : nullptr;
+    if (!node) { ++result.cut_cells_missing; continue; }
+    keys.push_back(c.key);
+    reps.push_back(make_representative(*node, store.cell_bounds(c.key), h.origin, config.qem));
+    if (reps.back().clamped) ++result.clamped_representatives;
+  }
+  const CutLookup lookup(h.root_lo, h.root_size, keys);
+  CollapseBuilder builder(reps, h.has_normals);
+
+  const auto pages = store.pages();
+  std::optional<Progress> progress;
+  if (config.progress) progress.emplace("simplify", pages.size(), "pages");
+  TriangleBatch batch;
+  std::vector<uint32_t> cells;
+  for (size_t i = 0; i < pages.size(); ++i) {
+    RAYLOD_RETURN_IF_ERROR(store.read_page(i, batch));
+    ++result.pages_read;
+    cells.resize(batch.positions.size());
+    for (size_t k = 0; k < batch.positions.size(); ++k) cells[k] = lookup.find(Vec3d(batch.positions[k]));
+    builder.add(batch, cells);
+    if (config.memory_limit && builder.memory_bytes() > config.memory_limit)
+      return Status::error("the simplified mesh outgrew the memory limit of " + format_bytes(config.memory_limit) +
+                           " after " + std::to_string(builder.triangles()) + " triangles (page " +
+                           std::to_string(i + 1) + " of " + std::to_string(pages.size()) +
+                           "); raise --memory-limit or collapse more cells");
+    if (progress) progress->advance(1);
+  }
+  if (progress) progress->finish();
+  result.mesh = builder.finish(&result.stats);
+  result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return result;
+}
+
+}  // namespace raylod

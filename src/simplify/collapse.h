@@ -1,0 +1,163 @@
+// Collapsing the cut (method step A5, after Luebke and Erikson 1997): every
+// triangle vertex inside a collapsed cell moves to that cell's representative
+// vertex (eqs. 3-4, see qem_solve.h); every other vertex is kept exactly.
+// Triangles that become degenerate disappear, and so do exact duplicates.
+//
+// Layers, so that each can be tested without a store file:
+//   CutLookup        vertex position -> the cut cell containing it (or none)
+//   make_representative  a NodeRecord -> its representative vertex
+//   CollapseBuilder  triangle batches + per-vertex cell ids -> indexed mesh
+//   simplify()       the thin driver: one pass over the store's pages.
+//
+// Decisions (see collapse.cpp for the reasons):
+//   * A triangle is dropped if two of its output vertices are the same vertex,
+//     if its area is zero at float precision (height below 2^-24 of its
+//     longest edge; also removes corners that coincide in position only), or
+//     if it repeats an earlier triangle with the same three output vertices in
+//     the same cyclic order. Its reverse-wound twin (same vertices, opposite
+//     orientation) is KEPT: a thin wall collapsed to zero thickness keeps both
+//     sides, so every edge keeps its pairing and a closed input stays closed.
+//   * Normals: a kept vertex keeps its input normal (without input normals:
+//     the normalised area-weighted sum of its input faces' normals, +Y if that
+//     is zero). A representative vertex gets the normalised area-weighted sum
+//     of the merged corners' normals (vertex normals, or face normals where
+//     the input has none); if they cancel (length below 1e-6 of the summed
+//     weights), the dominant plane normal of the cell's quadric
+//     (dominant_normal), else +Y.
+//   * Output is indexed: kept vertices with bit-identical position and normal
+//     (position only without input normals) are one vertex. Vertex and
+//     triangle order follow the input stream, so the output is deterministic.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <span>
+#include <unordered_map>
+#include <vector>
+
+#include "simplify/qem_solve.h"
+#include "streaming/cut_file.h"
+#include "streaming/draco_io.h"
+#include "streaming/octree_store.h"
+
+namespace raylod {
+
+inline constexpr uint32_t kKeepVertex = 0xffffffffu;
+
+// The output vertex of one collapsed cell.
+struct Representative {
+  Vec3d position{0};         // world coordinates, inside the cell
+  Vec3d fallback_normal{0, 1, 0};  // unit; used when the merged normals cancel
+  int rank = 0;              // rank of the QEM solve (qem_solve.h)
+  bool clamped = false;
+};
+
+// Representative of a stored node: QEM solve relative to the store origin
+// around the node's mean vertex, kept inside cell_bounds (world).
+Representative make_representative(const NodeRecord& node, const Bbox& cell_bounds_world, const Vec3d& origin,
+                                   const QemSolveConfig& config = {});
+
+// Finds the cut cell containing a point. Cells are (level, Morton code) keys
+// of the cube (root_lo, root_size); a point's cell at level L is
+// floor((p - root_lo) / root_size * 2^L) per axis, clamped to the grid, i.e.
+// the binning of OctreeStore::cell_of. The cut is an antichain, so at most one
+// of the point's ancestors at the cut's levels is in it.
+class CutLookup {
+ public:
+  CutLookup(const Vec3d& root_lo, double root_size, std::span<const CellKey> cells);
+  // Index into `cells` of the cut cell containing p, or kKeepVertex.
+  uint32_t find(const Vec3d& p) const;
+  int deepest_level() const { return deepest_; }
+
+ private:
+  Vec3d root_lo_;
+  double root_size_;
+  int deepest_ = 0;
+  std::vector<int> levels_;  // levels present, deepest first
+  std::vector<std::unordered_map<uint64_t, uint32_t>> by_level_;  // indexed by level
+};
+
+struct CollapseStats {
+  uint64_t input_triangles = 0;
+  uint64_t output_triangles = 0;
+  uint64_t dropped_collapsed = 0;   // two corners became the same output vertex
+  uint64_t dropped_zero_area = 0;   // distinct vertices, zero area at float precision
+  uint64_t dropped_duplicate = 0;   // same vertices and orientation as an earlier triangle
+  uint64_t reverse_twins = 0;       // kept triangles whose reverse-wound twin is also kept
+  uint64_t output_vertices = 0;
+  uint64_t representatives_used = 0;
+  uint64_t kept_vertices = 0;
+  uint64_t normal_fallbacks = 0;    // vertices whose averaged normal cancelled
+  uint64_t peak_bytes = 0;          // largest memory_bytes() seen
+};
+
+// Builds the collapsed, indexed mesh from a stream of triangle batches.
+class CollapseBuilder {
+ public:
+  // reps[i] is the output vertex of cell i; input_has_normals says whether
+  // batches carry vertex normals.
+  CollapseBuilder(std::span<const Representative> reps, bool input_has_normals);
+  // cell[k] is the representative index of batch vertex k (3 per triangle),
+  // or kKeepVertex. Batch positions must be finite.
+  void add(const TriangleBatch& batch, std::span<const uint32_t> cell);
+  // Drops duplicates, compacts and returns the mesh (normals always filled).
+  IndexedMesh finish(CollapseStats* stats = nullptr);
+  // Bytes held by the mesh under construction (capacity of its buffers).
+  uint64_t memory_bytes() const;
+  uint64_t triangles() const { return tris_.size(); }
+
+ private:
+  uint32_t kept_vertex(const Vec3& p, const Vec3& n);
+  void grow_table();
+
+  std::span<const Representative> reps_;
+  bool has_normals_;
+  std::vector<Vec3> rep_pos_;            // float positions of the representatives
+  std::vector<Vec3d> rep_normal_sum_;
+  std::vector<double> rep_weight_sum_;
+  std::vector<Vec3> kept_pos_, kept_normal_;
+  std::vector<Vec3d> kept_normal_sum_;   // only without input normals
+  std::vector<uint32_t> table_;          // open addressing into kept_*, kKeepVertex = empty
+  std::vector<std::array<uint32_t, 3>> tris_;  // provisional ids: reps first, then kept
+  CollapseStats stats_;
+};
+
+// Bytes per output triangle and vertex that CollapseBuilder and finish() hold
+// at their peak (used to check a memory limit before any work).
+inline constexpr uint64_t kCollapseBytesPerTriangle = 12 + 12 + 4 + 12;
+inline constexpr uint64_t kCollapseBytesPerVertex = 12 + 12 + 24 + 16 + 4 + 24;
+
+struct SimplifyConfig {
+  QemSolveConfig qem;
+  // Memory the simplified mesh may use while it is built (bytes); 0 = no limit.
+  uint64_t memory_limit = 0;
+  bool progress = false;  // show a progress bar over the store's pages
+};
+
+struct SimplifyEstimate {
+  uint64_t triangles = 0;  // expected output triangles (upper estimate)
+  uint64_t vertices = 0;
+  uint64_t bytes = 0;      // memory to build them
+  uint64_t collapsed_corners = 0;
+};
+// Estimate from the store's counts and the cut alone: triangles with no corner
+// in a collapsed cell survive, plus about two triangles per representative
+// vertex (Euler: T ~ 2V on a closed manifold).
+SimplifyEstimate estimate_simplify(const OctreeStore& store, const Cut& cut);
+
+struct SimplifyResult {
+  IndexedMesh mesh;
+  CollapseStats stats;
+  uint64_t cut_cells = 0;
+  uint64_t cut_cells_missing = 0;     // cut cells the store has no node for (ignored)
+  uint64_t clamped_representatives = 0;
+  uint64_t pages_read = 0;
+  double seconds = 0;
+};
+
+// Streams the store's pages once and collapses the cut. Fails before reading
+// any page if the estimate exceeds config.memory_limit, and during the pass if
+// the mesh under construction does.
+StatusOr<SimplifyResult> simplify(const OctreeStore& store, const Cut& cut, const SimplifyConfig& config = {});
+
+}  // namespace raylod

@@ -1,0 +1,284 @@
+// The collapse core without a store: CutLookup, CollapseBuilder and the
+// differential test against the in-memory reference vertex clustering.
+#include <gtest/gtest.h>
+
+#include <random>
+#include <set>
+
+#include "simplify/collapse.h"
+#include "simplify/vertex_clustering.h"
+#include "test_meshes.h"
+
+namespace raylod {
+namespace {
+
+using test::add_tri;
+using test::add_tri_n;
+
+// Collapses `soup` with the given cells of a uniform level (all occupied
+// cells if `codes` is empty) through CutLookup + CollapseBuilder.
+struct Collapsed {
+  IndexedMesh mesh;
+  CollapseStats stats;
+  std::vector<Representative> reps;
+  std::vector<CellKey> keys;
+};
+Collapsed collapse_level(const TriangleBatch& soup, const test::MemoryNodes& nodes, std::vector<uint64_t> codes = {}) {
+  Collapsed out;
+  if (codes.empty()) for (const auto& [c, r] : nodes.nodes) codes.push_back(c);
+  for (uint64_t c : codes) {
+    out.keys.push_back({uint32_t(nodes.level), c});
+    out.reps.push_back(make_representative(nodes.nodes.at(c), nodes.cell_bounds(c), nodes.origin));
+  }
+  const CutLookup lookup(nodes.root_lo, nodes.root_size, out.keys);
+  CollapseBuilder builder(out.reps, !soup.normals.empty());
+  std::vector<uint32_t> cell(soup.positions.size());
+  for (size_t i = 0; i < cell.size(); ++i) cell[i] = lookup.find(Vec3d(soup.positions[i]));
+  builder.add(soup, cell);
+  out.mesh = builder.finish(&out.stats);
+  return out;
+}
+
+TEST(CutLookup, FindsTheCutCellAmongMixedLevels) {
+  // Root [0, 8]^3; cut: cell (level 1, x=0,y=0,z=0) and cell (level 3, x=5,y=5,z=5).
+  const std::vector<CellKey> keys = {{1, morton_encode(0, 0, 0)}, {3, morton_encode(5, 5, 5)}};
+  const CutLookup lookup(Vec3d(0), 8.0, keys);
+  EXPECT_EQ(lookup.find(Vec3d(1, 2, 3.9)), 0u);
+  EXPECT_EQ(lookup.find(Vec3d(3.99, 0, 0)), 0u);
+  EXPECT_EQ(lookup.find(Vec3d(4.0, 0, 0)), kKeepVertex);  // next cell at level 1
+  EXPECT_EQ(lookup.find(Vec3d(5.5, 5.5, 5.5)), 1u);
+  EXPECT_EQ(lookup.find(Vec3d(6.0, 5.5, 5.5)), kKeepVertex);
+  EXPECT_EQ(lookup.find(Vec3d(-1, -1, -1)), 0u);  // clamped to the grid like OctreeStore::cell_of
+  EXPECT_EQ(CutLookup(Vec3d(0), 8.0, {}).find(Vec3d(1)), kKeepVertex);
+}
+
+TEST(CollapseBuilder, KeepsUncollapsedTrianglesExactlyAndIndexesSharedVertices) {
+  TriangleBatch soup;
+  add_tri(soup, {0, 0, 0}, {1, 0, 0}, {0, 1, 0});
+  add_tri(soup, {1, 0, 0}, {1, 1, 0}, {0, 1, 0});
+  CollapseBuilder b({}, false);
+  std::vector<uint32_t> cell(6, kKeepVertex);
+  b.add(soup, cell);
+  CollapseStats st;
+  const IndexedMesh m = b.finish(&st);
+  ASSERT_EQ(m.triangle_count(), 2u);
+  EXPECT_EQ(m.positions.size(), 4u);
+  for (size_t i = 0; i < 6; ++i) EXPECT_EQ(m.positions[m.indices[i]], soup.positions[i]);
+  for (const Vec3& n : m.normals) EXPECT_NEAR(glm::distance(n, Vec3(0, 0, 1)), 0.0f, 1e-6f);
+}
+
+TEST(CollapseBuilder, DropsCollapsedZeroAreaAndDuplicateTrianglesButKeepsReverseTwins) {
+  TriangleBatch soup;
+  const Vec3 a(0, 0, 0), b(1, 0, 0), c(0, 1, 0), d(2, 0, 0);
+  add_tri(soup, a, b, c);   // kept
+  add_tri(soup, b, c, a);   // same triangle, rotated: duplicate
+  add_tri(soup, a, c, b);   // reverse-wound twin: kept
+  add_tri(soup, a, b, d);   // zero area (collinear)
+  add_tri(soup, a, a, c);   // repeated vertex
+  CollapseBuilder builder({}, false);
+  builder.add(soup, std::vector<uint32_t>(soup.positions.size(), kKeepVertex));
+  CollapseStats st;
+  const IndexedMesh m = builder.finish(&st);
+  EXPECT_EQ(m.triangle_count(), 2u);
+  EXPECT_EQ(st.input_triangles, 5u);
+  EXPECT_EQ(st.dropped_duplicate, 1u);
+  EXPECT_EQ(st.dropped_zero_area, 1u);
+  EXPECT_EQ(st.dropped_collapsed, 1u);
+  EXPECT_EQ(st.reverse_twins, 2u);
+  for (const Vec3& n : m.normals) {
+    EXPECT_TRUE(is_finite(n));
+    EXPECT_NEAR(glm::length(n), 1.0f, 1e-6f);
+  }
+}
+
+TEST(CollapseBuilder, ZeroAreaAndRepeatedVertexInputNeverGiveNaN) {
+  // A cluster whose only triangles are degenerate: quadric A = 0, no normal
+  // weight. The representative is the mean, its normal the +Y fallback.
+  TriangleBatch soup;
+  add_tri(soup, {0.1f, 0.1f, 0.1f}, {0.2f, 0.2f, 0.2f}, {0.3f, 0.3f, 0.3f});  // collinear
+  add_tri(soup, {0.1f, 0.1f, 0.1f}, {0.1f, 0.1f, 0.1f}, {2, 2, 2});         // repeated vertex
+  add_tri(soup, {0.2f, 0.2f, 0.2f}, {2, 2, 2}, {2, 3, 2});
+  const test::MemoryNodes nodes = test::accumulate_nodes(soup, Vec3d(0), 4.0, 1, Vec3d(0));
+  const Collapsed c = collapse_level(soup, nodes, {morton_encode(0, 0, 0)});
+  EXPECT_EQ(c.reps[0].rank, 1);  // the one non-degenerate triangle has a corner in the cell
+  ASSERT_EQ(c.mesh.triangle_count(), 1u);
+  for (size_t i = 0; i < c.mesh.positions.size(); ++i) {
+    EXPECT_TRUE(is_finite(c.mesh.positions[i]));
+    EXPECT_NEAR(glm::length(c.mesh.normals[i]), 1.0f, 1e-6f);
+  }
+  // Only degenerate triangles in the cell: A = 0.
+  TriangleBatch only_bad;
+  add_tri(only_bad, {0.1f, 0.1f, 0.1f}, {0.2f, 0.2f, 0.2f}, {0.3f, 0.3f, 0.3f});
+  add_tri(only_bad, {0.4f, 0.4f, 0.4f}, {0.4f, 0.4f, 0.4f}, {3, 3, 3});
+  add_tri(only_bad, {0.5f, 0.5f, 0.5f}, {3, 3, 3}, {3.5f, 3.5f, 3.5f});  // collinear
+  const test::MemoryNodes bad_nodes = test::accumulate_nodes(only_bad, Vec3d(0), 4.0, 1, Vec3d(0));
+  const NodeRecord& r = bad_nodes.nodes.at(morton_encode(0, 0, 0));
+  EXPECT_EQ(r.corner_count, 6u);
+  const Representative rep = make_representative(r, bad_nodes.cell_bounds(r.code), Vec3d(0));
+  EXPECT_TRUE(is_finite(rep.position));
+  EXPECT_NEAR(glm::length(rep.position - r.vertex_sum / 6.0), 0.0, 1e-12);
+  EXPECT_EQ(rep.fallback_normal, Vec3d(0, 1, 0));
+}
+
+TEST(CollapseBuilder, RepresentativeNormalIsTheAreaWeightedMeanOfMergedNormals) {
+  // Two triangles sharing corners in the collapsed cell, with vertex normals
+  // tilted +-x; the larger triangle must dominate.
+  TriangleBatch soup;
+  const Vec3 nl = glm::normalize(Vec3(-1, 0, 1)), nr = glm::normalize(Vec3(1, 0, 1));
+  add_tri_n(soup, {0.1f, 0.1f, 0}, {3, 0.2f, 0}, {3, 3, 0}, nl, nl, nl);        // area ~4.3
+  add_tri_n(soup, {0.2f, 0.1f, 0}, {3, 3.5f, 0}, {2.5f, 3.5f, 0}, nr, nr, nr);  // area ~0.8
+  const test::MemoryNodes nodes = test::accumulate_nodes(soup, Vec3d(0), 4.0, 1, Vec3d(0));
+  const Collapsed c = collapse_level(soup, nodes, {morton_encode(0, 0, 0)});
+  ASSERT_EQ(c.mesh.triangle_count(), 2u);
+  const double a1 = 0.5 * glm::length(glm::cross(Vec3d(2.9, 0.1, 0), Vec3d(2.9, 2.9, 0)));
+  const double a2 = 0.5 * glm::length(glm::cross(Vec3d(2.8, 3.4, 0), Vec3d(2.3, 3.4, 0)));
+  const Vec3 expect = Vec3(glm::normalize(a1 * Vec3d(nl) + a2 * Vec3d(nr)));
+  // The representative is the vertex used by both triangles.
+  const uint32_t rep = c.mesh.indices[0];
+  EXPECT_EQ(rep, c.mesh.indices[3]);
+  EXPECT_NEAR(glm::distance(c.mesh.normals[rep], expect), 0.0f, 1e-6f);
+  EXPECT_NEAR(glm::length(c.mesh.normals[rep]), 1.0f, 1e-6f);
+}
+
+TEST(CollapseBuilder, CancellingVertexNormalsFallBackToTheQuadricNormal) {
+  // A thin wall (two coplanar sheets facing opposite ways, 1e-4 apart) in one
+  // collapsed cell: the merged vertex normals sum to zero. The naive
+  // normalise(sum) would be NaN; we get the wall's normal, unit length.
+  TriangleBatch soup;
+  const Vec3 up(0, 0, 1), down(0, 0, -1);
+  add_tri_n(soup, {0.5f, 0.5f, 0.5f}, {3, 0.5f, 0.5f}, {0.5f, 3, 0.5f}, up, up, up);
+  add_tri_n(soup, {0.6f, 0.6f, 0.5001f}, {0.6f, 3.1f, 0.5001f}, {3.1f, 0.6f, 0.5001f}, down, down, down);
+  const test::MemoryNodes nodes = test::accumulate_nodes(soup, Vec3d(0), 4.0, 1, Vec3d(0));
+  // Collapse only cell (0,0,0): both sheets' first corners merge.
+  const Collapsed c = collapse_level(soup, nodes, {morton_encode(0, 0, 0)});
+  ASSERT_EQ(c.mesh.triangle_count(), 2u);
+  const Vec3 n = c.mesh.normals[c.mesh.indices[0]];
+  EXPECT_EQ(c.mesh.indices[0], c.mesh.indices[3]);
+  EXPECT_TRUE(is_finite(n));
+  EXPECT_NEAR(glm::length(n), 1.0f, 1e-6f);
+  EXPECT_NEAR(std::abs(n.z), 1.0f, 1e-6f);
+  EXPECT_EQ(c.stats.normal_fallbacks, 1u);
+  // Naive: the normalised sum of the merged normals is NaN.
+  const Vec3 naive = glm::normalize(up * 1.0f + down * 1.0f);
+  EXPECT_FALSE(is_finite(naive));
+}
+
+TEST(CollapseBuilder, ClosedInputStaysClosedWhenNoCellSpansTheWall) {
+  // A thin closed slab [0,1] x [0,1] x [1, 1.1] (grid spacing 1/32):
+  // collapsing only cells that hold the top sheet and not the bottom never
+  // merges the two sides.
+  const TriangleBatch slab = test::closed_box({0, 0, 1.0f}, {1, 1, 1.1f}, 32);
+  // The input itself is closed.
+  CollapseBuilder identity({}, false);
+  identity.add(slab, std::vector<uint32_t>(slab.positions.size(), kKeepVertex));
+  ASSERT_TRUE(test::edges_paired(identity.finish()));
+  // Level-3 cells (side 0.5) hold both sheets; level-6 cells (side 1/16) separate them.
+  const test::MemoryNodes nodes = test::accumulate_nodes(slab, Vec3d(0), 4.0, 3, Vec3d(2, 2, 1));
+  std::vector<uint64_t> top;
+  const test::MemoryNodes fine = test::accumulate_nodes(slab, Vec3d(0), 4.0, 6, Vec3d(2, 2, 1));
+  for (const auto& [code, r] : fine.nodes) {
+    const Bbox b = fine.cell_bounds(code);
+    const bool has_top = b.lo.z <= 1.1 && b.hi.z > 1.1, has_bottom = b.lo.z <= 1.0 && b.hi.z > 1.0;
+    if (has_top && !has_bottom && (code % 3 == 0)) top.push_back(code);  // a scattered subset
+  }
+  ASSERT_GT(top.size(), 10u);
+  const Collapsed c = collapse_level(slab, fine, top);
+  EXPECT_LT(c.mesh.triangle_count(), slab.size());
+  size_t unpaired = 0;
+  EXPECT_TRUE(test::edges_paired(c.mesh, &unpaired)) << unpaired << " unpaired edges";
+  EXPECT_EQ(c.stats.reverse_twins, 0u);
+
+  // Collapsing across the wall (every cell at level 3) makes reverse twins;
+  // they are kept, so every edge is still paired.
+  const Collapsed across = collapse_level(slab, nodes);
+  EXPECT_GT(across.stats.reverse_twins, 0u);
+  EXPECT_TRUE(test::edges_paired(across.mesh, &unpaired)) << unpaired << " unpaired edges";
+}
+
+TEST(VertexClusteringDifferential, UniformCutEqualsReferenceClustering) {
+  // The whole mesh collapsed at one level through CutLookup + CollapseBuilder
+  // equals the straightforward in-memory clustering on the same grid.
+  const TriangleBatch mesh = test::uv_sphere({0.3f, -0.2f, 0.1f}, 1.0f, 40, 64);
+  const TriangleBatch box = test::closed_box({-1.2f, -1.3f, -0.9f}, {-0.4f, -0.8f, 1.2f}, 6);  // no normals: drop them
+  for (int level = 2; level <= 5; ++level) {
+    const Vec3d root_lo(-1.5, -1.5, -1.5), origin(0.1, 0.0, -0.2);
+    const double root_size = 3.0;
+    for (const TriangleBatch* soup : {&mesh, &box}) {
+      const test::MemoryNodes nodes = test::accumulate_nodes(*soup, root_lo, root_size, level, origin);
+      const Collapsed c = collapse_level(*soup, nodes);
+      VertexClusteringConfig cfg;
+      cfg.root_lo = root_lo;
+      cfg.root_size = root_size;
+      cfg.level = level;
+      cfg.origin = origin;
+      const IndexedMesh ref = cluster_vertices(*soup, cfg);
+      ASSERT_GT(ref.triangle_count(), 0u);
+      EXPECT_EQ(c.mesh.triangle_count(), ref.triangle_count()) << "level " << level;
+      EXPECT_EQ(test::canonical_triangles(c.mesh), test::canonical_triangles(ref)) << "level " << level;
+      // Same normals per position.
+      std::map<std::array<float, 3>, Vec3> ref_normal;
+      for (size_t i = 0; i < ref.positions.size(); ++i)
+        ref_normal[{ref.positions[i].x, ref.positions[i].y, ref.positions[i].z}] = ref.normals[i];
+      for (size_t i = 0; i < c.mesh.positions.size(); ++i) {
+        const auto it = ref_normal.find({c.mesh.positions[i].x, c.mesh.positions[i].y, c.mesh.positions[i].z});
+        ASSERT_NE(it, ref_normal.end());
+        EXPECT_NEAR(glm::distance(it->second, c.mesh.normals[i]), 0.0f, 1e-5f);
+      }
+    }
+  }
+}
+
+TEST(CollapseProperty, SeededRandomMeshesGiveFiniteVerticesInsideTheirCells) {
+  std::mt19937_64 rng(2024);
+  std::uniform_real_distribution<float> u(0, 1);
+  for (int it = 0; it < 40; ++it) {
+    TriangleBatch soup;
+    const int n = 50 + int(u(rng) * 400);
+    const bool normals = it % 2;
+    const float spread = it % 3 == 0 ? 1e-3f : 1.0f;  // some clumped meshes
+    for (int t = 0; t < n; ++t) {
+      Vec3 base(u(rng), u(rng), u(rng));
+      Vec3 p[3];
+      for (int k = 0; k < 3; ++k) p[k] = base + spread * 0.2f * Vec3(u(rng) - 0.5f, u(rng) - 0.5f, u(rng) - 0.5f);
+      if (t % 17 == 0) p[2] = p[1];                                // repeated vertex
+      if (t % 19 == 0) p[2] = 0.5f * (p[0] + p[1]);                // collinear
+      if (t % 23 == 0 && t > 0) p[0] = soup.positions[3 * (t - 1)];  // shared vertices
+      if (normals) {
+        Vec3 nn[3];
+        for (int k = 0; k < 3; ++k) nn[k] = glm::normalize(Vec3(u(rng) - 0.5f, u(rng) - 0.5f, u(rng) - 0.5f) + 1e-3f);
+        add_tri_n(soup, p[0], p[1], p[2], nn[0], nn[1], nn[2]);
+      } else {
+        add_tri(soup, p[0], p[1], p[2]);
+      }
+    }
+    const int level = 1 + it % 5;
+    const test::MemoryNodes nodes = test::accumulate_nodes(soup, Vec3d(-0.5), 2.0, level, Vec3d(0.5));
+    std::vector<uint64_t> codes;
+    for (const auto& [code, r] : nodes.nodes) if (u(rng) < 0.6f) codes.push_back(code);
+    const Collapsed c = collapse_level(soup, nodes, codes);
+    std::set<std::array<float, 3>> input;
+    for (const Vec3& p : soup.positions) input.insert({p.x, p.y, p.z});
+    std::map<std::array<float, 3>, size_t> rep_of;
+    for (size_t i = 0; i < c.reps.size(); ++i) {
+      const Vec3 p(c.reps[i].position);
+      rep_of[{p.x, p.y, p.z}] = i;
+      const Bbox cell = nodes.cell_bounds(codes[i]);
+      ASSERT_TRUE(test::inside(c.reps[i].position, cell)) << "iteration " << it;
+    }
+    for (size_t i = 0; i < c.mesh.positions.size(); ++i) {
+      const Vec3& p = c.mesh.positions[i];
+      ASSERT_TRUE(is_finite(p) && is_finite(c.mesh.normals[i])) << "iteration " << it;
+      ASSERT_NEAR(glm::length(c.mesh.normals[i]), 1.0f, 1e-5f);
+      // Every output vertex is an input vertex or a representative (float of a point inside its cell).
+      const bool known = input.count({p.x, p.y, p.z}) || rep_of.count({p.x, p.y, p.z});
+      ASSERT_TRUE(known) << "iteration " << it;
+    }
+    for (size_t t = 0; t < c.mesh.triangle_count(); ++t) {
+      const uint32_t* f = &c.mesh.indices[3 * t];
+      ASSERT_TRUE(f[0] != f[1] && f[1] != f[2] && f[0] != f[2]);
+    }
+  }
+}
+
+}  // namespace
+}  // namespace raylod

@@ -1,0 +1,179 @@
+// Draco round trips: same triangle count, positions within the reported
+// quantisation bound, normals within the reported angle bound.
+#include <gtest/gtest.h>
+
+#include <cstdlib>
+#include <fstream>
+#include <random>
+
+#include "simplify/collapse.h"
+#include "streaming/draco_io.h"
+#include "test_meshes.h"
+
+namespace raylod {
+namespace {
+
+std::filesystem::path tmp_dir() {
+  const char* env = std::getenv("RAYLOD_TEST_TMP");
+  std::filesystem::path d = env ? env : std::filesystem::temp_directory_path();
+  d /= "simplify";
+  std::filesystem::create_directories(d);
+  return d;
+}
+
+IndexedMesh indexed(const TriangleBatch& soup) {
+  CollapseBuilder b({}, !soup.normals.empty());
+  b.add(soup, std::vector<uint32_t>(soup.positions.size(), kKeepVertex));
+  return b.finish();
+}
+
+// Every input triangle matches a distinct decoded triangle (some rotation,
+// same orientation) with all corners within `tol`; brute force.
+void expect_same_triangles(const IndexedMesh& in, const IndexedMesh& out, double tol, double normal_tol) {
+  ASSERT_EQ(in.triangle_count(), out.triangle_count());
+  std::vector<bool> used(out.triangle_count(), false);
+  double worst = 0, worst_normal = 0;
+  for (size_t t = 0; t < in.triangle_count(); ++t) {
+    bool found = false;
+    for (size_t s = 0; s < out.triangle_count() && !found; ++s) {
+      if (used[s]) continue;
+      for (int rot = 0; rot < 3 && !found; ++rot) {
+        double err = 0, nerr = 0;
+        for (int k = 0; k < 3; ++k) {
+          const uint32_t a = in.indices[3 * t + k], b = out.indices[3 * s + (k + rot) % 3];
+          err = std::max(err, glm::distance(Vec3d(in.positions[a]), Vec3d(out.positions[b])));
+          if (!in.normals.empty())
+            nerr = std::max(nerr, std::acos(std::clamp(double(glm::dot(in.normals[a], out.normals[b])), -1.0, 1.0)));
+        }
+        if (err <= tol) {
+          found = used[s] = true;
+          worst = std::max(worst, err);
+          worst_normal = std::max(worst_normal, nerr);
+        }
+      }
+    }
+    ASSERT_TRUE(found) << "input triangle " << t << " has no decoded match within " << tol;
+  }
+  EXPECT_LE(worst, tol);
+  EXPECT_LE(worst_normal, normal_tol);
+}
+
+TEST(DracoIo, ChoosesBitsFromTheRequestedError) {
+  EXPECT_EQ(choose_position_bits(1.0, 1.0, 1.0), 1);
+  const int b = choose_position_bits(100.0, 100.0, 1e-3);
+  EXPECT_LE(position_error_bound(100.0, 100.0, b), 1e-3);
+  EXPECT_GT(position_error_bound(100.0, 100.0, b - 1), 1e-3);  // the smallest that works
+  EXPECT_EQ(choose_position_bits(1.0, 1e6, 1e-12), 30);       // unreachable: clamped to Draco's limit
+}
+
+TEST(DracoIo, RoundTripSphereWithinTheStatedErrors) {
+  const IndexedMesh mesh = indexed(test::uv_sphere({10, -3, 2}, 2.0f, 24, 32));
+  const auto path = tmp_dir() / "sphere.drc";
+  for (double want : {1e-2, 1e-4}) {
+    DracoOptions opt;
+    opt.max_position_error = want;
+    auto rep = write_draco(path, mesh, opt);
+    ASSERT_TRUE(rep.is_ok()) << rep.status().message();
+    EXPECT_LE(rep->max_position_error, want);
+    EXPECT_GT(rep->position_bits, 0);
+    EXPECT_EQ(rep->bytes, std::filesystem::file_size(path));
+    auto back = read_draco(path);
+    ASSERT_TRUE(back.is_ok()) << back.status().message();
+    ASSERT_EQ(back->normals.size(), back->positions.size());
+    expect_same_triangles(mesh, *back, rep->max_position_error, rep->max_normal_error);
+  }
+}
+
+TEST(DracoIo, RoundTripKeepsReverseTwinsAndSeams) {
+  // A collapsed thin slab: reverse-wound twins and normal seams survive.
+  TriangleBatch slab = test::closed_box({0, 0, 0}, {1, 1, 0.05f}, 4);
+  IndexedMesh mesh = indexed(slab);
+  // Add the reverse twin of the first triangle (a wall collapsed to zero thickness).
+  for (int k : {0, 2, 1}) mesh.indices.push_back(mesh.indices[k]);
+  DracoOptions opt;
+  opt.max_position_error = 1e-5;
+  const auto path = tmp_dir() / "slab.drc";
+  auto rep = write_draco(path, mesh, opt);
+  ASSERT_TRUE(rep.is_ok()) << rep.status().message();
+  auto back = read_draco(path);
+  ASSERT_TRUE(back.is_ok()) << back.status().message();
+  expect_same_triangles(mesh, *back, rep->max_position_error, rep->max_normal_error);
+}
+
+TEST(DracoIo, NormalErrorBoundHoldsForRandomNormals) {
+  std::mt19937_64 rng(5);
+  std::normal_distribution<float> g;
+  TriangleBatch soup;
+  for (int t = 0; t < 300; ++t) {
+    const Vec3 base(float(t % 20), float(t / 20), 0);
+    Vec3 n[3];
+    for (auto& x : n) x = glm::normalize(Vec3(g(rng), g(rng), g(rng)));
+    test::add_tri_n(soup, base, base + Vec3(0.5f, 0, 0), base + Vec3(0, 0.5f, 0.1f), n[0], n[1], n[2]);
+  }
+  const IndexedMesh mesh = indexed(soup);
+  for (int bits : {6, 8, 10, 12}) {
+    DracoOptions opt;
+    opt.normal_bits = bits;
+    opt.max_position_error = 1e-4;
+    const auto path = tmp_dir() / "normals.drc";
+    auto rep = write_draco(path, mesh, opt);
+    ASSERT_TRUE(rep.is_ok()) << rep.status().message();
+    auto back = read_draco(path);
+    ASSERT_TRUE(back.is_ok());
+    expect_same_triangles(mesh, *back, rep->max_position_error, rep->max_normal_error);
+  }
+}
+
+TEST(DracoIo, MeshReaderOverADecodedFile) {
+  const IndexedMesh mesh = indexed(test::uv_sphere({0, 0, 0}, 1.0f, 8, 12));
+  const auto path = tmp_dir() / "reader.drc";
+  ASSERT_TRUE(write_draco(path, mesh, {}).is_ok());
+  auto reader = open_draco_reader(path, ReaderOptions{50});
+  ASSERT_TRUE(reader.is_ok()) << reader.status().message();
+  EXPECT_EQ((*reader)->header().format, MeshFormat::Draco);
+  EXPECT_TRUE((*reader)->header().has_normals);
+  TriangleBatch batch;
+  size_t total = 0, batches = 0;
+  while (true) {
+    auto more = (*reader)->next(batch);
+    ASSERT_TRUE(more.is_ok());
+    if (!*more) break;
+    EXPECT_LE(batch.size(), 50u);
+    EXPECT_EQ(batch.normals.size(), batch.positions.size());
+    total += batch.size();
+    ++batches;
+  }
+  EXPECT_EQ(total, mesh.triangle_count());
+  EXPECT_GT(batches, 1u);
+}
+
+TEST(DracoIo, BadInputsGiveClearErrorsAndNoFile) {
+  const auto dir = tmp_dir();
+  IndexedMesh degenerate;
+  degenerate.positions = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}};
+  degenerate.indices = {0, 1, 1};
+  const auto out = dir / "degenerate.drc";
+  std::filesystem::remove(out);
+  auto r = write_draco(out, degenerate, {});
+  ASSERT_FALSE(r.is_ok());
+  EXPECT_NE(r.status().message().find("degenerate"), std::string::npos);
+  EXPECT_FALSE(std::filesystem::exists(out));
+  degenerate.indices = {0, 1, 7};
+  EXPECT_FALSE(write_draco(out, degenerate, {}).is_ok());
+
+  const auto junk = dir / "junk.drc";
+  std::ofstream(junk) << "not draco at all";
+  auto j = read_draco(junk);
+  ASSERT_FALSE(j.is_ok());
+  EXPECT_NE(j.status().message().find("junk.drc"), std::string::npos);
+  // A truncated real file.
+  const IndexedMesh mesh = indexed(test::uv_sphere({0, 0, 0}, 1.0f, 8, 12));
+  const auto good = dir / "truncated.drc";
+  ASSERT_TRUE(write_draco(good, mesh, {}).is_ok());
+  std::filesystem::resize_file(good, std::filesystem::file_size(good) / 2);
+  EXPECT_FALSE(read_draco(good).is_ok());
+  EXPECT_FALSE(read_draco(dir / "missing.drc").is_ok());
+}
+
+}  // namespace
+}  // namespace raylod
