@@ -14,7 +14,9 @@
 #pragma once
 
 #include <cstdint>
+#include <cstdio>
 #include <filesystem>
+#include <functional>
 #include <memory>
 #include <span>
 #include <string>
@@ -67,7 +69,8 @@ struct PageInfo {
 struct StoreOptions {
   uint64_t memory_limit = 0;  // bytes; 0 = a quarter of physical memory
   int max_depth = 12;         // deepest level that may keep quadrics
-  int threads = 0;            // 0 = all cores
+  int threads = 0;            // 0 = all cores (not recorded: the store does not depend on it)
+  uint32_t page_triangles = 4096;  // target triangles per page (chooses page_level)
 };
 
 struct StoreHeader {
@@ -83,6 +86,11 @@ struct StoreHeader {
   int quadric_depth = 0;      // deepest level with NodeRecords
   int page_level = 0;         // level whose cells are the pages
   Bbox bounds;                // mesh bounds (world)
+  // Layout facts filled in by OctreeStore::open (not needed to build).
+  uint64_t file_bytes = 0;        // whole store file
+  uint64_t node_table_bytes = 0;  // all levels' NodeRecords
+  uint64_t page_data_bytes = 0;   // all pages
+  bool coarsened = false;         // quadric_depth was lowered during the build to fit memory_limit
 };
 
 class OctreeStore {
@@ -120,6 +128,13 @@ struct BuildReport {
   double seconds = 0;
   uint64_t triangles = 0;
   uint64_t peak_rss = 0;
+  // Filled when built (not reused):
+  int quadric_depth = 0, page_level = 0;
+  uint64_t nodes = 0, pages = 0;
+  uint64_t node_table_bytes = 0;  // memory the quadrics take (all levels)
+  uint64_t store_bytes = 0;       // size of the written store file
+  uint64_t source_bytes = 0;
+  bool coarsened = false;         // quadric_depth had to be lowered during the build
 };
 // Builds (or reuses, if up to date for the same mesh and options) the store.
 StatusOr<BuildReport> build_store(const std::filesystem::path& mesh, const std::filesystem::path& store,
@@ -127,5 +142,58 @@ StatusOr<BuildReport> build_store(const std::filesystem::path& mesh, const std::
 // True if `store` exists, opens, and matches the mesh's size, mtime and hash.
 bool store_is_current(const std::filesystem::path& mesh, const std::filesystem::path& store,
                       const StoreOptions& options, std::string* reason = nullptr);
+
+// ---- Lower-level entry points (streaming/octree_build.cpp) ----
+
+// Opens a fresh pass over the input mesh; build_store_from_stream calls it
+// once per pass (twice), and every pass must yield the same triangles in the
+// same batches. Tests pass in-memory readers; build_store passes open_mesh.
+using MeshStreamOpener = std::function<StatusOr<std::unique_ptr<MeshReader>>()>;
+
+// What the store records about the mesh it was built from.
+struct SourceFingerprint {
+  std::string path;             // absolute path
+  uint64_t bytes = 0, mtime_ns = 0, hash = 0;
+};
+// Size, mtime and (if with_hash) content hash (content_hash64 of all bytes).
+StatusOr<SourceFingerprint> fingerprint_file(const std::filesystem::path& path, bool with_hash = true);
+
+// The core of `raylod build`: two streaming passes (bounds, then binning and
+// quadric accumulation), then pages are assembled from sorted runs and the
+// store is written atomically to `store`. Ignores whether a store exists.
+// If source_hash is given it is called once, after the passes, for the value
+// recorded as the source hash (build_store hashes the file concurrently).
+StatusOr<BuildReport> build_store_from_stream(const MeshStreamOpener& open, const SourceFingerprint& source,
+                                              const std::filesystem::path& store, const StoreOptions& options,
+                                              const std::function<StatusOr<uint64_t>()>& source_hash = nullptr);
+
+// The memory_limit actually used for these options (default: physical / 4).
+uint64_t resolved_memory_limit(const StoreOptions& options);
+
+// ---- Store file helpers (streaming/octree_store.cpp) ----
+
+// True if the file starts with the store magic (for `raylod info`).
+bool is_store_file(const std::filesystem::path& path);
+// Prints levels, node counts per level, pages, bytes, quadric memory and the
+// build options of a store (for `raylod info STORE`).
+Status print_store_info(const std::filesystem::path& path, std::FILE* out);
+
+// ---- Checksums (streaming/store_checksum.cpp) ----
+
+// CRC-32C (Castagnoli), hardware-accelerated where SSE4.2 is available.
+// Chainable: crc32c(b, crc32c(a)) == crc32c(a then b).
+uint32_t crc32c(const void* data, size_t bytes, uint32_t crc = 0);
+// 64-bit content hash (4-lane multiply-rotate, xxh64-style rounds), streaming.
+class ContentHasher {
+ public:
+  void update(const void* data, size_t bytes);
+  uint64_t digest() const;
+ private:
+  uint64_t lanes_[4] = {0x9E3779B185EBCA87ull, 0xC2B2AE3D27D4EB4Full, 0x165667B19E3779F9ull, 0x85EBCA77C2B2AE63ull};
+  unsigned char tail_[32] = {};
+  size_t tail_bytes_ = 0;
+  uint64_t total_ = 0;
+};
+uint64_t content_hash64(const void* data, size_t bytes);
 
 }  // namespace raylod

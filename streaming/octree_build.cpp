@@ -1,0 +1,813 @@
+// `raylod build` core: streams a mesh into the disk-backed octree store
+// (method step A1 at out-of-core scale; quadrics after Lindstrom, "Out-of-core
+// simplification of large polygonal models", SIGGRAPH 2000, METHOD.md eq. 4;
+// cells after Luebke and Erikson, SIGGRAPH 1997).
+//
+// Pass 1 streams the mesh for its bounds, its triangle count and a bounded,
+// deterministic sample of triangles. From the sample the plan estimates the
+// occupied cells per level and picks
+//   - quadric_depth: the deepest level (<= --max-depth) whose node table fits
+//     in 35% of --memory-limit (the rest is for runs, reader and batches), and
+//   - page_level: the deepest level whose occupied cells still hold about
+//     page_triangles (default 4096) triangles on average, so a page is a
+//     few hundred KiB: large enough for sequential reads, small enough that a
+//     probe touching a region reads little else. It is independent of
+//     quadric_depth (usually shallower).
+// Pass 2 streams the mesh again. Batches are processed in parallel: each
+// corner of each triangle adds the triangle's plane quadric (unit normal = the
+// normalised average of the three vertex normals where the file has them, else
+// the face normal; weight = area / 3 per corner, so a triangle whose corners
+// share a cell adds its area once and the quadric does not depend on
+// tessellation density) to the cell of that vertex at quadric_depth, into a
+// batch-local table in corner order. Batch tables are merged into the global
+// table in batch order, so every floating-point sum has the same order for any
+// thread count. If the global table would outgrow its budget (the estimate was
+// low) it is coarsened by one level, which is exact: a parent's quadric is the
+// sum of its children's. Triangles are appended to a run buffer; a full
+// buffer is counting-sorted by page and written as one run to an unlinked
+// temporary file. Finally every page is assembled from its segments in the
+// runs (in input order), checksummed and written, followed by the node table
+// (levels above quadric_depth by summing children), the page table and the
+// header; the file is fsynced and renamed into place (AtomicOutput).
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <atomic>
+#include <cerrno>
+#include <chrono>
+#include <cmath>
+#include <cstring>
+#include <mutex>
+
+#include <tbb/concurrent_queue.h>
+#include <tbb/global_control.h>
+#include <tbb/info.h>
+#include <tbb/parallel_pipeline.h>
+
+#include "core/progress.h"
+#include "core/system.h"
+#include "streaming/octree_format.h"
+#include "streaming/octree_store.h"
+
+namespace raylod {
+namespace {
+
+using namespace store_format;
+
+// Bytes of memory one leaf node costs while building: the record, its hash
+// slot(s) with growth slack, and its share of the parent levels (1/3 on
+// surfaces) built at the end.
+constexpr uint64_t kBytesPerLeafNode = 192;
+constexpr uint64_t kSampleTriangles = 1 << 17;
+
+void add_node(NodeRecord& a, const NodeRecord& b) {
+  quadric_add(a.quadric, b.quadric);
+  a.vertex_sum += b.vertex_sum;
+  a.normal_sum += b.normal_sum;
+  a.corner_count += b.corner_count;
+}
+
+// Open-addressing table from Morton code to a dense vector of NodeRecords
+// (linear probing, slots hold index + 1, load factor <= 1/2).
+class NodeTable {
+ public:
+  std::vector<NodeRecord> nodes;
+
+  NodeRecord& upsert(uint64_t code) {
+    if (2 * (nodes.size() + 1) > slots_.size()) grow();
+    size_t i = slot_of(code);
+    for (;;) {
+      uint32_t s = slots_[i];
+      if (s == 0) {
+        slots_[i] = uint32_t(nodes.size() + 1);
+        nodes.push_back(NodeRecord{});
+        nodes.back().code = code;
+        return nodes.back();
+      }
+      if (nodes[s - 1].code == code) return nodes[s - 1];
+      i = (i + 1) & mask_;
+    }
+  }
+  void clear() {
+    nodes.clear();
+    std::fill(slots_.begin(), slots_.end(), 0u);
+  }
+  void release_index() { std::vector<uint32_t>().swap(slots_); mask_ = 0; }
+  // Replaces every code by its parent's, merging siblings (in code order).
+  void coarsen() {
+    std::sort(nodes.begin(), nodes.end(), [](const NodeRecord& a, const NodeRecord& b) { return a.code < b.code; });
+    size_t out = 0;
+    for (size_t i = 0; i < nodes.size(); ++i) {
+      const uint64_t parent = nodes[i].code >> 3;
+      if (out > 0 && nodes[out - 1].code == parent) {
+        add_node(nodes[out - 1], nodes[i]);
+      } else {
+        nodes[out] = nodes[i];
+        nodes[out].code = parent;
+        ++out;
+      }
+    }
+    nodes.resize(out);
+    std::fill(slots_.begin(), slots_.end(), 0u);
+    for (size_t k = 0; k < nodes.size(); ++k) {
+      size_t i = slot_of(nodes[k].code);
+      while (slots_[i]) i = (i + 1) & mask_;
+      slots_[i] = uint32_t(k + 1);
+    }
+  }
+
+ private:
+  size_t slot_of(uint64_t code) const { return size_t((code * 0x9E3779B97F4A7C15ull) >> 20) & mask_; }
+  void grow() {
+    size_t n = std::max<size_t>(1024, 2 * slots_.size());
+    slots_.assign(n, 0u);
+    mask_ = n - 1;
+    for (size_t k = 0; k < nodes.size(); ++k) {
+      size_t i = slot_of(nodes[k].code);
+      while (slots_[i]) i = (i + 1) & mask_;
+      slots_[i] = uint32_t(k + 1);
+    }
+  }
+  std::vector<uint32_t> slots_;
+  size_t mask_ = 0;
+};
+
+// Morton code -> dense page id in first-seen order.
+class PageIds {
+ public:
+  std::vector<uint64_t> codes;
+  uint32_t id(uint64_t code) {
+    if (2 * (codes.size() + 1) > slots_.size()) grow();
+    size_t i = slot_of(code);
+    for (;;) {
+      uint32_t s = slots_[i];
+      if (s == 0) {
+        slots_[i] = uint32_t(codes.size() + 1);
+        codes.push_back(code);
+        return uint32_t(codes.size() - 1);
+      }
+      if (codes[s - 1] == code) return s - 1;
+      i = (i + 1) & mask_;
+    }
+  }
+
+ private:
+  size_t slot_of(uint64_t code) const { return size_t((code * 0x9E3779B97F4A7C15ull) >> 20) & mask_; }
+  void grow() {
+    size_t n = std::max<size_t>(256, 2 * slots_.size());
+    slots_.assign(n, 0u);
+    mask_ = n - 1;
+    for (size_t k = 0; k < codes.size(); ++k) {
+      size_t i = slot_of(codes[k]);
+      while (slots_[i]) i = (i + 1) & mask_;
+      slots_[i] = uint32_t(k + 1);
+    }
+  }
+  std::vector<uint32_t> slots_;
+  size_t mask_ = 0;
+};
+
+// Cell coordinate along one axis. root_size is a power of two, so the
+// division by the cell size is exact scaling and equals OctreeStore::cell_of.
+inline uint32_t cell_coord(double v, double lo, double inv_cell, uint32_t max_coord) {
+  double t = std::floor((v - lo) * inv_cell);
+  return t <= 0 ? 0u : t >= double(max_coord) ? max_coord : uint32_t(t);
+}
+
+struct Grid {
+  Vec3d lo{0};
+  double inv_cell = 1;
+  uint32_t max_coord = 0;
+  Grid(const Vec3d& root_lo, double root_size, int level)
+      : lo(root_lo), inv_cell(double(uint64_t(1) << level) / root_size), max_coord(uint32_t((uint64_t(1) << level) - 1)) {}
+  uint64_t code(const Vec3d& p) const {
+    return morton_encode(cell_coord(p.x, lo.x, inv_cell, max_coord), cell_coord(p.y, lo.y, inv_cell, max_coord),
+                         cell_coord(p.z, lo.z, inv_cell, max_coord));
+  }
+};
+
+// ---------------------------------------------------------------------------
+// A TBB pipeline over one pass of a reader: serial read, parallel work,
+// serial in-order consume. Tokens are recycled, so memory is ntokens batches.
+struct TokenBase {
+  TriangleBatch batch;
+  uint64_t first = 0;  // global index of the batch's first triangle
+  Status error;
+};
+
+template <class Token, class Work, class Consume>
+Status run_pass(MeshReader& reader, size_t ntokens, Work work, Consume consume) {
+  std::vector<std::unique_ptr<Token>> pool;
+  tbb::concurrent_queue<Token*> free_tokens;
+  for (size_t i = 0; i < ntokens; ++i) {
+    pool.push_back(std::make_unique<Token>());
+    free_tokens.push(pool.back().get());
+  }
+  std::mutex status_mutex;
+  Status status;
+  std::atomic<bool> failed{false};
+  auto fail = [&](Status s) {
+    std::lock_guard lock(status_mutex);
+    if (status.is_ok()) status = std::move(s);
+    failed = true;
+  };
+  uint64_t next_first = 0;
+  bool at_end = false;
+  tbb::parallel_pipeline(
+      ntokens,
+      tbb::make_filter<void, Token*>(tbb::filter_mode::serial_in_order,
+                                     [&](tbb::flow_control& fc) -> Token* {
+                                       Token* t = nullptr;
+                                       if (failed || at_end || !free_tokens.try_pop(t)) {
+                                         fc.stop();
+                                         return nullptr;
+                                       }
+                                       auto more = reader.next(t->batch);
+                                       if (!more.is_ok() || !*more) {
+                                         if (!more.is_ok()) fail(more.status());
+                                         at_end = true;
+                                         free_tokens.push(t);
+                                         fc.stop();
+                                         return nullptr;
+                                       }
+                                       t->first = next_first;
+                                       t->error = Status::ok();
+                                       next_first += t->batch.size();
+                                       return t;
+                                     }) &
+          tbb::make_filter<Token*, Token*>(tbb::filter_mode::parallel,
+                                           [&](Token* t) {
+                                             if (!failed) work(*t);
+                                             return t;
+                                           }) &
+          tbb::make_filter<Token*, void>(tbb::filter_mode::serial_in_order, [&](Token* t) {
+            if (!failed) {
+              Status s = t->error.is_ok() ? consume(*t) : t->error;
+              if (!s.is_ok()) fail(std::move(s));
+            }
+            free_tokens.push(t);
+          }));
+  return status;
+}
+
+Status check_batch(const TriangleBatch& b, bool has_normals, const std::string& name, uint64_t first) {
+  if (b.positions.size() % 3 != 0) return Status::error(name + ": reader returned a partial triangle");
+  if (has_normals && b.normals.size() != b.positions.size())
+    return Status::error(name + ": triangles " + std::to_string(first) + "..: normals missing in a batch");
+  if (!has_normals && !b.normals.empty())
+    return Status::error(name + ": normals appeared in a mesh whose header declares none");
+  return {};
+}
+
+// ---------------------------------------------------------------------------
+// Pass 1: bounds, count, and every stride-th triangle as a sample.
+struct Scan {
+  Bbox bounds;
+  uint64_t triangles = 0;
+  bool has_normals = false;
+  uint64_t vertex_hint = 0;  // declared vertex count (0 = unknown)
+  uint64_t stride = 1;
+  std::vector<Vec3> sample;  // 3 corners per sampled triangle
+};
+
+struct ScanToken : TokenBase {
+  Vec3 lo, hi;
+};
+
+StatusOr<Scan> scan_pass(MeshReader& reader, size_t ntokens) {
+  Scan scan;
+  scan.has_normals = reader.header().has_normals;
+  scan.vertex_hint = reader.header().format == MeshFormat::Stl ? 0 : reader.header().vertex_count;
+  const std::string name = reader.path().string();
+  Progress progress("bounds", reader.header().face_count, "triangles");
+  Status s = run_pass<ScanToken>(
+      reader, ntokens,
+      [&](ScanToken& t) {
+        t.error = check_batch(t.batch, scan.has_normals, name, t.first);
+        Vec3 lo(std::numeric_limits<float>::infinity()), hi(-std::numeric_limits<float>::infinity());
+        bool finite = true;
+        for (const Vec3& p : t.batch.positions) {
+          lo = glm::min(lo, p);
+          hi = glm::max(hi, p);
+          finite &= is_finite(p);
+        }
+        if (!finite && t.error.is_ok()) {
+          for (size_t i = 0; i < t.batch.positions.size(); ++i)
+            if (!is_finite(t.batch.positions[i])) {
+              t.error = Status::error(name + ": triangle " + std::to_string(t.first + i / 3) +
+                                      " has a non-finite coordinate");
+              break;
+            }
+        }
+        t.lo = lo;
+        t.hi = hi;
+      },
+      [&](ScanToken& t) -> Status {
+        const size_t n = t.batch.size();
+        if (n == 0) return {};
+        scan.bounds.expand(t.lo);
+        scan.bounds.expand(t.hi);
+        // Every stride-th triangle; when the sample is full, keep every other
+        // sampled triangle and double the stride (deterministic).
+        uint64_t g = (t.first + scan.stride - 1) / scan.stride * scan.stride;
+        for (; g < t.first + n; g += scan.stride) {
+          const Vec3* p = &t.batch.positions[3 * (g - t.first)];
+          scan.sample.insert(scan.sample.end(), p, p + 3);
+          if (scan.sample.size() / 3 >= 2 * kSampleTriangles) {
+            size_t out = 0;
+            for (size_t k = 0; k < scan.sample.size() / 3; k += 2)
+              for (int c = 0; c < 3; ++c) scan.sample[out++] = scan.sample[3 * k + c];
+            scan.sample.resize(out);
+            scan.stride *= 2;
+            g = g / scan.stride * scan.stride;  // next multiple of the new stride follows
+          }
+        }
+        scan.triangles += n;
+        progress.advance(n);
+        return {};
+      });
+  progress.finish();
+  RAYLOD_RETURN_IF_ERROR(s);
+  if (scan.triangles == 0) return Status::error(name + ": empty mesh (no triangles)");
+  return scan;
+}
+
+// ---------------------------------------------------------------------------
+struct Plan {
+  Vec3d origin{0}, root_lo{0};
+  double root_size = 1;
+  int quadric_depth = 0, page_level = 0;
+  uint64_t max_nodes = 0;      // leaf nodes the global table may hold
+  uint64_t run_triangles = 0;  // triangles per sorted run
+  std::vector<double> est_nodes;
+};
+
+// Estimated occupied cells per level from sampled points: exact where the
+// sample is the whole input; else trusted while cells hold >= 8 sampled
+// points on average, and grown 4x per level below (surfaces), capped by the
+// number of points the input has.
+std::vector<double> estimate_cells(std::vector<uint64_t> codes21, bool complete, double cap) {
+  std::sort(codes21.begin(), codes21.end());
+  std::vector<double> est(kMaxLevel + 1, 1);
+  const double s = double(codes21.size());
+  for (uint32_t level = 0; level <= kMaxLevel; ++level) {
+    const int shift = 3 * int(kMaxLevel - level);
+    double distinct = 0;
+    for (size_t i = 0; i < codes21.size(); ++i)
+      if (i == 0 || (codes21[i] >> shift) != (codes21[i - 1] >> shift)) ++distinct;
+    if (complete || distinct <= s / 8 || level == 0)
+      est[level] = distinct;
+    else
+      est[level] = std::max(distinct, 4 * est[level - 1]);
+    est[level] = std::min(est[level], std::max(cap, distinct));
+  }
+  return est;
+}
+
+Plan make_plan(const Scan& scan, const StoreOptions& options, uint64_t memory_limit) {
+  Plan plan;
+  plan.origin = scan.bounds.center();
+  const Vec3d ext = scan.bounds.extent();
+  const double extent = std::max({ext.x, ext.y, ext.z});
+  // A power-of-two side makes cell sizes exact and cell lookups exact scalings.
+  plan.root_size = extent > 0 ? std::exp2(std::ceil(std::log2(extent * (1 + 1e-9)))) : 1.0;
+  plan.root_lo = plan.origin - Vec3d(0.5 * plan.root_size);
+
+  const Grid grid(plan.root_lo, plan.root_size, int(kMaxLevel));
+  std::vector<uint64_t> corners, centroids;
+  corners.reserve(scan.sample.size());
+  centroids.reserve(scan.sample.size() / 3);
+  for (size_t i = 0; i + 2 < scan.sample.size(); i += 3) {
+    Vec3d a(scan.sample[i]), b(scan.sample[i + 1]), c(scan.sample[i + 2]);
+    corners.push_back(grid.code(a));
+    corners.push_back(grid.code(b));
+    corners.push_back(grid.code(c));
+    centroids.push_back(grid.code((a + b + c) / 3.0));
+  }
+  const bool complete = scan.stride == 1;
+  const double corner_cap = double(scan.vertex_hint ? std::min(scan.vertex_hint, 3 * scan.triangles) : 3 * scan.triangles);
+  plan.est_nodes = estimate_cells(std::move(corners), complete, corner_cap);
+  const auto est_pages = estimate_cells(std::move(centroids), complete, double(scan.triangles));
+
+  plan.max_nodes = std::max<uint64_t>(64, uint64_t(0.35 * double(memory_limit)) / kBytesPerLeafNode);
+  const int max_depth = std::min(options.max_depth, int(kMaxLevel));
+  plan.quadric_depth = 0;
+  for (int l = 1; l <= max_depth; ++l)
+    if (plan.est_nodes[size_t(l)] * 1.25 <= double(plan.max_nodes)) plan.quadric_depth = l;
+  plan.page_level = 0;
+  for (int l = 1; l <= int(kMaxLevel); ++l)
+    if (double(scan.triangles) / est_pages[size_t(l)] >= double(std::max<uint32_t>(1, options.page_triangles)))
+      plan.page_level = l;
+
+  const uint64_t run_bytes = std::clamp<uint64_t>(uint64_t(0.15 * double(memory_limit)), 1 << 20, 256ull << 20);
+  plan.run_triangles = std::max<uint64_t>(1024, run_bytes / (triangle_bytes(scan.has_normals) + 8));
+  return plan;
+}
+
+// ---------------------------------------------------------------------------
+// Sorted runs of page-grouped triangles in an unlinked temporary file.
+class RunFile {
+ public:
+  struct Segment {
+    uint64_t offset;  // of the segment's positions; normals follow
+    uint32_t count;
+  };
+
+  RunFile(bool has_normals, uint64_t capacity) : normals_(has_normals), capacity_(capacity) {}
+  ~RunFile() {
+    if (fd_ >= 0) ::close(fd_);
+  }
+
+  Status open(const std::filesystem::path& beside) {
+    path_ = beside;
+    path_ += ".runs-" + std::to_string(::getpid());
+    fd_ = ::open(path_.c_str(), O_RDWR | O_CREAT | O_EXCL | O_CLOEXEC, 0600);
+    if (fd_ < 0) return Status::error(path_.string() + ": cannot create temporary file: " + std::strerror(errno));
+    ::unlink(path_.c_str());  // vanishes with the process, whatever happens
+    positions_.reserve(9 * capacity_);
+    if (normals_) normals_data_.reserve(9 * capacity_);
+    page_of_.reserve(capacity_);
+    return {};
+  }
+
+  Status append(const TriangleBatch& batch, const std::vector<uint32_t>& page_ids, size_t num_pages) {
+    size_t done = 0;
+    while (done < batch.size()) {
+      size_t take = std::min<size_t>(batch.size() - done, capacity_ - page_of_.size());
+      const float* p = &batch.positions[3 * done].x;
+      positions_.insert(positions_.end(), p, p + 9 * take);
+      if (normals_) {
+        const float* n = &batch.normals[3 * done].x;
+        normals_data_.insert(normals_data_.end(), n, n + 9 * take);
+      }
+      page_of_.insert(page_of_.end(), page_ids.begin() + long(done), page_ids.begin() + long(done + take));
+      done += take;
+      if (page_of_.size() == capacity_) RAYLOD_RETURN_IF_ERROR(flush(num_pages));
+    }
+    return {};
+  }
+
+  // Counting sort of the buffered triangles by page (stable: input order
+  // within a page), written page by page: positions, then normals.
+  Status flush(size_t num_pages) {
+    const size_t n = page_of_.size();
+    if (n == 0) return {};
+    std::vector<uint32_t> start(num_pages + 1, 0);
+    for (uint32_t p : page_of_) ++start[p + 1];
+    for (size_t p = 0; p < num_pages; ++p) start[p + 1] += start[p];
+    std::vector<uint32_t> order(n), fill(start.begin(), start.end() - 1);
+    for (size_t i = 0; i < n; ++i) order[fill[page_of_[i]]++] = uint32_t(i);
+    if (segments_.size() < num_pages) segments_.resize(num_pages);
+    std::vector<float> staging;
+    staging.reserve(kStagingFloats);
+    auto put = [&](const float* f) -> Status {
+      staging.insert(staging.end(), f, f + 9);
+      if (staging.size() + 9 > kStagingFloats) return drain(staging);
+      return {};
+    };
+    for (size_t p = 0; p < num_pages; ++p) {
+      const uint32_t b = start[p], e = start[p + 1];
+      if (b == e) continue;
+      segments_[p].push_back({offset_ + 4 * staging.size(), e - b});
+      for (uint32_t k = b; k < e; ++k) RAYLOD_RETURN_IF_ERROR(put(&positions_[9 * size_t(order[k])]));
+      if (normals_)
+        for (uint32_t k = b; k < e; ++k) RAYLOD_RETURN_IF_ERROR(put(&normals_data_[9 * size_t(order[k])]));
+    }
+    RAYLOD_RETURN_IF_ERROR(drain(staging));
+    positions_.clear();
+    normals_data_.clear();
+    page_of_.clear();
+    return {};
+  }
+
+  int fd() const { return fd_; }
+  const std::filesystem::path& path() const { return path_; }
+  // segments()[page id]: the page's pieces, one per run that holds any of it.
+  std::vector<std::vector<Segment>>& segments() { return segments_; }
+  void release_buffers() {
+    std::vector<float>().swap(positions_);
+    std::vector<float>().swap(normals_data_);
+    std::vector<uint32_t>().swap(page_of_);
+  }
+
+ private:
+  static constexpr size_t kStagingFloats = 1 << 20;
+  Status drain(std::vector<float>& staging) {
+    RAYLOD_RETURN_IF_ERROR(pwrite_all(fd_, staging.data(), 4 * staging.size(), offset_, path_));
+    offset_ += 4 * staging.size();
+    staging.clear();
+    return {};
+  }
+
+  bool normals_;
+  uint64_t capacity_;
+  std::filesystem::path path_;
+  int fd_ = -1;
+  uint64_t offset_ = 0;
+  std::vector<float> positions_, normals_data_;
+  std::vector<uint32_t> page_of_;
+  std::vector<std::vector<Segment>> segments_;
+};
+
+// ---------------------------------------------------------------------------
+// Pass 2 per batch: corners into a batch-local table at the initial depth,
+// and the page of each triangle (the cell of its centroid at page_level).
+struct BinToken : TokenBase {
+  NodeTable local;
+  std::vector<uint64_t> page_codes;
+  std::vector<uint32_t> page_ids;
+};
+
+void bin_batch(BinToken& t, const Plan& plan, int depth, bool has_normals) {
+  const Grid cells(plan.root_lo, plan.root_size, depth);
+  const Grid pages(plan.root_lo, plan.root_size, plan.page_level);
+  const size_t n = t.batch.size();
+  t.local.clear();
+  t.page_codes.resize(n);
+  for (size_t i = 0; i < n; ++i) {
+    const Vec3d p[3] = {Vec3d(t.batch.positions[3 * i]), Vec3d(t.batch.positions[3 * i + 1]),
+                        Vec3d(t.batch.positions[3 * i + 2])};
+    const Vec3d cross = glm::cross(p[1] - p[0], p[2] - p[0]);
+    const double twice_area = glm::length(cross);
+    Vec3d normal = twice_area > 0 ? cross / twice_area : Vec3d(0);
+    if (has_normals) {
+      const Vec3d sum = Vec3d(t.batch.normals[3 * i]) + Vec3d(t.batch.normals[3 * i + 1]) +
+                        Vec3d(t.batch.normals[3 * i + 2]);
+      const double len = glm::length(sum);
+      if (len > 1e-12) normal = sum / len;  // opposing normals: keep the face normal
+    }
+    const double weight = twice_area / 6.0;  // area / 3 per corner
+    for (int k = 0; k < 3; ++k) {
+      const Vec3d x = p[k] - plan.origin;
+      NodeRecord& node = t.local.upsert(cells.code(p[k]));
+      if (weight > 0) quadric_add(node.quadric, quadric_from_plane(normal, x, weight));
+      node.vertex_sum += x;
+      node.normal_sum += weight * (has_normals ? Vec3d(t.batch.normals[3 * i + k]) : normal);
+      ++node.corner_count;
+    }
+    t.page_codes[i] = pages.code((p[0] + p[1] + p[2]) / 3.0);
+  }
+}
+
+struct Binned {
+  std::vector<NodeRecord> leaves;  // sorted by code, at `depth`
+  int depth = 0;
+  PageIds pages;
+  std::vector<uint64_t> page_counts;  // by page id
+  uint64_t triangles = 0;
+};
+
+Status bin_pass(MeshReader& reader, size_t ntokens, const Plan& plan, bool has_normals, uint64_t expected,
+                RunFile& runs, Binned& out) {
+  const std::string name = reader.path().string();
+  NodeTable global;
+  global.nodes.reserve(plan.max_nodes);  // virtual until touched
+  int depth = plan.quadric_depth;
+  Progress progress("binning", expected, "triangles");
+  Status s = run_pass<BinToken>(
+      reader, ntokens,
+      [&](BinToken& t) {
+        t.error = check_batch(t.batch, has_normals, name, t.first);
+        if (t.error.is_ok()) bin_batch(t, plan, plan.quadric_depth, has_normals);
+      },
+      [&](BinToken& t) -> Status {
+        // Merge in batch order, coarsening when the table is full.
+        for (const NodeRecord& r : t.local.nodes) {
+          if (global.nodes.size() >= plan.max_nodes && depth > 0) {
+            global.coarsen();
+            --depth;
+          }
+          add_node(global.upsert(r.code >> (3 * (plan.quadric_depth - depth))), r);
+        }
+        t.page_ids.resize(t.page_codes.size());
+        for (size_t i = 0; i < t.page_codes.size(); ++i) {
+          const uint32_t id = out.pages.id(t.page_codes[i]);
+          if (id >= out.page_counts.size()) out.page_counts.push_back(0);
+          ++out.page_counts[id];
+          t.page_ids[i] = id;
+        }
+        out.triangles += t.batch.size();
+        if (out.triangles > expected)
+          return Status::error(name + ": the mesh yielded more triangles than in the first pass (changed while building?)");
+        RAYLOD_RETURN_IF_ERROR(runs.append(t.batch, t.page_ids, out.pages.codes.size()));
+        progress.advance(t.batch.size());
+        return {};
+      });
+  progress.finish();
+  RAYLOD_RETURN_IF_ERROR(s);
+  if (out.triangles != expected)
+    return Status::error(name + ": the mesh yielded " + std::to_string(out.triangles) + " triangles, the first pass " +
+                         std::to_string(expected) + " (changed while building?)");
+  RAYLOD_RETURN_IF_ERROR(runs.flush(out.pages.codes.size()));
+  runs.release_buffers();
+  global.release_index();
+  std::sort(global.nodes.begin(), global.nodes.end(),
+            [](const NodeRecord& a, const NodeRecord& b) { return a.code < b.code; });
+  out.leaves = std::move(global.nodes);
+  out.depth = depth;
+  return {};
+}
+
+// Levels depth-1 .. 0: a parent is the sum of its children, in code order.
+std::vector<std::vector<NodeRecord>> build_levels(std::vector<NodeRecord> leaves, int depth) {
+  std::vector<std::vector<NodeRecord>> levels(size_t(depth) + 1);
+  levels[size_t(depth)] = std::move(leaves);
+  for (int l = depth - 1; l >= 0; --l) {
+    const auto& children = levels[size_t(l) + 1];
+    size_t count = 0;
+    for (size_t i = 0; i < children.size(); ++i)
+      if (i == 0 || (children[i].code >> 3) != (children[i - 1].code >> 3)) ++count;
+    auto& parents = levels[size_t(l)];
+    parents.reserve(count);
+    for (const NodeRecord& c : children) {
+      if (parents.empty() || parents.back().code != (c.code >> 3)) {
+        parents.push_back(c);
+        parents.back().code = c.code >> 3;
+      } else {
+        add_node(parents.back(), c);
+      }
+    }
+  }
+  return levels;
+}
+
+// Pages in code order, each assembled from its run segments (positions, then
+// normals), checksummed and written sequentially through one buffer.
+Status write_pages(int fd, const std::filesystem::path& out_path, RunFile& runs, const Binned& binned,
+                   bool has_normals, uint64_t data_offset, std::vector<PageInfo>& pages) {
+  const size_t num_pages = binned.pages.codes.size();
+  std::vector<uint32_t> order(num_pages);
+  for (size_t i = 0; i < num_pages; ++i) order[i] = uint32_t(i);
+  std::sort(order.begin(), order.end(),
+            [&](uint32_t a, uint32_t b) { return binned.pages.codes[a] < binned.pages.codes[b]; });
+  constexpr size_t kBufferBytes = 36 << 17;  // a multiple of one triangle's 36 position bytes
+  std::vector<char> buffer(kBufferBytes);
+  size_t fill = 0;
+  uint64_t flushed = data_offset;
+  Progress progress("pages", binned.triangles, "triangles");
+  pages.clear();
+  pages.reserve(num_pages);
+  for (uint32_t id : order) {
+    PageInfo info;
+    info.code = binned.pages.codes[id];
+    info.offset = flushed + fill;
+    if (binned.page_counts[id] > UINT32_MAX)
+      return Status::error(out_path.string() + ": a page would hold more than 2^32 triangles");
+    info.triangle_count = uint32_t(binned.page_counts[id]);
+    uint32_t crc = 0;
+    Vec3 lo(std::numeric_limits<float>::infinity()), hi(-std::numeric_limits<float>::infinity());
+    for (int sweep = 0; sweep < (has_normals ? 2 : 1); ++sweep) {
+      for (const auto& seg : runs.segments()[id]) {
+        uint64_t src = seg.offset + (sweep ? 36ull * seg.count : 0);
+        uint64_t remaining = 36ull * seg.count;
+        while (remaining > 0) {
+          if (fill == kBufferBytes) {
+            RAYLOD_RETURN_IF_ERROR(pwrite_all(fd, buffer.data(), fill, flushed, out_path));
+            flushed += fill;
+            fill = 0;
+          }
+          const size_t take = size_t(std::min<uint64_t>(remaining, kBufferBytes - fill));
+          RAYLOD_RETURN_IF_ERROR(pread_all(runs.fd(), buffer.data() + fill, take, src, runs.path()));
+          crc = crc32c(buffer.data() + fill, take, crc);
+          if (sweep == 0) {
+            const auto* v = reinterpret_cast<const Vec3*>(buffer.data() + fill);
+            for (size_t k = 0; k < take / 12; ++k) {
+              lo = glm::min(lo, v[k]);
+              hi = glm::max(hi, v[k]);
+            }
+            progress.advance(take / 36);
+          }
+          fill += take;
+          src += take;
+          remaining -= take;
+        }
+      }
+    }
+    info.checksum = crc;
+    info.bounds = Bbox{Vec3d(lo), Vec3d(hi)};
+    pages.push_back(info);
+  }
+  RAYLOD_RETURN_IF_ERROR(pwrite_all(fd, buffer.data(), fill, flushed, out_path));
+  progress.finish();
+  return {};
+}
+
+}  // namespace
+
+uint64_t resolved_memory_limit(const StoreOptions& options) {
+  return options.memory_limit ? options.memory_limit : physical_memory_bytes() / 4;
+}
+
+StatusOr<BuildReport> build_store_from_stream(const MeshStreamOpener& open, const SourceFingerprint& source,
+                                              const std::filesystem::path& store_path, const StoreOptions& options,
+                                              const std::function<StatusOr<uint64_t>()>& source_hash) {
+  const auto t0 = std::chrono::steady_clock::now();
+  if (options.max_depth < 0 || options.max_depth > int(kMaxLevel))
+    return Status::error("--max-depth must be between 0 and " + std::to_string(kMaxLevel));
+  const uint64_t memory_limit = resolved_memory_limit(options);
+  if (memory_limit < (1u << 20)) return Status::error("--memory-limit must be at least 1M");
+  std::unique_ptr<tbb::global_control> threads;
+  if (options.threads > 0)
+    threads = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism, size_t(options.threads));
+  const size_t concurrency = size_t(tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism));
+  const size_t ntokens = std::clamp<size_t>(2 * concurrency, 2, 8);
+
+  // Pass 1.
+  RAYLOD_ASSIGN_OR_RETURN(auto reader1, open());
+  RAYLOD_ASSIGN_OR_RETURN(Scan scan, scan_pass(*reader1, ntokens));
+  reader1.reset();
+  const Plan plan = make_plan(scan, options, memory_limit);
+
+  // Pass 2.
+  RunFile runs(scan.has_normals, plan.run_triangles);
+  RAYLOD_RETURN_IF_ERROR(runs.open(store_path));
+  Binned binned;
+  {
+    RAYLOD_ASSIGN_OR_RETURN(auto reader2, open());
+    if (reader2->header().has_normals != scan.has_normals)
+      return Status::error(reader2->path().string() + ": changed while building (normals appeared or vanished)");
+    RAYLOD_RETURN_IF_ERROR(bin_pass(*reader2, ntokens, plan, scan.has_normals, scan.triangles, runs, binned));
+  }
+  const auto levels = build_levels(std::move(binned.leaves), binned.depth);
+
+  StoreHeader header;
+  header.source_path = source.path;
+  header.source_bytes = source.bytes;
+  header.source_mtime_ns = source.mtime_ns;
+  header.source_hash = source.hash;
+  if (source_hash) {
+    RAYLOD_ASSIGN_OR_RETURN(header.source_hash, source_hash());
+  }
+  header.options = options;
+  header.options.memory_limit = memory_limit;
+  header.options.threads = 0;  // the store is the same for any thread count
+  header.triangle_count = scan.triangles;
+  header.has_normals = scan.has_normals;
+  header.origin = plan.origin;
+  header.root_lo = plan.root_lo;
+  header.root_size = plan.root_size;
+  header.quadric_depth = binned.depth;
+  header.page_level = plan.page_level;
+  header.bounds = scan.bounds;
+  header.coarsened = binned.depth < plan.quadric_depth;
+
+  Layout layout;
+  uint64_t nodes = 0;
+  for (const auto& lv : levels) {
+    layout.level_counts.push_back(lv.size());
+    nodes += lv.size();
+  }
+  layout.page_count = binned.pages.codes.size();
+  const uint64_t header_bytes = encode_header(header, layout).size();
+  layout.node_table_offset = align_up(header_bytes, 64);
+  layout.page_table_offset = align_up(layout.node_table_offset + nodes * sizeof(NodeRecord), 64);
+  layout.data_offset = align_up(layout.page_table_offset + layout.page_count * sizeof(PageInfo), 4096);
+  layout.data_bytes = scan.triangles * triangle_bytes(scan.has_normals);
+  layout.file_bytes = layout.data_offset + layout.data_bytes;
+
+  AtomicOutput output(store_path);
+  const auto& tmp = output.temp_path();
+  int fd = ::open(tmp.c_str(), O_RDWR | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+  if (fd < 0) return Status::error(store_path.string() + ": cannot create: " + std::strerror(errno));
+  struct Closer {
+    int fd;
+    ~Closer() { ::close(fd); }
+  } closer{fd};
+
+  std::vector<PageInfo> pages;
+  RAYLOD_RETURN_IF_ERROR(write_pages(fd, tmp, runs, binned, scan.has_normals, layout.data_offset, pages));
+  uint32_t crc = 0;
+  uint64_t offset = layout.node_table_offset;
+  for (const auto& lv : levels) {
+    RAYLOD_RETURN_IF_ERROR(pwrite_all(fd, lv.data(), lv.size() * sizeof(NodeRecord), offset, tmp));
+    crc = crc32c(lv.data(), lv.size() * sizeof(NodeRecord), crc);
+    offset += lv.size() * sizeof(NodeRecord);
+  }
+  layout.node_table_crc = crc;
+  RAYLOD_RETURN_IF_ERROR(pwrite_all(fd, pages.data(), pages.size() * sizeof(PageInfo), layout.page_table_offset, tmp));
+  layout.page_table_crc = crc32c(pages.data(), pages.size() * sizeof(PageInfo));
+  const std::string head = encode_header(header, layout);
+  if (head.size() != header_bytes) return Status::error(store_path.string() + ": internal error: header size changed");
+  RAYLOD_RETURN_IF_ERROR(pwrite_all(fd, head.data(), head.size(), 0, tmp));
+  if (::ftruncate(fd, off_t(layout.file_bytes)) != 0)
+    return Status::error(store_path.string() + ": cannot size the store: " + std::strerror(errno));
+  RAYLOD_RETURN_IF_ERROR(output.commit());
+
+  BuildReport report;
+  report.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  report.triangles = scan.triangles;
+  report.peak_rss = peak_rss_bytes();
+  report.quadric_depth = binned.depth;
+  report.page_level = plan.page_level;
+  report.nodes = nodes;
+  report.pages = pages.size();
+  report.node_table_bytes = nodes * sizeof(NodeRecord);
+  report.store_bytes = layout.file_bytes;
+  report.source_bytes = source.bytes;
+  report.coarsened = header.coarsened;
+  return report;
+}
+
+}  // namespace raylod

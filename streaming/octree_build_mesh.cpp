@@ -1,0 +1,121 @@
+// `raylod build` on a mesh file: fingerprints (size, mtime, content hash),
+// the up-to-date check, and the two reader passes through open_mesh. The
+// algorithm itself is in octree_build.cpp and never opens files.
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstring>
+#include <future>
+
+#include "core/system.h"
+#include "streaming/octree_store.h"
+
+namespace raylod {
+namespace {
+
+StatusOr<uint64_t> hash_file(const std::filesystem::path& path) {
+  int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+  if (fd < 0) return Status::error(path.string() + ": cannot open: " + std::strerror(errno));
+  ::posix_fadvise(fd, 0, 0, POSIX_FADV_SEQUENTIAL);
+  std::vector<char> buffer(4 << 20);
+  ContentHasher hasher;
+  for (;;) {
+    ssize_t r = ::read(fd, buffer.data(), buffer.size());
+    if (r < 0 && errno == EINTR) continue;
+    if (r < 0) {
+      Status s = Status::error(path.string() + ": read failed: " + std::strerror(errno));
+      ::close(fd);
+      return s;
+    }
+    if (r == 0) break;
+    hasher.update(buffer.data(), size_t(r));
+  }
+  ::close(fd);
+  return hasher.digest();
+}
+
+}  // namespace
+
+StatusOr<SourceFingerprint> fingerprint_file(const std::filesystem::path& path, bool with_hash) {
+  struct stat st {};
+  if (::stat(path.c_str(), &st) != 0) return Status::error(path.string() + ": " + std::strerror(errno));
+  if (!S_ISREG(st.st_mode)) return Status::error(path.string() + ": not a regular file");
+  SourceFingerprint fp;
+  std::error_code ec;
+  auto abs = std::filesystem::weakly_canonical(std::filesystem::absolute(path), ec);
+  fp.path = (ec ? std::filesystem::absolute(path) : abs).string();
+  fp.bytes = uint64_t(st.st_size);
+  fp.mtime_ns = uint64_t(st.st_mtim.tv_sec) * 1000000000ull + uint64_t(st.st_mtim.tv_nsec);
+  if (with_hash) {
+    RAYLOD_ASSIGN_OR_RETURN(fp.hash, hash_file(path));
+  }
+  return fp;
+}
+
+bool store_is_current(const std::filesystem::path& mesh, const std::filesystem::path& store,
+                      const StoreOptions& options, std::string* reason) {
+  auto say = [&](std::string r) {
+    if (reason) *reason = std::move(r);
+    return false;
+  };
+  std::error_code ec;
+  if (!std::filesystem::exists(store, ec)) return say("no store yet");
+  auto opened = OctreeStore::open(store);
+  if (!opened.is_ok()) return say("the existing store is unusable (" + opened.status().message() + ")");
+  const StoreHeader& h = (*opened)->header();
+  auto fp = fingerprint_file(mesh, false);
+  if (!fp.is_ok()) return say(fp.status().message());
+  if (h.source_path != fp->path) return say("the store was built from another mesh (" + h.source_path + ")");
+  if (h.source_bytes != fp->bytes)
+    return say("the mesh changed size (" + std::to_string(h.source_bytes) + " -> " + std::to_string(fp->bytes) + " bytes)");
+  if (h.source_mtime_ns != fp->mtime_ns) return say("the mesh's modification time changed");
+  if (h.options.memory_limit != resolved_memory_limit(options) || h.options.max_depth != options.max_depth ||
+      h.options.page_triangles != options.page_triangles)
+    return say("the store was built with other options (--memory-limit " + format_bytes(h.options.memory_limit) +
+               " --max-depth " + std::to_string(h.options.max_depth) + ")");
+  auto hashed = fingerprint_file(mesh, true);
+  if (!hashed.is_ok()) return say(hashed.status().message());
+  if (hashed->hash != h.source_hash) return say("the mesh's content changed (content hash differs)");
+  if (reason) *reason = "up to date (same mesh size, modification time, content hash and options)";
+  return true;
+}
+
+StatusOr<BuildReport> build_store(const std::filesystem::path& mesh, const std::filesystem::path& store,
+                                  const StoreOptions& options) {
+  std::string reason;
+  if (store_is_current(mesh, store, options, &reason)) {
+    BuildReport report;
+    report.reused = true;
+    report.reason = reason;
+    report.peak_rss = peak_rss_bytes();
+    return report;
+  }
+  RAYLOD_ASSIGN_OR_RETURN(SourceFingerprint fp, fingerprint_file(mesh, false));
+  // Hash the file on another thread while pass 1 parses it (both read the
+  // page cache; neither keeps it resident).
+  auto hash = std::async(std::launch::async, [&] {
+    return fingerprint_file(mesh, true);
+  });
+  auto opener = [&]() -> StatusOr<std::unique_ptr<MeshReader>> { return open_mesh(mesh); };
+  auto built = build_store_from_stream(opener, fp, store, options, [&]() -> StatusOr<uint64_t> {
+    auto h = hash.get();
+    if (!h.is_ok()) return h.status();
+    if (h->bytes != fp.bytes || h->mtime_ns != fp.mtime_ns)
+      return Status::error(mesh.string() + ": the mesh changed while building; run raylod build again");
+    return h->hash;
+  });
+  if (hash.valid()) hash.wait();
+  if (!built.is_ok()) return built.status();
+  auto after = fingerprint_file(mesh, false);
+  if (!after.is_ok() || after->bytes != fp.bytes || after->mtime_ns != fp.mtime_ns) {
+    std::filesystem::remove(store);
+    return Status::error(mesh.string() + ": the mesh changed while building; removed " + store.string() +
+                         ", run raylod build again");
+  }
+  built->reason = reason;
+  return built;
+}
+
+}  // namespace raylod

@@ -1,0 +1,66 @@
+// On-disk layout of the octree store (internal to streaming/octree_*.cpp).
+//
+//   offset 0      magic "RLODSTOR", u32 version, u32 blob_bytes, blob, u32 CRC-32C of all before
+//   node table    (64-aligned) NodeRecords of levels 0..quadric_depth, each level sorted by code
+//   page table    (64-aligned) PageInfo records sorted by code
+//   page data     (4096-aligned) pages in page-table order; a page of n triangles is
+//                 n*9 float32 positions (vertex k of triangle i at 3i+k), then, if the
+//                 mesh has normals, n*9 float32 unit normals in the same order
+//
+// Every number is little-endian (the code asserts a little-endian host and
+// writes records as they are in memory; the static_asserts pin their layout).
+// The blob holds the StoreHeader fields, the per-level node counts and the
+// offsets, sizes and CRC-32C of the node table and the page table; each page's
+// CRC-32C is in its PageInfo. file_bytes is recorded so truncation is caught
+// on open.
+#pragma once
+
+#include <bit>
+#include <cstdint>
+#include <filesystem>
+#include <string>
+#include <type_traits>
+#include <vector>
+
+#include "core/status.h"
+#include "streaming/octree_store.h"
+
+namespace raylod::store_format {
+
+static_assert(std::endian::native == std::endian::little, "the store format is little-endian; add byte swapping");
+static_assert(sizeof(Quadric) == 80 && std::is_trivially_copyable_v<Quadric>);
+static_assert(sizeof(NodeRecord) == 144 && std::is_trivially_copyable_v<NodeRecord>);
+static_assert(offsetof(NodeRecord, quadric) == 8 && offsetof(NodeRecord, vertex_sum) == 88 &&
+              offsetof(NodeRecord, normal_sum) == 112 && offsetof(NodeRecord, corner_count) == 136);
+static_assert(sizeof(PageInfo) == 72 && std::is_trivially_copyable_v<PageInfo>);
+static_assert(offsetof(PageInfo, triangle_count) == 16 && offsetof(PageInfo, checksum) == 20 &&
+              offsetof(PageInfo, bounds) == 24);
+
+inline constexpr char kMagic[8] = {'R', 'L', 'O', 'D', 'S', 'T', 'O', 'R'};
+inline constexpr uint32_t kVersion = 1;
+inline constexpr uint32_t kMaxLevel = 21;  // Morton codes hold 3 x 21 bits
+
+struct Layout {
+  std::vector<uint64_t> level_counts;  // nodes per level, quadric_depth + 1 entries
+  uint64_t node_table_offset = 0;
+  uint32_t node_table_crc = 0;
+  uint64_t page_count = 0, page_table_offset = 0;
+  uint32_t page_table_crc = 0;
+  uint64_t data_offset = 0, data_bytes = 0, file_bytes = 0;
+};
+
+inline uint64_t align_up(uint64_t x, uint64_t a) { return (x + a - 1) / a * a; }
+// Bytes one triangle takes in a page.
+inline uint64_t triangle_bytes(bool has_normals) { return has_normals ? 72 : 36; }
+
+// The full header bytes (magic .. CRC).
+std::string encode_header(const StoreHeader& header, const Layout& layout);
+// Reads and checks the header of an open store file: magic, version, CRC and
+// the recorded file size against the real one. Errors name `path`.
+Status read_header(int fd, const std::filesystem::path& path, StoreHeader& header, Layout& layout);
+
+// Full-length pread/pwrite; errors name `path`.
+Status pread_all(int fd, void* data, size_t bytes, uint64_t offset, const std::filesystem::path& path);
+Status pwrite_all(int fd, const void* data, size_t bytes, uint64_t offset, const std::filesystem::path& path);
+
+}  // namespace raylod::store_format

@@ -1,0 +1,395 @@
+// The octree store file: header encoding, open-time validation, page reads,
+// Morton codes and cell geometry, and the `raylod info` printout. The layout
+// is described in streaming/octree_format.h; the builder is octree_build.cpp.
+#include "streaming/octree_store.h"
+
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <cinttypes>
+#include <cstring>
+
+#include "core/system.h"
+#include "streaming/octree_format.h"
+
+namespace raylod {
+namespace store_format {
+namespace {
+
+class ByteWriter {
+ public:
+  template <class T>
+  void put(const T& v) {
+    static_assert(std::is_trivially_copyable_v<T>);
+    const auto* p = reinterpret_cast<const char*>(&v);
+    out.append(p, sizeof(T));
+  }
+  void put_vec(const Vec3d& v) { put(v.x); put(v.y); put(v.z); }
+  void put_str(const std::string& s) { put(uint32_t(s.size())); out += s; }
+  std::string out;
+};
+
+class ByteReader {
+ public:
+  ByteReader(const char* p, size_t n) : p_(p), end_(p + n) {}
+  template <class T>
+  bool get(T& v) {
+    if (size_t(end_ - p_) < sizeof(T)) return false;
+    std::memcpy(&v, p_, sizeof(T));
+    p_ += sizeof(T);
+    return true;
+  }
+  bool get_vec(Vec3d& v) { return get(v.x) && get(v.y) && get(v.z); }
+  bool get_str(std::string& s) {
+    uint32_t n = 0;
+    if (!get(n) || size_t(end_ - p_) < n) return false;
+    s.assign(p_, n);
+    p_ += n;
+    return true;
+  }
+  bool at_end() const { return p_ == end_; }
+
+ private:
+  const char* p_;
+  const char* end_;
+};
+
+}  // namespace
+
+std::string encode_header(const StoreHeader& h, const Layout& l) {
+  ByteWriter blob;
+  blob.put_str(h.source_path);
+  blob.put(h.source_bytes); blob.put(h.source_mtime_ns); blob.put(h.source_hash);
+  blob.put(h.options.memory_limit); blob.put(int32_t(h.options.max_depth)); blob.put(int32_t(h.options.threads));
+  blob.put(h.options.page_triangles);
+  blob.put(h.triangle_count); blob.put(uint8_t(h.has_normals)); blob.put(uint8_t(h.coarsened));
+  blob.put_vec(h.origin); blob.put_vec(h.root_lo); blob.put(h.root_size);
+  blob.put(int32_t(h.quadric_depth)); blob.put(int32_t(h.page_level));
+  blob.put_vec(h.bounds.lo); blob.put_vec(h.bounds.hi);
+  blob.put(uint32_t(l.level_counts.size()));
+  for (uint64_t c : l.level_counts) blob.put(c);
+  blob.put(l.node_table_offset); blob.put(l.node_table_crc);
+  blob.put(l.page_count); blob.put(l.page_table_offset); blob.put(l.page_table_crc);
+  blob.put(l.data_offset); blob.put(l.data_bytes); blob.put(l.file_bytes);
+
+  ByteWriter out;
+  out.out.append(kMagic, 8);
+  out.put(kVersion);
+  out.put(uint32_t(blob.out.size()));
+  out.out += blob.out;
+  out.put(crc32c(out.out.data(), out.out.size()));
+  return std::move(out.out);
+}
+
+Status pread_all(int fd, void* data, size_t bytes, uint64_t offset, const std::filesystem::path& path) {
+  auto* p = static_cast<char*>(data);
+  while (bytes > 0) {
+    ssize_t r = ::pread(fd, p, std::min<size_t>(bytes, size_t(1) << 30), off_t(offset));
+    if (r < 0 && errno == EINTR) continue;
+    if (r < 0) return Status::error(path.string() + ": read failed: " + std::strerror(errno));
+    if (r == 0) return Status::error(path.string() + ": unexpected end of file at byte " + std::to_string(offset) +
+                                     " (truncated store?)");
+    p += r; bytes -= size_t(r); offset += uint64_t(r);
+  }
+  return {};
+}
+
+Status pwrite_all(int fd, const void* data, size_t bytes, uint64_t offset, const std::filesystem::path& path) {
+  const auto* p = static_cast<const char*>(data);
+  while (bytes > 0) {
+    ssize_t r = ::pwrite(fd, p, std::min<size_t>(bytes, size_t(1) << 30), off_t(offset));
+    if (r < 0 && errno == EINTR) continue;
+    if (r <= 0) return Status::error(path.string() + ": write failed: " + std::strerror(errno));
+    p += r; bytes -= size_t(r); offset += uint64_t(r);
+  }
+  return {};
+}
+
+Status read_header(int fd, const std::filesystem::path& path, StoreHeader& h, Layout& l) {
+  const std::string name = path.string();
+  struct stat st {};
+  if (::fstat(fd, &st) != 0) return Status::error(name + ": cannot stat: " + std::strerror(errno));
+  const uint64_t size = uint64_t(st.st_size);
+  char head[16];
+  if (size < sizeof head + 4) return Status::error(name + ": not a raylod store (only " + std::to_string(size) + " bytes)");
+  RAYLOD_RETURN_IF_ERROR(pread_all(fd, head, sizeof head, 0, path));
+  if (std::memcmp(head, kMagic, 8) != 0) return Status::error(name + ": not a raylod store (bad magic)");
+  uint32_t version = 0, blob_bytes = 0;
+  std::memcpy(&version, head + 8, 4);
+  std::memcpy(&blob_bytes, head + 12, 4);
+  if (version != kVersion)
+    return Status::error(name + ": store format version " + std::to_string(version) + ", this raylod reads version " +
+                         std::to_string(kVersion) + "; rebuild it with `raylod build`");
+  if (blob_bytes > (64u << 20) || sizeof head + blob_bytes + 4 > size)
+    return Status::error(name + ": truncated store (header says " + std::to_string(blob_bytes) +
+                         " header bytes, file has " + std::to_string(size) + ")");
+  std::string bytes(sizeof head + blob_bytes + 4, '\0');
+  RAYLOD_RETURN_IF_ERROR(pread_all(fd, bytes.data(), bytes.size(), 0, path));
+  uint32_t stored_crc = 0;
+  std::memcpy(&stored_crc, bytes.data() + bytes.size() - 4, 4);
+  if (crc32c(bytes.data(), bytes.size() - 4) != stored_crc)
+    return Status::error(name + ": header checksum mismatch (the store is corrupt; rebuild it)");
+
+  ByteReader r(bytes.data() + sizeof head, blob_bytes);
+  int32_t max_depth = 0, threads = 0, qd = 0, pl = 0;
+  uint8_t normals = 0, coarsened = 0;
+  uint32_t levels = 0;
+  h = StoreHeader{};
+  h.version = version;
+  bool ok = r.get_str(h.source_path) && r.get(h.source_bytes) && r.get(h.source_mtime_ns) && r.get(h.source_hash) &&
+            r.get(h.options.memory_limit) && r.get(max_depth) && r.get(threads) && r.get(h.options.page_triangles) &&
+            r.get(h.triangle_count) && r.get(normals) && r.get(coarsened) && r.get_vec(h.origin) &&
+            r.get_vec(h.root_lo) && r.get(h.root_size) && r.get(qd) && r.get(pl) && r.get_vec(h.bounds.lo) &&
+            r.get_vec(h.bounds.hi) && r.get(levels);
+  if (ok && levels == uint32_t(qd) + 1 && levels <= kMaxLevel + 1) {
+    l.level_counts.assign(levels, 0);
+    for (auto& c : l.level_counts) ok = ok && r.get(c);
+  } else {
+    ok = false;
+  }
+  ok = ok && r.get(l.node_table_offset) && r.get(l.node_table_crc) && r.get(l.page_count) &&
+       r.get(l.page_table_offset) && r.get(l.page_table_crc) && r.get(l.data_offset) && r.get(l.data_bytes) &&
+       r.get(l.file_bytes) && r.at_end();
+  if (!ok || pl < 0 || pl > int(kMaxLevel) || !(h.root_size > 0))
+    return Status::error(name + ": malformed store header");
+  h.options.max_depth = max_depth;
+  h.options.threads = threads;
+  h.has_normals = normals != 0;
+  h.coarsened = coarsened != 0;
+  h.quadric_depth = qd;
+  h.page_level = pl;
+  h.file_bytes = l.file_bytes;
+  uint64_t nodes = 0;
+  for (uint64_t c : l.level_counts) nodes += c;
+  h.node_table_bytes = nodes * sizeof(NodeRecord);
+  h.page_data_bytes = l.data_bytes;
+  if (size < l.file_bytes)
+    return Status::error(name + ": truncated store (" + std::to_string(size) + " bytes, header says " +
+                         std::to_string(l.file_bytes) + ")");
+  if (size > l.file_bytes)
+    return Status::error(name + ": store has " + std::to_string(size) + " bytes but its header says " +
+                         std::to_string(l.file_bytes) + " (corrupt)");
+  if (l.node_table_offset + h.node_table_bytes > l.file_bytes ||
+      l.page_table_offset + l.page_count * sizeof(PageInfo) > l.file_bytes || l.data_offset + l.data_bytes != l.file_bytes)
+    return Status::error(name + ": malformed store header (tables outside the file)");
+  return {};
+}
+
+}  // namespace store_format
+
+namespace {
+
+using namespace store_format;
+
+class FileStore final : public OctreeStore {
+ public:
+  ~FileStore() override {
+    if (fd_ >= 0) ::close(fd_);
+  }
+
+  static StatusOr<std::unique_ptr<OctreeStore>> open_file(const std::filesystem::path& path) {
+    auto store = std::make_unique<FileStore>();
+    store->path_ = path;
+    store->fd_ = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+    if (store->fd_ < 0) return Status::error(path.string() + ": cannot open store: " + std::strerror(errno));
+    RAYLOD_RETURN_IF_ERROR(read_header(store->fd_, path, store->header_, store->layout_));
+    RAYLOD_RETURN_IF_ERROR(store->load_tables());
+    return std::unique_ptr<OctreeStore>(std::move(store));
+  }
+
+  const StoreHeader& header() const override { return header_; }
+
+  std::span<const NodeRecord> level(int level) const override {
+    if (level < 0 || level > header_.quadric_depth) return {};
+    return std::span<const NodeRecord>(nodes_.data() + level_begin_[size_t(level)],
+                                       nodes_.data() + level_begin_[size_t(level) + 1]);
+  }
+
+  const NodeRecord* find(const CellKey& key) const override {
+    auto nodes = level(int(key.level));
+    auto it = std::lower_bound(nodes.begin(), nodes.end(), key.code,
+                               [](const NodeRecord& n, uint64_t code) { return n.code < code; });
+    return it != nodes.end() && it->code == key.code ? &*it : nullptr;
+  }
+
+  std::span<const PageInfo> pages() const override { return pages_; }
+
+  Status read_page(size_t i, TriangleBatch& batch) const override {
+    batch.clear();
+    if (i >= pages_.size())
+      return Status::error(path_.string() + ": page " + std::to_string(i) + " out of range (" +
+                           std::to_string(pages_.size()) + " pages)");
+    const PageInfo& page = pages_[i];
+    const size_t n = page.triangle_count;
+    batch.positions.resize(3 * n);
+    RAYLOD_RETURN_IF_ERROR(pread_all(fd_, batch.positions.data(), 36 * n, page.offset, path_));
+    uint32_t crc = crc32c(batch.positions.data(), 36 * n);
+    if (header_.has_normals) {
+      batch.normals.resize(3 * n);
+      RAYLOD_RETURN_IF_ERROR(pread_all(fd_, batch.normals.data(), 36 * n, page.offset + 36 * n, path_));
+      crc = crc32c(batch.normals.data(), 36 * n, crc);
+    }
+    if (crc != page.checksum) {
+      batch.clear();
+      char code[32];
+      std::snprintf(code, sizeof code, "%" PRIx64, page.code);
+      return Status::error(path_.string() + ": page " + std::to_string(i) + " (cell " + code +
+                           ") checksum mismatch (the store is corrupt; rebuild it)");
+    }
+    return {};
+  }
+
+ private:
+  Status load_tables() {
+    const std::string name = path_.string();
+    uint64_t total = 0;
+    level_begin_.assign(1, 0);
+    for (uint64_t c : layout_.level_counts) level_begin_.push_back(total += c);
+    nodes_.resize(total);
+    RAYLOD_RETURN_IF_ERROR(pread_all(fd_, nodes_.data(), total * sizeof(NodeRecord), layout_.node_table_offset, path_));
+    if (crc32c(nodes_.data(), total * sizeof(NodeRecord)) != layout_.node_table_crc)
+      return Status::error(name + ": node table checksum mismatch (the store is corrupt; rebuild it)");
+    pages_.resize(layout_.page_count);
+    RAYLOD_RETURN_IF_ERROR(pread_all(fd_, pages_.data(), pages_.size() * sizeof(PageInfo), layout_.page_table_offset, path_));
+    if (crc32c(pages_.data(), pages_.size() * sizeof(PageInfo)) != layout_.page_table_crc)
+      return Status::error(name + ": page table checksum mismatch (the store is corrupt; rebuild it)");
+    // Cheap structural checks so that later code can trust the tables.
+    const uint64_t tri_bytes = triangle_bytes(header_.has_normals);
+    uint64_t expect = layout_.data_offset, triangles = 0;
+    for (size_t i = 0; i < pages_.size(); ++i) {
+      const auto& p = pages_[i];
+      if (p.offset != expect || (i > 0 && pages_[i - 1].code >= p.code))
+        return Status::error(name + ": page table is inconsistent at page " + std::to_string(i));
+      expect += p.triangle_count * tri_bytes;
+      triangles += p.triangle_count;
+    }
+    if (expect != layout_.file_bytes || triangles != header_.triangle_count)
+      return Status::error(name + ": page table does not cover the page data (corrupt)");
+    for (int l = 0; l <= header_.quadric_depth; ++l) {
+      auto lv = level(l);
+      for (size_t i = 1; i < lv.size(); ++i)
+        if (lv[i - 1].code >= lv[i].code)
+          return Status::error(name + ": level " + std::to_string(l) + " of the node table is not sorted (corrupt)");
+    }
+    return {};
+  }
+
+  std::filesystem::path path_;
+  int fd_ = -1;
+  StoreHeader header_;
+  Layout layout_;
+  std::vector<NodeRecord> nodes_;
+  std::vector<uint64_t> level_begin_;
+  std::vector<PageInfo> pages_;
+};
+
+uint64_t spread3(uint32_t v) {
+  uint64_t x = v & 0x1fffff;
+  x = (x | x << 32) & 0x1f00000000ffffull;
+  x = (x | x << 16) & 0x1f0000ff0000ffull;
+  x = (x | x << 8) & 0x100f00f00f00f00full;
+  x = (x | x << 4) & 0x10c30c30c30c30c3ull;
+  x = (x | x << 2) & 0x1249249249249249ull;
+  return x;
+}
+
+uint32_t compact3(uint64_t x) {
+  x &= 0x1249249249249249ull;
+  x = (x ^ (x >> 2)) & 0x10c30c30c30c30c3ull;
+  x = (x ^ (x >> 4)) & 0x100f00f00f00f00full;
+  x = (x ^ (x >> 8)) & 0x1f0000ff0000ffull;
+  x = (x ^ (x >> 16)) & 0x1f00000000ffffull;
+  x = (x ^ (x >> 32)) & 0x1fffffull;
+  return uint32_t(x);
+}
+
+}  // namespace
+
+StatusOr<std::unique_ptr<OctreeStore>> OctreeStore::open(const std::filesystem::path& path) {
+  return FileStore::open_file(path);
+}
+
+uint64_t morton_encode(uint32_t x, uint32_t y, uint32_t z) { return spread3(x) | spread3(y) << 1 | spread3(z) << 2; }
+
+void morton_decode(uint64_t code, uint32_t& x, uint32_t& y, uint32_t& z) {
+  x = compact3(code);
+  y = compact3(code >> 1);
+  z = compact3(code >> 2);
+}
+
+CellKey OctreeStore::cell_of(const Vec3d& p, int level) const {
+  const auto& h = header();
+  const double size = cell_size(level);
+  const double n = double(uint64_t(1) << level);
+  auto coord = [&](double v, double lo) {
+    double t = std::floor((v - lo) / size);
+    return uint32_t(std::clamp(t, 0.0, n - 1));
+  };
+  return {uint32_t(level), morton_encode(coord(p.x, h.root_lo.x), coord(p.y, h.root_lo.y), coord(p.z, h.root_lo.z))};
+}
+
+Bbox OctreeStore::cell_bounds(const CellKey& key) const {
+  uint32_t x, y, z;
+  morton_decode(key.code, x, y, z);
+  const double s = cell_size(int(key.level));
+  Vec3d lo = header().root_lo + Vec3d(x, y, z) * s;
+  return Bbox{lo, lo + Vec3d(s)};
+}
+
+std::filesystem::path default_store_path(const std::filesystem::path& mesh) {
+  std::filesystem::path p = mesh;
+  p += ".raylod";
+  return p;
+}
+
+bool is_store_file(const std::filesystem::path& path) {
+  int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+  if (fd < 0) return false;
+  char magic[8];
+  bool ok = ::pread(fd, magic, 8, 0) == 8 && std::memcmp(magic, kMagic, 8) == 0;
+  ::close(fd);
+  return ok;
+}
+
+Status print_store_info(const std::filesystem::path& path, std::FILE* out) {
+  RAYLOD_ASSIGN_OR_RETURN(auto store, OctreeStore::open(path));
+  const StoreHeader& h = store->header();
+  auto pages = store->pages();
+  std::fprintf(out, "%s: raylod octree store, format version %u\n", path.string().c_str(), h.version);
+  std::fprintf(out, "  source        %s (%s, content hash %016" PRIx64 ")\n", h.source_path.c_str(),
+               format_bytes(h.source_bytes).c_str(), h.source_hash);
+  std::fprintf(out, "  build options --memory-limit %s --max-depth %d (page target %u triangles)\n",
+               format_bytes(h.options.memory_limit).c_str(), h.options.max_depth, h.options.page_triangles);
+  std::fprintf(out, "  triangles     %" PRIu64 "%s\n", h.triangle_count, h.has_normals ? " (with vertex normals)" : "");
+  std::fprintf(out, "  bounds        [%.9g %.9g %.9g] - [%.9g %.9g %.9g]\n", h.bounds.lo.x, h.bounds.lo.y,
+               h.bounds.lo.z, h.bounds.hi.x, h.bounds.hi.y, h.bounds.hi.z);
+  std::fprintf(out, "  root cube     corner [%.9g %.9g %.9g], side %.9g; quadric origin [%.9g %.9g %.9g]\n",
+               h.root_lo.x, h.root_lo.y, h.root_lo.z, h.root_size, h.origin.x, h.origin.y, h.origin.z);
+  std::fprintf(out, "  levels        0..%d with quadrics%s; pages at level %d\n", h.quadric_depth,
+               h.coarsened ? " (lowered during the build to fit the memory limit)" : "", h.page_level);
+  std::fprintf(out, "  %5s %12s %12s %14s\n", "level", "nodes", "cell size", "quadric mem");
+  uint64_t nodes = 0;
+  for (int l = 0; l <= h.quadric_depth; ++l) {
+    const uint64_t n = store->level(l).size();
+    nodes += n;
+    std::fprintf(out, "  %5d %12" PRIu64 " %12.6g %14s\n", l, n, store->cell_size(l),
+                 format_bytes(n * sizeof(NodeRecord)).c_str());
+  }
+  std::vector<uint32_t> counts;
+  counts.reserve(pages.size());
+  for (const auto& p : pages) counts.push_back(p.triangle_count);
+  std::sort(counts.begin(), counts.end());
+  std::fprintf(out, "  nodes         %" PRIu64 " (quadric memory %s)\n", nodes, format_bytes(h.node_table_bytes).c_str());
+  if (!counts.empty())
+    std::fprintf(out, "  pages         %zu, triangles per page min %u / median %u / max %u\n", counts.size(),
+                 counts.front(), counts[counts.size() / 2], counts.back());
+  std::fprintf(out, "  bytes         %s total: node table %s, page table %s, page data %s\n",
+               format_bytes(h.file_bytes).c_str(), format_bytes(h.node_table_bytes).c_str(),
+               format_bytes(pages.size() * sizeof(PageInfo)).c_str(), format_bytes(h.page_data_bytes).c_str());
+  return {};
+}
+
+}  // namespace raylod

@@ -1,0 +1,329 @@
+// The octree build: tiny exact cases, parent = sum of children, out-of-core
+// quadrics against an in-memory brute force, precision far from the origin,
+// and determinism across thread counts.
+#include <gtest/gtest.h>
+
+#include <fstream>
+#include <iterator>
+#include <map>
+
+#include "core/progress.h"
+#include "octree/octree_test_util.h"
+
+namespace raylod {
+namespace {
+
+using testing::SoupMesh;
+
+std::unique_ptr<OctreeStore> build(const SoupMesh& mesh, const std::filesystem::path& path, StoreOptions options = {},
+                                   size_t batch = 1000, BuildReport* report = nullptr) {
+  Progress::set_enabled(false);
+  auto shared = std::make_shared<const SoupMesh>(mesh);
+  auto built = build_store_from_stream(testing::opener(shared, batch), testing::fake_source(), path, options);
+  EXPECT_TRUE(built.is_ok()) << built.status().message();
+  if (!built.is_ok()) return nullptr;
+  if (report) *report = *built;
+  auto store = OctreeStore::open(path);
+  EXPECT_TRUE(store.is_ok()) << store.status().message();
+  return store.is_ok() ? std::move(store.value()) : nullptr;
+}
+
+std::vector<double> entries(const Quadric& q) { return {q.a00, q.a01, q.a02, q.a11, q.a12, q.a22, q.b0, q.b1, q.b2, q.c}; }
+
+void expect_node_near(const NodeRecord& got, const NodeRecord& want, double rel, const std::string& where) {
+  ASSERT_EQ(got.code, want.code) << where;
+  EXPECT_EQ(got.corner_count, want.corner_count) << where;
+  auto g = entries(got.quadric), w = entries(want.quadric);
+  double scale = 1e-300;
+  for (double v : w) scale = std::max(scale, std::abs(v));
+  for (size_t i = 0; i < g.size(); ++i) EXPECT_NEAR(g[i], w[i], rel * scale) << where << " quadric entry " << i;
+  const double vs = std::max(1e-300, glm::length(want.vertex_sum) + double(want.corner_count));
+  EXPECT_NEAR(glm::length(got.vertex_sum - want.vertex_sum), 0, rel * vs) << where;
+  const double ns = std::max(1e-300, glm::length(want.normal_sum) + scale);
+  EXPECT_NEAR(glm::length(got.normal_sum - want.normal_sum), 0, rel * ns) << where;
+}
+
+// The quadric of every corner added straight into its cell at every level,
+// with the plane quadric written out as w p p^T, p = [n, -n.x] (eq. 4).
+std::map<std::pair<int, uint64_t>, NodeRecord> brute_force(const SoupMesh& m, const OctreeStore& store) {
+  const auto& h = store.header();
+  std::map<std::pair<int, uint64_t>, NodeRecord> out;
+  for (size_t t = 0; t < m.size(); ++t) {
+    Vec3d p[3];
+    for (int k = 0; k < 3; ++k) p[k] = Vec3d(m.positions[3 * t + k]);
+    Vec3d cr = glm::cross(p[1] - p[0], p[2] - p[0]);
+    double area = 0.5 * glm::length(cr);
+    Vec3d n = area > 0 ? glm::normalize(cr) : Vec3d(0);
+    if (!m.normals.empty()) {
+      Vec3d s = Vec3d(m.normals[3 * t]) + Vec3d(m.normals[3 * t + 1]) + Vec3d(m.normals[3 * t + 2]);
+      if (glm::length(s) > 1e-12) n = glm::normalize(s);
+    }
+    for (int k = 0; k < 3; ++k) {
+      const Vec3d x = p[k] - h.origin;
+      const double w = area / 3, pv[4] = {n.x, n.y, n.z, -glm::dot(n, x)};
+      for (int level = 0; level <= h.quadric_depth; ++level) {
+        CellKey key = store.cell_of(p[k], level);
+        NodeRecord& r = out[{level, key.code}];
+        r.code = key.code;
+        if (area > 0) {
+          r.quadric.a00 += w * pv[0] * pv[0]; r.quadric.a01 += w * pv[0] * pv[1]; r.quadric.a02 += w * pv[0] * pv[2];
+          r.quadric.a11 += w * pv[1] * pv[1]; r.quadric.a12 += w * pv[1] * pv[2]; r.quadric.a22 += w * pv[2] * pv[2];
+          r.quadric.b0 -= w * pv[0] * pv[3]; r.quadric.b1 -= w * pv[1] * pv[3]; r.quadric.b2 -= w * pv[2] * pv[3];
+          r.quadric.c += w * pv[3] * pv[3];
+        }
+        r.vertex_sum += x;
+        r.normal_sum += w * (m.normals.empty() ? n : Vec3d(m.normals[3 * t + k]));
+        ++r.corner_count;
+      }
+    }
+  }
+  return out;
+}
+
+void expect_matches_brute_force(const SoupMesh& m, const OctreeStore& store, double rel) {
+  auto want = brute_force(m, store);
+  size_t seen = 0;
+  for (int level = 0; level <= store.header().quadric_depth; ++level) {
+    for (const NodeRecord& node : store.level(level)) {
+      auto it = want.find({level, node.code});
+      ASSERT_NE(it, want.end()) << "level " << level << " has a node the brute force does not";
+      expect_node_near(node, it->second, rel, "level " + std::to_string(level));
+      ++seen;
+    }
+  }
+  EXPECT_EQ(seen, want.size()) << "the store misses occupied cells";
+}
+
+TEST(OctreeBuild, OneTriangle) {
+  SoupMesh m;
+  m.positions = {Vec3(0, 0, 0), Vec3(2, 0, 0), Vec3(0, 2, 0)};
+  auto dir = testing::scratch_dir("one");
+  auto store = build(m, dir / "one.raylod");
+  ASSERT_TRUE(store);
+  const auto& h = store->header();
+  EXPECT_EQ(h.triangle_count, 1u);
+  EXPECT_FALSE(h.has_normals);
+  EXPECT_EQ(h.page_level, 0);
+  EXPECT_EQ(h.origin, Vec3d(1, 1, 0));
+  EXPECT_EQ(h.root_size, 4.0);  // the power of two above the extent 2
+  ASSERT_EQ(store->level(0).size(), 1u);
+  const NodeRecord& root = store->level(0)[0];
+  EXPECT_EQ(root.corner_count, 3u);
+  EXPECT_EQ(root.vertex_sum, Vec3d(-1 + 1 - 1, -1 - 1 + 1, 0));
+  // Three corners of area 2 / 3 each: A = 2 n n^T with n = +z; plane z = 0.
+  EXPECT_DOUBLE_EQ(root.quadric.a22, 2);
+  EXPECT_DOUBLE_EQ(root.quadric.a00, 0);
+  EXPECT_DOUBLE_EQ(root.quadric.c, 0);
+  EXPECT_DOUBLE_EQ(quadric_error(root.quadric, Vec3d(5, -3, 0.5)), 2 * 0.25);
+  EXPECT_EQ(root.normal_sum, Vec3d(0, 0, 2));
+  for (int l = 1; l <= h.quadric_depth; ++l) {
+    uint64_t corners = 0;
+    for (const auto& n : store->level(l)) corners += n.corner_count;
+    EXPECT_EQ(corners, 3u);
+    EXPECT_EQ(store->level(l).size(), 3u) << "three distinct vertices below the root";
+  }
+  ASSERT_EQ(store->pages().size(), 1u);
+  TriangleBatch b;
+  ASSERT_TRUE(store->read_page(0, b).is_ok());
+  EXPECT_EQ(b.positions, m.positions);
+  EXPECT_EQ(store->pages()[0].bounds.lo, Vec3d(0, 0, 0));
+  EXPECT_EQ(store->pages()[0].bounds.hi, Vec3d(2, 2, 0));
+}
+
+SoupMesh cube() {
+  // [-1, 1]^3, two triangles per face, outward winding.
+  const Vec3 v[8] = {{-1, -1, -1}, {1, -1, -1}, {1, 1, -1}, {-1, 1, -1}, {-1, -1, 1}, {1, -1, 1}, {1, 1, 1}, {-1, 1, 1}};
+  const int f[6][4] = {{0, 3, 2, 1}, {4, 5, 6, 7}, {0, 1, 5, 4}, {2, 3, 7, 6}, {1, 2, 6, 5}, {0, 4, 7, 3}};
+  SoupMesh m;
+  for (auto& q : f)
+    for (int t : {0, 2}) {
+      m.positions.push_back(v[q[0]]);
+      m.positions.push_back(v[q[t == 0 ? 1 : 2]]);
+      m.positions.push_back(v[q[t == 0 ? 2 : 3]]);
+    }
+  return m;
+}
+
+TEST(OctreeBuild, CubeRootQuadricIsExact) {
+  auto dir = testing::scratch_dir("cube");
+  auto store = build(cube(), dir / "cube.raylod");
+  ASSERT_TRUE(store);
+  const NodeRecord& root = store->level(0)[0];
+  // sum over faces of area * n n^T = 8 I; b = sum area n (n.x) = 0; c = 6 faces * 4 * 1.
+  EXPECT_DOUBLE_EQ(root.quadric.a00, 8);
+  EXPECT_DOUBLE_EQ(root.quadric.a11, 8);
+  EXPECT_DOUBLE_EQ(root.quadric.a22, 8);
+  EXPECT_DOUBLE_EQ(root.quadric.a01, 0);
+  EXPECT_DOUBLE_EQ(root.quadric.b0, 0);
+  EXPECT_DOUBLE_EQ(root.quadric.c, 24);
+  EXPECT_EQ(root.corner_count, 36u);
+  // Level 1: one vertex per octant; each node's mean vertex is that corner.
+  ASSERT_EQ(store->level(1).size(), 8u);
+  for (const auto& n : store->level(1)) {
+    const Vec3d mean = n.vertex_sum / double(n.corner_count);
+    EXPECT_EQ(glm::abs(mean), Vec3d(1)) << "octant " << n.code;
+    // The corner lies on its three face planes, so its own quadric vanishes there.
+    EXPECT_NEAR(quadric_error(n.quadric, mean), 0, 1e-12);
+    EXPECT_TRUE(store->cell_bounds({1, n.code}).contains(mean + store->header().origin));
+  }
+  expect_matches_brute_force(cube(), *store, 1e-14);
+}
+
+TEST(OctreeBuild, AllVerticesInOneCell) {
+  // Degenerate: every vertex is the same point. Every level has one node.
+  SoupMesh m;
+  for (int i = 0; i < 50; ++i)
+    for (int k = 0; k < 3; ++k) m.positions.push_back(Vec3(3, 4, 5));
+  auto dir = testing::scratch_dir("onecell");
+  auto store = build(m, dir / "onecell.raylod");
+  ASSERT_TRUE(store);
+  for (int l = 0; l <= store->header().quadric_depth; ++l) {
+    ASSERT_EQ(store->level(l).size(), 1u);
+    EXPECT_EQ(store->level(l)[0].corner_count, 150u);
+    EXPECT_EQ(store->level(l)[0].vertex_sum, Vec3d(0));
+    EXPECT_EQ(entries(store->level(l)[0].quadric), entries(Quadric{}));  // zero area adds no plane
+  }
+  EXPECT_EQ(store->pages().size(), 1u);
+
+  // A cluster of tiny triangles plus one far triangle: at a deep level the
+  // cluster is one cell whose quadric is that of the cluster's plane z = 0.
+  SoupMesh c = testing::soup(200, 7, false, 1e-3f);
+  for (auto& p : c.positions) p.z = 0;
+  for (Vec3 p : {Vec3(10, 10, 10), Vec3(11, 10, 10), Vec3(10, 11, 10)}) c.positions.push_back(p);
+  auto store2 = build(c, dir / "cluster.raylod");
+  ASSERT_TRUE(store2);
+  // The deepest level whose cell around the cluster still holds all of it.
+  Bbox cluster;
+  for (size_t i = 0; i < 600; ++i) cluster.expand(c.positions[i]);
+  int deep = 0;
+  for (int l = 1; l <= store2->header().quadric_depth; ++l)
+    if (store2->cell_of(cluster.lo, l) == store2->cell_of(cluster.hi, l)) deep = l;
+  ASSERT_GE(deep, 4);
+  const NodeRecord* cell = store2->find(store2->cell_of(cluster.lo, deep));
+  ASSERT_NE(cell, nullptr);
+  EXPECT_EQ(cell->corner_count, 600u);
+  const Vec3d o = store2->header().origin;
+  const double off_plane = quadric_error(cell->quadric, Vec3d(0, 0, 1e-3) - o);
+  EXPECT_GT(off_plane, 0);
+  // The cluster sits ~8 units from the mesh centre (the quadrics' origin) and
+  // is 1e-3 wide, so cancellation costs about eps * (8 / 1e-3)^2 ~ 1e-8 relative.
+  EXPECT_NEAR(quadric_error(cell->quadric, Vec3d(0.5e-3, -0.2e-3, 0) - o), 0, 1e-6 * off_plane);
+  EXPECT_NEAR(quadric_error(cell->quadric, Vec3d(0.5e-3, -0.2e-3, 2e-3) - o), 4 * off_plane, 1e-6 * off_plane);
+  expect_matches_brute_force(c, *store2, 1e-12);
+}
+
+TEST(OctreeBuild, ParentQuadricIsTheSumOfItsChildren) {
+  auto m = testing::sphere(60, 80);
+  auto dir = testing::scratch_dir("parents");
+  auto store = build(m, dir / "s.raylod");
+  ASSERT_TRUE(store);
+  ASSERT_GE(store->header().quadric_depth, 5);
+  for (int l = 0; l < store->header().quadric_depth; ++l) {
+    std::map<uint64_t, NodeRecord> sums;
+    for (const auto& child : store->level(l + 1)) {
+      NodeRecord& s = sums[child.code >> 3];
+      s.code = child.code >> 3;
+      quadric_add(s.quadric, child.quadric);
+      s.vertex_sum += child.vertex_sum;
+      s.normal_sum += child.normal_sum;
+      s.corner_count += child.corner_count;
+    }
+    ASSERT_EQ(sums.size(), store->level(l).size());
+    for (const auto& parent : store->level(l)) expect_node_near(parent, sums.at(parent.code), 1e-12, "level " + std::to_string(l));
+  }
+}
+
+TEST(OctreeBuild, OutOfCoreQuadricsEqualInMemoryBruteForce) {
+  auto dir = testing::scratch_dir("brute");
+  // With normals (averaged-normal planes) and without (face normals).
+  for (bool normals : {true, false}) {
+    auto m = testing::soup(20000, 11, normals);
+    StoreOptions opt;
+    opt.max_depth = 7;
+    opt.page_triangles = 500;
+    BuildReport report;
+    auto store = build(m, dir / "a.raylod", opt, 777, &report);
+    ASSERT_TRUE(store);
+    EXPECT_FALSE(report.coarsened);
+    EXPECT_EQ(store->header().quadric_depth, 7);
+    expect_matches_brute_force(m, *store, 1e-10);
+  }
+}
+
+TEST(OctreeBuild, TightMemoryLimitCoarsensAndStaysExact) {
+  // 1 MiB: about 1900 leaf nodes and 13k triangles per run, so this mesh needs
+  // several sorted runs and the estimate-then-coarsen path.
+  auto m = testing::soup(60000, 5, true);
+  StoreOptions opt;
+  opt.memory_limit = 1 << 20;
+  opt.page_triangles = 256;
+  BuildReport report;
+  auto dir = testing::scratch_dir("tight");
+  auto store = build(m, dir / "t.raylod", opt, 4096, &report);
+  ASSERT_TRUE(store);
+  EXPECT_LE(store->level(store->header().quadric_depth).size(), size_t(0.35 * (1 << 20) / 192));
+  expect_matches_brute_force(m, *store, 1e-10);
+  uint64_t total = 0;
+  for (const auto& p : store->pages()) total += p.triangle_count;
+  EXPECT_EQ(total, m.size());
+}
+
+TEST(OctreeBuild, FarFromTheOriginKeepsPrecision) {
+  // A bumpy grid whose coordinates are exact in float both at the origin and
+  // shifted by 1e6 (spacing 1/4 >= the float spacing 1/16 at 1e6).
+  SoupMesh a;
+  auto z = [](int i, int j) { return float(((i * 7 + j * 3) % 5) * 0.25); };
+  for (int i = 0; i < 40; ++i)
+    for (int j = 0; j < 40; ++j) {
+      Vec3 p00(i * 0.25f, j * 0.25f, z(i, j)), p10((i + 1) * 0.25f, j * 0.25f, z(i + 1, j));
+      Vec3 p11((i + 1) * 0.25f, (j + 1) * 0.25f, z(i + 1, j + 1)), p01(i * 0.25f, (j + 1) * 0.25f, z(i, j + 1));
+      for (Vec3 p : {p00, p10, p11, p00, p11, p01}) a.positions.push_back(p);
+    }
+  SoupMesh b = a;
+  const Vec3 shift(1e6f, -1e6f, 1e6f);
+  for (auto& p : b.positions) p += shift;
+  for (size_t i = 0; i < a.positions.size(); ++i) ASSERT_EQ(b.positions[i] - shift, a.positions[i]);
+  auto dir = testing::scratch_dir("far");
+  auto sa = build(a, dir / "a.raylod"), sb = build(b, dir / "b.raylod");
+  ASSERT_TRUE(sa && sb);
+  ASSERT_EQ(sa->header().quadric_depth, sb->header().quadric_depth);
+  for (int l = 0; l <= sa->header().quadric_depth; ++l) {
+    auto la = sa->level(l), lb = sb->level(l);
+    ASSERT_EQ(la.size(), lb.size());
+    for (size_t i = 0; i < la.size(); ++i) expect_node_near(lb[i], la[i], 1e-12, "level " + std::to_string(l));
+  }
+  // Every vertex lies on the planes of its own triangles, so in the deepest
+  // level (about one vertex per cell) the quadric vanishes at the cell's mean vertex.
+  const int deep = sb->header().quadric_depth;
+  size_t single = 0;
+  for (const auto& n : sb->level(deep)) {
+    const Vec3d mean = n.vertex_sum / double(n.corner_count);
+    const auto cell = sb->cell_bounds({uint32_t(deep), n.code});
+    if (cell.extent().x > 0.2) continue;  // may hold several vertices
+    EXPECT_NEAR(quadric_error(n.quadric, mean), 0, 1e-9);
+    ++single;
+  }
+  EXPECT_GT(single, 100u);
+}
+
+TEST(OctreeBuild, SameStoreBytesForOneAndTwoThreads) {
+  auto m = testing::soup(30000, 9, true);
+  auto dir = testing::scratch_dir("threads");
+  StoreOptions one, two;
+  one.threads = 1;
+  two.threads = 2;
+  one.memory_limit = two.memory_limit = 2 << 20;  // exercise runs and coarsening too
+  one.page_triangles = two.page_triangles = 300;
+  ASSERT_TRUE(build(m, dir / "one.raylod", one, 1000));
+  ASSERT_TRUE(build(m, dir / "two.raylod", two, 1000));
+  auto slurp = [](const std::filesystem::path& p) {
+    std::ifstream in(p, std::ios::binary);
+    return std::string(std::istreambuf_iterator<char>(in), {});
+  };
+  const std::string a = slurp(dir / "one.raylod"), b = slurp(dir / "two.raylod");
+  ASSERT_GT(a.size(), 30000u * 72);
+  EXPECT_TRUE(a == b) << "stores differ between 1 and 2 threads";
+}
+
+}  // namespace
+}  // namespace raylod

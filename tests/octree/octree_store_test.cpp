@@ -1,0 +1,277 @@
+// The store file: round trip of every triangle, refusal of corrupt,
+// truncated, foreign-version and stale stores, no-op rebuilds, and atomic
+// writes that leave nothing behind on failure.
+#include <fcntl.h>
+#include <gtest/gtest.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <array>
+#include <cstdio>
+#include <fstream>
+
+#include "core/progress.h"
+#include "octree/octree_test_util.h"
+
+namespace raylod {
+namespace {
+
+using testing::SoupMesh;
+
+Status build_memory(const SoupMesh& mesh, const std::filesystem::path& path, StoreOptions options = {},
+                    long fail_after = -1, int fail_pass = -1) {
+  Progress::set_enabled(false);
+  auto shared = std::make_shared<const SoupMesh>(mesh);
+  return build_store_from_stream(testing::opener(shared, 1000, fail_after, fail_pass), testing::fake_source(), path,
+                                 options)
+      .status();
+}
+
+using Tri = std::array<float, 18>;
+std::vector<Tri> triangles_of(const SoupMesh& m) {
+  std::vector<Tri> out(m.size());
+  for (size_t t = 0; t < m.size(); ++t)
+    for (int k = 0; k < 3; ++k)
+      for (int c = 0; c < 3; ++c) {
+        out[t][3 * k + c] = m.positions[3 * t + k][c];
+        out[t][9 + 3 * k + c] = m.normals.empty() ? 0.f : m.normals[3 * t + k][c];
+      }
+  return out;
+}
+
+void flip_byte(const std::filesystem::path& p, uint64_t offset) {
+  std::fstream f(p, std::ios::in | std::ios::out | std::ios::binary);
+  f.seekg(std::streamoff(offset));
+  char c = 0;
+  f.read(&c, 1);
+  c = char(c ^ 0x20);
+  f.seekp(std::streamoff(offset));
+  f.write(&c, 1);
+}
+
+void expect_error_contains(const Status& s, const std::vector<std::string>& parts) {
+  ASSERT_FALSE(s.is_ok()) << "expected an error";
+  for (const auto& p : parts) EXPECT_NE(s.message().find(p), std::string::npos) << s.message() << " lacks '" << p << "'";
+}
+
+TEST(OctreeStore, RoundTripsEveryTriangle) {
+  auto m = testing::sphere(70, 90);  // 12600 triangles with normals
+  auto dir = testing::scratch_dir("roundtrip");
+  StoreOptions opt;
+  opt.page_triangles = 200;
+  ASSERT_TRUE(build_memory(m, dir / "s.raylod", opt).is_ok());
+  auto opened = OctreeStore::open(dir / "s.raylod");
+  ASSERT_TRUE(opened.is_ok()) << opened.status().message();
+  const OctreeStore& store = **opened;
+  ASSERT_GT(store.pages().size(), 20u);
+  SoupMesh back;
+  TriangleBatch b;
+  for (size_t i = 0; i < store.pages().size(); ++i) {
+    const PageInfo& page = store.pages()[i];
+    ASSERT_TRUE(store.read_page(i, b).is_ok());
+    ASSERT_EQ(b.size(), page.triangle_count);
+    ASSERT_EQ(b.normals.size(), b.positions.size());
+    Bbox tight;
+    for (const Vec3& p : b.positions) tight.expand(p);
+    EXPECT_EQ(tight.lo, page.bounds.lo);
+    EXPECT_EQ(tight.hi, page.bounds.hi);
+    // Each triangle is in the page of its centroid's cell.
+    const Bbox cell = store.cell_bounds({uint32_t(store.header().page_level), page.code});
+    for (size_t t = 0; t < b.size(); ++t) {
+      Vec3d c = (Vec3d(b.positions[3 * t]) + Vec3d(b.positions[3 * t + 1]) + Vec3d(b.positions[3 * t + 2])) / 3.0;
+      ASSERT_EQ(store.cell_of(c, store.header().page_level).code, page.code);
+      ASSERT_TRUE(cell.contains(glm::clamp(c, cell.lo, cell.hi)));
+    }
+    back.positions.insert(back.positions.end(), b.positions.begin(), b.positions.end());
+    back.normals.insert(back.normals.end(), b.normals.begin(), b.normals.end());
+  }
+  auto want = triangles_of(m), got = triangles_of(back);
+  std::sort(want.begin(), want.end());
+  std::sort(got.begin(), got.end());
+  EXPECT_TRUE(want == got) << "the store's triangles differ from the mesh's";
+  EXPECT_EQ(store.header().triangle_count, m.size());
+  EXPECT_EQ(store.header().source_path, "/nonexistent/memory.ply");
+  EXPECT_TRUE(is_store_file(dir / "s.raylod"));
+  EXPECT_FALSE(store.read_page(store.pages().size(), b).is_ok());
+}
+
+TEST(OctreeStore, RefusesCorruptTruncatedAndForeignFiles) {
+  auto m = testing::soup(5000, 2, true);
+  auto dir = testing::scratch_dir("corrupt");
+  const auto good = dir / "good.raylod";
+  StoreOptions opt;
+  opt.page_triangles = 100;
+  ASSERT_TRUE(build_memory(m, good, opt).is_ok());
+  auto opened = OctreeStore::open(good);
+  ASSERT_TRUE(opened.is_ok());
+  const PageInfo page = (*opened)->pages()[3];
+  opened.value().reset();
+
+  auto copy = [&](const std::string& name) {
+    auto p = dir / name;
+    std::filesystem::copy_file(good, p, std::filesystem::copy_options::overwrite_existing);
+    return p;
+  };
+  {  // A flipped byte inside a page: the store opens, that page does not read.
+    auto p = copy("page.raylod");
+    flip_byte(p, page.offset + 17);
+    auto s = OctreeStore::open(p);
+    ASSERT_TRUE(s.is_ok()) << s.status().message();
+    TriangleBatch b;
+    expect_error_contains((*s)->read_page(3, b), {p.string(), "page 3", "checksum"});
+    EXPECT_TRUE((*s)->read_page(2, b).is_ok());
+  }
+  {  // A flipped byte in the header.
+    auto p = copy("header.raylod");
+    flip_byte(p, 40);
+    expect_error_contains(OctreeStore::open(p).status(), {p.string(), "header checksum"});
+  }
+  {  // A flipped byte in the node table (just after the header).
+    auto p = copy("nodes.raylod");
+    flip_byte(p, 1024 + 8);
+    auto s = OctreeStore::open(p).status();
+    expect_error_contains(s, {p.string(), "checksum"});
+  }
+  {  // Truncated by one byte, and cut in the header.
+    auto p = copy("trunc.raylod");
+    std::filesystem::resize_file(p, std::filesystem::file_size(p) - 1);
+    expect_error_contains(OctreeStore::open(p).status(), {p.string(), "truncated"});
+    std::filesystem::resize_file(p, 30);
+    expect_error_contains(OctreeStore::open(p).status(), {p.string(), "truncated"});
+  }
+  {  // Another format version.
+    auto p = copy("version.raylod");
+    flip_byte(p, 9);
+    expect_error_contains(OctreeStore::open(p).status(), {p.string(), "version"});
+  }
+  {  // Not a store at all.
+    auto p = dir / "text.raylod";
+    std::ofstream(p) << "ply\nformat ascii 1.0\nend_header\n";
+    expect_error_contains(OctreeStore::open(p).status(), {p.string(), "not a raylod store"});
+    EXPECT_FALSE(is_store_file(p));
+  }
+  expect_error_contains(OctreeStore::open(dir / "missing.raylod").status(), {"missing.raylod"});
+}
+
+TEST(OctreeStore, FailedBuildLeavesTheOldStoreAndNoTemporaries) {
+  auto m = testing::soup(5000, 4, false);
+  auto dir = testing::scratch_dir("atomic");
+  const auto path = dir / "s.raylod";
+  ASSERT_TRUE(build_memory(m, path).is_ok());
+  const auto size = std::filesystem::file_size(path);
+  auto other = testing::soup(6000, 5, false);
+  for (int pass : {0, 1}) {  // a read error in pass 1, then in pass 2
+    Status s = build_memory(other, path, {}, 3, pass);
+    expect_error_contains(s, {"memory.ply", "simulated read error"});
+  }
+  EXPECT_EQ(std::filesystem::file_size(path), size);
+  ASSERT_TRUE(OctreeStore::open(path).is_ok());
+  size_t files = 0;
+  for (auto& e : std::filesystem::directory_iterator(dir)) {
+    (void)e;
+    ++files;
+  }
+  EXPECT_EQ(files, 1u) << "temporary files were left behind";
+}
+
+// A binary little-endian PLY with float positions and normals, written here
+// so these tests do not depend on the project's writer.
+void write_ply(const std::filesystem::path& path, const SoupMesh& m) {
+  std::ofstream out(path, std::ios::binary);
+  out << "ply\nformat binary_little_endian 1.0\nelement vertex " << 3 * m.size()
+      << "\nproperty float x\nproperty float y\nproperty float z\nproperty float nx\nproperty float ny\nproperty float nz\n"
+      << "element face " << m.size() << "\nproperty list uchar int vertex_indices\nend_header\n";
+  for (size_t i = 0; i < m.positions.size(); ++i) {
+    out.write(reinterpret_cast<const char*>(&m.positions[i]), 12);
+    out.write(reinterpret_cast<const char*>(&m.normals[i]), 12);
+  }
+  for (int32_t t = 0; t < int32_t(m.size()); ++t) {
+    unsigned char three = 3;
+    int32_t idx[3] = {3 * t, 3 * t + 1, 3 * t + 2};
+    out.write(reinterpret_cast<const char*>(&three), 1);
+    out.write(reinterpret_cast<const char*>(idx), 12);
+  }
+}
+
+TEST(OctreeStore, RebuildIsANoOpUntilTheMeshChanges) {
+  Progress::set_enabled(false);
+  auto dir = testing::scratch_dir("stale");
+  const auto mesh = dir / "ball.ply";
+  auto m = testing::sphere(20, 30);
+  write_ply(mesh, m);
+  const auto store = default_store_path(mesh);
+  EXPECT_EQ(store.filename(), "ball.ply.raylod");
+  StoreOptions opt;
+  opt.memory_limit = 64 << 20;
+
+  auto first = build_store(mesh, store, opt);
+  ASSERT_TRUE(first.is_ok()) << first.status().message();
+  EXPECT_FALSE(first->reused);
+  EXPECT_EQ(first->triangles, m.size());
+  std::string why;
+  EXPECT_TRUE(store_is_current(mesh, store, opt, &why)) << why;
+
+  auto again = build_store(mesh, store, opt);
+  ASSERT_TRUE(again.is_ok());
+  EXPECT_TRUE(again->reused);
+  EXPECT_NE(again->reason.find("up to date"), std::string::npos) << again->reason;
+
+  // Other options: stale.
+  StoreOptions deeper = opt;
+  deeper.max_depth = 9;
+  EXPECT_FALSE(store_is_current(mesh, store, deeper, &why));
+  EXPECT_NE(why.find("options"), std::string::npos) << why;
+
+  // Same size and modification time, different content: caught by the hash.
+  struct stat st {};
+  ASSERT_EQ(::stat(mesh.c_str(), &st), 0);
+  auto moved = m;
+  moved.positions[5].x += 0.5f;
+  write_ply(mesh, moved);
+  struct timespec times[2] = {st.st_atim, st.st_mtim};
+  ASSERT_EQ(::utimensat(AT_FDCWD, mesh.c_str(), times, 0), 0);
+  EXPECT_FALSE(store_is_current(mesh, store, opt, &why));
+  EXPECT_NE(why.find("content"), std::string::npos) << why;
+
+  // A changed size.
+  auto bigger = testing::sphere(21, 30);
+  write_ply(mesh, bigger);
+  EXPECT_FALSE(store_is_current(mesh, store, opt, &why));
+  EXPECT_NE(why.find("size"), std::string::npos) << why;
+  auto rebuilt = build_store(mesh, store, opt);
+  ASSERT_TRUE(rebuilt.is_ok()) << rebuilt.status().message();
+  EXPECT_FALSE(rebuilt->reused);
+  EXPECT_EQ(rebuilt->triangles, bigger.size());
+  EXPECT_TRUE(store_is_current(mesh, store, opt, &why)) << why;
+
+  // A corrupt store is rebuilt, not trusted.
+  {
+    std::fstream f(store, std::ios::in | std::ios::out | std::ios::binary);
+    f.seekp(40);
+    f.put('\x7f');
+  }
+  EXPECT_FALSE(store_is_current(mesh, store, opt, &why));
+  EXPECT_NE(why.find("unusable"), std::string::npos) << why;
+}
+
+TEST(OctreeStore, InfoPrintsLevelsPagesAndOptions) {
+  auto dir = testing::scratch_dir("info");
+  StoreOptions opt;
+  opt.memory_limit = 256 << 20;
+  opt.max_depth = 6;
+  ASSERT_TRUE(build_memory(testing::sphere(30, 40), dir / "s.raylod", opt).is_ok());
+  char* text = nullptr;
+  size_t len = 0;
+  std::FILE* f = open_memstream(&text, &len);
+  ASSERT_TRUE(print_store_info(dir / "s.raylod", f).is_ok());
+  std::fclose(f);
+  std::string s(text, len);
+  std::free(text);
+  for (const char* part : {"--memory-limit 256.00 MiB", "--max-depth 6", "levels        0..6", "pages", "quadric mem",
+                           "2400 (with vertex normals)"})
+    EXPECT_NE(s.find(part), std::string::npos) << "missing '" << part << "' in\n" << s;
+}
+
+}  // namespace
+}  // namespace raylod
