@@ -198,15 +198,16 @@ Vec3 Integrator::direct_light(const Material& m, const Vec3d& dir, const Vec3d& 
     }
     // A light behind the surface contributes nothing: no shadow ray for it.
     if (glm::dot(l, ng) <= 0) continue;
+    // Light below the shading normal's horizon: neither term (Phong included).
     const double cos_theta = glm::dot(ns, l);
+    if (cos_theta <= 0) continue;
     double spec = 0;
     if (glossy) spec = std::pow(std::max(0.0, glm::dot(reflect(-l, ns), -dir)), double(m.shininess));
-    if (cos_theta <= 0 && spec <= 0) continue;
     ++counters.shadow;
     const Ray shadow{p + offset * ng, l};
     if (geometry_.occluded(shadow, 0.0, std::isfinite(dist) ? dist - 2 * offset : kInf)) continue;
     Vec3 c(0.0f);
-    if (diffuse && cos_theta > 0) c += m.color * float(cos_theta);
+    if (diffuse) c += m.color * float(cos_theta);
     if (spec > 0) c += m.specular * float(spec);
     sum += c * e;
   }

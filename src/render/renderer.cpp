@@ -296,6 +296,17 @@ Status write_image(const std::filesystem::path& path, const Image& image) {
   return write_pixels(path, spec, bytes.data(), OIIO::TypeDesc::UINT8);
 }
 
+Status check_output_image(const std::filesystem::path& path) {
+  if (path.empty()) return Status::error("no output image given");
+  if (!path.has_extension()) return Status::error(path.string() + ": no file extension to choose the image format from");
+  auto out = OIIO::ImageOutput::create(path.string());
+  if (!out) return Status::error(path.string() + ": no image writer for '" + path.extension().string() + "' files");
+  const auto dir = path.has_parent_path() ? path.parent_path() : std::filesystem::path(".");
+  std::error_code ec;
+  if (!std::filesystem::is_directory(dir, ec)) return Status::error(path.string() + ": directory does not exist");
+  return {};
+}
+
 StatusOr<Image> read_image(const std::filesystem::path& path) {
   auto in = OIIO::ImageInput::open(path.string());
   if (!in) return Status::error(path.string() + ": cannot read image: " + OIIO::geterror());

@@ -97,6 +97,9 @@ StatusOr<RenderResult> render(const Scene& scene, const RenderOptions& options);
 // formats (PNG, JPEG, ...) get sRGB-encoded values clamped to [0, 1].
 // Atomic: written under a temporary name, then renamed.
 Status write_image(const std::filesystem::path& path, const Image& image);
+// Checks, before any work, that an image can be written to path: a writer
+// exists for its extension and its directory exists.
+Status check_output_image(const std::filesystem::path& path);
 // Reads an image as linear float (the inverse of write_image), for tests and tools.
 StatusOr<Image> read_image(const std::filesystem::path& path);
 // A triangle-id buffer as a one-channel 32-bit unsigned EXR.

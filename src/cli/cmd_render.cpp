@@ -1,0 +1,128 @@
+// raylod render: ray trace a scene (or the embedded default scene) to an image.
+#include <cstdio>
+#include <fstream>
+#include <sstream>
+
+#include "cli/cli.h"
+#include "core/progress.h"
+#include "core/system.h"
+#include "gen/generate.h"
+#include "render/renderer.h"
+#include "scene/scene.h"
+
+namespace raylod::cli {
+namespace {
+
+Status write_text_atomic(const std::filesystem::path& path, const std::string& text) {
+  AtomicOutput out(path);
+  {
+    std::ofstream f(out.temp_path(), std::ios::binary);
+    if (!f) return Status::error(path.string() + ": cannot open for writing");
+    f << text << "\n";
+    if (!f.flush()) return Status::error(path.string() + ": write failed");
+  }
+  return out.commit();
+}
+
+Status run_render(int argc, char** argv, bool& help) {
+  Args args("render", "[SCENE] -o IMAGE [options]",
+            "Ray traces SCENE (a JSON scene file; the embedded default scene if omitted) with the\n"
+            "scene's meshes, or with --mesh in place of the first object's mesh, and writes IMAGE\n"
+            "in the format its extension names (.png, .exr, .jpg, .tif, ... via OpenImageIO).\n"
+            "Only the effects the scene's materials and lights call for are simulated.",
+            {{"--output", "-o", "output image (format by extension)", true, "IMAGE"},
+             {"--mesh", "", "mesh to render in place of the first object's (.drc, .ply, .stl, .obj)", true, "FILE"},
+             {"--spp", "", "samples per pixel (default: the scene's)", true, "N"},
+             {"--threads", "", "worker threads (default: all cores)", true, "T"},
+             {"--memory-limit", "", "refuse scenes whose mesh + BVH would exceed SIZE (e.g. 4G)", true, "SIZE"},
+             {"--aov", "", "extra EXR images next to IMAGE: depth,normal,triangle-id", true, "LIST"},
+             {"--wireframe", "", "darken pixels near triangle edges (shows triangle density)", false, ""},
+             {"--width", "", "image width (default: the scene camera's)", true, "W"},
+             {"--height", "", "image height (default: the scene camera's)", true, "H"},
+             {"--stats-json", "", "write ray counters, timings and memory as JSON", true, "FILE"},
+             {"--quiet", "-q", "no progress bars or log lines", false, ""}});
+  RAYLOD_RETURN_IF_ERROR(args.parse(argc, argv));
+  if (args.help_requested()) {
+    std::fputs(args.help_text().c_str(), stdout);
+    help = true;
+    return {};
+  }
+  if (args.positionals().size() > 1) return Status::error("expected at most one SCENE argument");
+  if (!args.has("--output")) return Status::error("missing -o IMAGE (see raylod render --help)");
+  const std::filesystem::path output = args.get("--output");
+  RAYLOD_RETURN_IF_ERROR(check_output_image(output));
+
+  RenderOptions opts;
+  RAYLOD_ASSIGN_OR_RETURN(int64_t spp, args.get_int("--spp", 0, 1, 4096));
+  RAYLOD_ASSIGN_OR_RETURN(int64_t threads, args.get_int("--threads", 0, 1, 4096));
+  RAYLOD_ASSIGN_OR_RETURN(uint64_t limit, args.get_size("--memory-limit", 0));
+  opts.spp = int(spp);
+  opts.threads = int(threads);
+  opts.memory_limit = limit;
+  opts.wireframe = args.has("--wireframe");
+  const bool quiet = args.has("--quiet");
+  opts.progress = !quiet;
+  if (quiet) Progress::set_enabled(false);
+  else opts.log = [](const std::string& m) { std::fprintf(stderr, "raylod render: %s\n", m.c_str()); };
+  if (args.has("--aov")) {
+    std::stringstream list(args.get("--aov"));
+    std::string aov;
+    while (std::getline(list, aov, ',')) {
+      if (aov == "depth") opts.aov_depth = true;
+      else if (aov == "normal") opts.aov_normal = true;
+      else if (aov == "triangle-id") opts.aov_triangle_id = true;
+      else return Status::error("--aov: '" + aov + "' is not one of depth, normal, triangle-id");
+    }
+  }
+
+  Scene scene;
+  if (args.positionals().empty()) {
+    RAYLOD_ASSIGN_OR_RETURN(scene, default_scene());
+  } else {
+    RAYLOD_ASSIGN_OR_RETURN(scene, load_scene(args.positionals()[0]));
+  }
+  RAYLOD_ASSIGN_OR_RETURN(int64_t width, args.get_int("--width", scene.camera.width, 1, 32768));
+  RAYLOD_ASSIGN_OR_RETURN(int64_t height, args.get_int("--height", scene.camera.height, 1, 32768));
+  scene.camera.width = int(width);
+  scene.camera.height = int(height);
+  if (args.has("--mesh")) {
+    const std::filesystem::path mesh = args.get("--mesh");
+    std::error_code ec;
+    if (!std::filesystem::is_regular_file(mesh, ec)) return Status::error("--mesh: file not found: " + mesh.string());
+    // The replacement is never generated, so clear the generator request.
+    scene.objects[0].mesh = mesh;
+    scene.objects[0].generate.reset();
+  }
+  RAYLOD_RETURN_IF_ERROR(resolve_generated_meshes(scene, default_cache_dir()));
+
+  RAYLOD_ASSIGN_OR_RETURN(RenderResult result, render(scene, opts));
+  RAYLOD_RETURN_IF_ERROR(write_image(output, result.color));
+  RAYLOD_ASSIGN_OR_RETURN(auto aovs, write_aovs(output, result));
+
+  const RenderStats& s = result.stats;
+  std::fprintf(stderr,
+               "raylod render: wrote %s (%dx%d, %d spp, %d threads)\n"
+               "raylod render: rays: camera %llu, shadow %llu, reflection %llu, refraction %llu; "
+               "total %llu in %.2f s (%.2f Mrays/s)\n"
+               "raylod render: load %.2f s, BVH %.2f s (%s), peak memory %s\n",
+               output.string().c_str(), s.width, s.height, s.spp, s.threads, (unsigned long long)s.rays.camera,
+               (unsigned long long)s.rays.shadow, (unsigned long long)s.rays.reflection,
+               (unsigned long long)s.rays.refraction, (unsigned long long)s.rays.total(), s.render_seconds,
+               s.rays_per_second() * 1e-6, s.load_seconds, s.bvh_seconds, format_bytes(s.bvh_bytes).c_str(),
+               format_bytes(s.peak_rss).c_str());
+  for (const auto& p : aovs) std::fprintf(stderr, "raylod render: wrote %s\n", p.string().c_str());
+  if (args.has("--stats-json")) RAYLOD_RETURN_IF_ERROR(write_text_atomic(args.get("--stats-json"), render_stats_json(s)));
+  return {};
+}
+
+int cmd_render(int argc, char** argv) {
+  bool help = false;
+  Status st = run_render(argc, argv, help);
+  return st.is_ok() ? 0 : fail("render", st);
+}
+
+}  // namespace
+
+RAYLOD_COMMAND("render", "ray trace a scene to an image (simulating only the effects it calls for)", cmd_render);
+
+}  // namespace raylod::cli

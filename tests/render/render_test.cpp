@@ -1,0 +1,469 @@
+// Renderer unit tests: camera mapping, optics, welding, Embree scene,
+// specular chains (slab offset, prism TIR), effect switches and ray
+// counters, determinism across thread counts, memory limit and errors.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstring>
+#include <fstream>
+
+#include <tbb/global_control.h>
+
+#include "render/camera.h"
+#include "render/integrator.h"
+#include "render/renderer.h"
+#include "render_test_util.h"
+
+namespace raylod {
+namespace {
+
+using namespace raylod::testing;
+constexpr double kInf = std::numeric_limits<double>::infinity();
+
+Camera test_camera() {
+  Camera c;
+  c.eye = {1, 2, 3};
+  c.look_at = {0, 0.5, -1};
+  c.up = {0, 1, 0};
+  c.fov_y_deg = 50;
+  c.width = 64;
+  c.height = 48;
+  return c;
+}
+
+TEST(Camera, CentreRayLooksAtTheTarget) {
+  const Camera c = test_camera();
+  const PinholeCamera cam = make_pinhole_camera(c);
+  const Ray r = cam.generate(32, 24);
+  EXPECT_NEAR(glm::length(r.direction - glm::normalize(c.look_at - c.eye)), 0, 1e-12);
+  EXPECT_EQ(r.origin, c.eye);
+}
+
+TEST(Camera, RowZeroIsTheTopAndEdgesSpanTheFieldOfView) {
+  const PinholeCamera cam = make_pinhole_camera(test_camera());
+  const Ray top = cam.generate(32, 0), bottom = cam.generate(32, 48);
+  EXPECT_GT(glm::dot(top.direction, cam.up), 0);
+  EXPECT_LT(glm::dot(bottom.direction, cam.up), 0);
+  // The vertical angle between the top and bottom edge rays is fov_y.
+  EXPECT_NEAR(glm::degrees(std::acos(glm::dot(top.direction, bottom.direction))), 50.0, 1e-9);
+  const Ray left = cam.generate(0, 24);
+  EXPECT_LT(glm::dot(left.direction, cam.right), 0);
+}
+
+TEST(Camera, DerivativesMatchFiniteDifferences) {
+  const PinholeCamera cam = make_pinhole_camera(test_camera());
+  for (auto [px, py] : {std::pair{0.3, 0.7}, {31.5, 20.25}, {63.9, 47.1}}) {
+    const RayDerivatives d = cam.derivatives(px, py);
+    const double h = 1e-5;
+    const Vec3d fx = (cam.generate(px + h, py).direction - cam.generate(px - h, py).direction) / (2 * h);
+    const Vec3d fy = (cam.generate(px, py + h).direction - cam.generate(px, py - h).direction) / (2 * h);
+    EXPECT_NEAR(glm::length(d.dd_dx - fx), 0, 1e-8 * glm::length(fx));
+    EXPECT_NEAR(glm::length(d.dd_dy - fy), 0, 1e-8 * glm::length(fy));
+    EXPECT_EQ(glm::length(d.dp_dx), 0);
+  }
+}
+
+TEST(Optics, FresnelAtNormalIncidenceAndSymmetry) {
+  EXPECT_NEAR(fresnel_dielectric(1.0, 1 / 1.5), 0.04, 1e-12);  // ((n-1)/(n+1))^2
+  EXPECT_NEAR(fresnel_dielectric(1.0, 1.5), 0.04, 1e-12);
+  // Reciprocity: the same interface seen from either side reflects the same.
+  const double ti = 0.6, eta = 1 / 1.5, tt = std::asin(std::sin(ti) * eta);
+  EXPECT_NEAR(fresnel_dielectric(std::cos(ti), eta), fresnel_dielectric(std::cos(tt), 1 / eta), 1e-12);
+  EXPECT_NEAR(fresnel_dielectric(0.0, eta), 1.0, 1e-12);  // grazing
+}
+
+TEST(Optics, TotalInternalReflectionBeyondTheCriticalAngle) {
+  const double crit = std::asin(1 / 1.5);
+  const Vec3d n(0, 1, 0);
+  for (double a : {crit - 1e-3, crit + 1e-3}) {
+    const Vec3d d(std::sin(a), -std::cos(a), 0);
+    Vec3d t;
+    const bool ok = refract(d, n, 1.5, t);
+    EXPECT_EQ(ok, a < crit);
+    EXPECT_EQ(fresnel_dielectric(std::cos(a), 1.5) == 1.0, a >= crit);
+    if (ok) {
+      EXPECT_NEAR(std::sin(std::acos(-t.y)), 1.5 * std::sin(a), 1e-9);  // Snell
+    }
+  }
+}
+
+TEST(Weld, SharedCornersBecomeOneVertexUnlessNormalsDiffer) {
+  const std::vector<Vec3> soup = {{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 0, 0}, {1, 1, 0}, {0, 1, 0}};
+  TriangleMesh m = weld_triangles(soup, {});
+  EXPECT_EQ(m.positions.size(), 4u);
+  EXPECT_EQ(m.indices, (std::vector<uint32_t>{0, 1, 2, 0, 2, 3}));
+  std::vector<Vec3> normals(6, Vec3(0, 0, 1));
+  normals[3] = Vec3(0, 1, 0);  // a crease at corner 0 of the second triangle
+  TriangleMesh c = weld_triangles(soup, normals);
+  EXPECT_EQ(c.positions.size(), 5u);
+}
+
+TEST(EmbreeSceneTest, HitDistanceBarycentricsAndTriangleIds) {
+  std::vector<TriangleMesh> meshes;
+  meshes.push_back(make_box({-1, -1, -1}, {1, 1, 1}, 0));
+  meshes.push_back(make_box({-1, -1, -6}, {1, 1, -4}, 0));
+  auto scene = EmbreeScene::build(std::move(meshes));
+  ASSERT_TRUE(scene.is_ok()) << scene.status().message();
+  EXPECT_EQ((*scene)->info().triangles, 24u);
+  Hit hit;
+  ASSERT_TRUE((*scene)->intersect(Ray{{0.25, 0.5, 5}, {0, 0, -1}}, 0, kInf, hit));
+  EXPECT_NEAR(hit.t, 4.0, 1e-6);
+  const SurfacePoint sp = surface_point(**scene, hit);
+  EXPECT_NEAR(glm::length(sp.position - Vec3d(0.25, 0.5, 1)), 0, 1e-6);
+  EXPECT_NEAR(sp.geometric.z, 1.0, 1e-9);  // outward
+  // Starting past the first box hits the second one, whose ids follow the first's.
+  ASSERT_TRUE((*scene)->intersect(Ray{{0.25, 0.5, -2}, {0, 0, -1}}, 0, kInf, hit));
+  EXPECT_EQ(hit.geom, 1u);
+  EXPECT_GE((*scene)->triangle_id(hit.geom, hit.prim), 12u);
+  EXPECT_TRUE((*scene)->occluded(Ray{{0, 0, 5}, {0, 0, -1}}, 0, 10));
+  EXPECT_FALSE((*scene)->occluded(Ray{{0, 0, 5}, {0, 0, -1}}, 0, 3.9));
+}
+
+TEST(EmbreeSceneTest, RejectsBadInMemoryMeshes) {
+  TriangleMesh m = make_box({0, 0, 0}, {1, 1, 1}, 0);
+  m.indices[5] = 99;
+  std::vector<TriangleMesh> v;
+  v.push_back(m);
+  auto s = EmbreeScene::build(std::move(v));
+  ASSERT_FALSE(s.is_ok());
+  EXPECT_NE(s.status().message().find("out of range"), std::string::npos);
+  auto empty = EmbreeScene::build({});
+  EXPECT_FALSE(empty.is_ok());
+}
+
+Scene glass_scene() {
+  Scene s = base_scene(8, 8);
+  s.materials = {material("glass", MaterialType::Glass), material("floor", MaterialType::Diffuse)};
+  return s;
+}
+
+TEST(SpecularChain, SlabDisplacesTheRayByTheAnalyticOffset) {
+  const double h = 0.5, n = 1.5;
+  std::vector<TriangleMesh> meshes;
+  meshes.push_back(make_box({-5, -5, float(-h / 2)}, {5, 5, float(h / 2)}, 0));
+  auto geometry = EmbreeScene::build(std::move(meshes));
+  ASSERT_TRUE(geometry.is_ok());
+  const Scene s = glass_scene();
+  for (double deg : {0.0, 15.0, 30.0, 60.0}) {
+    const double th = glm::radians(deg);
+    const Ray ray{{-2 * std::sin(th), 0.1, 2 * std::cos(th)}, {std::sin(th), 0, -std::cos(th)}};
+    const auto chain = trace_specular_chain(**geometry, s, ray, 8);
+    ASSERT_EQ(chain.size(), 3u) << deg;
+    EXPECT_EQ(chain[0].event, ChainVertex::Event::Refract);
+    EXPECT_EQ(chain[1].event, ChainVertex::Event::Refract);
+    EXPECT_EQ(chain[2].event, ChainVertex::Event::Escape);
+    // Snell inside, and the exit direction is parallel to the incident one.
+    const double tt = std::asin(std::sin(th) / n);
+    EXPECT_NEAR(chain[0].direction_out.x, std::sin(tt), 1e-6);
+    EXPECT_NEAR(glm::length(chain[1].direction_out - ray.direction), 0, 1e-6);
+    const double expected = h * std::sin(th - tt) / std::cos(tt);
+    const double offset = glm::length(glm::cross(chain[1].position - ray.origin, ray.direction));
+    EXPECT_NEAR(offset, expected, 2e-5) << deg << " degrees";
+  }
+}
+
+TEST(SpecularChain, PrismTurnsTheRayByTotalInternalReflection) {
+  std::vector<TriangleMesh> meshes;
+  meshes.push_back(make_prism(1, 1, 0));
+  auto geometry = EmbreeScene::build(std::move(meshes));
+  ASSERT_TRUE(geometry.is_ok());
+  const Scene s = glass_scene();
+  // Perpendicular onto leg AC at (-0.5, 0.5): 45 degrees at the hypotenuse,
+  // past the critical angle asin(1/1.5) = 41.8 degrees.
+  const Vec3d d = glm::normalize(Vec3d(1, -1, 0));
+  const Ray ray{Vec3d(-0.5, 0.5, 0.2) - 2.0 * d, d};
+  const auto chain = trace_specular_chain(**geometry, s, ray, 8);
+  ASSERT_EQ(chain.size(), 4u);
+  EXPECT_EQ(chain[0].event, ChainVertex::Event::Refract);
+  EXPECT_EQ(chain[1].event, ChainVertex::Event::TotalInternalReflection);
+  EXPECT_EQ(chain[2].event, ChainVertex::Event::Refract);
+  EXPECT_EQ(chain[3].event, ChainVertex::Event::Escape);
+  EXPECT_NEAR(glm::length(chain[1].position - Vec3d(0, 0, 0.2)), 0, 1e-5);
+  EXPECT_NEAR(glm::length(chain[2].direction_out - glm::normalize(Vec3d(1, 1, 0))), 0, 1e-6);
+  // At a shallower angle (30 degrees off the hypotenuse normal) the ray refracts out.
+  const Vec3d d2 = glm::normalize(Vec3d(std::sin(glm::radians(30.0)), -std::cos(glm::radians(30.0)), 0));
+  const auto chain2 = trace_specular_chain(**geometry, s, Ray{Vec3d(0, 0.5, 0) - 2.0 * d2, d2}, 8);
+  ASSERT_GE(chain2.size(), 2u);
+  EXPECT_EQ(chain2[1].event, ChainVertex::Event::Refract);
+}
+
+// Sphere on a floor; materials and lights chosen per test.
+RenderResult render_counting(const std::vector<Material>& mats, std::vector<Light> lights, int max_depth = 5,
+                             int spp = 2) {
+  Scene s = base_scene(32, 24);
+  s.camera.eye = {0, 2, 5};
+  s.camera.look_at = {0, 0.8, 0};
+  s.materials = mats;
+  s.lights = std::move(lights);
+  s.max_depth = max_depth;
+  s.spp = spp;
+  std::vector<TriangleMesh> meshes;
+  meshes.push_back(make_sphere({0, 1, 0}, 1, 12, 24, 0));
+  meshes.push_back(make_ground_mesh(Ground{0, 20, 1}, s.camera));
+  return render_meshes(std::move(meshes), s);
+}
+
+TEST(Effects, DiffuseOnlySceneTracesNoReflectionOrRefractionRays) {
+  auto r = render_counting({material("a", MaterialType::Diffuse), material("b", MaterialType::Diffuse)},
+                           {point_light({2, 5, 3}, 30)});
+  EXPECT_EQ(r.stats.rays.camera, 32u * 24u * 2u);
+  EXPECT_GT(r.stats.rays.shadow, 0u);
+  EXPECT_LE(r.stats.rays.shadow, r.stats.rays.camera);  // at most one per light per hit
+  EXPECT_EQ(r.stats.rays.reflection, 0u);
+  EXPECT_EQ(r.stats.rays.refraction, 0u);
+  EXPECT_FALSE(r.stats.effects.reflection);
+  EXPECT_FALSE(r.stats.effects.refraction);
+  EXPECT_TRUE(r.stats.effects.shadows);
+}
+
+TEST(Effects, NoLightsMeansNoShadowRays) {
+  auto r = render_counting({material("m", MaterialType::Mirror), material("b", MaterialType::Diffuse)}, {});
+  EXPECT_EQ(r.stats.rays.shadow, 0u);
+  EXPECT_GT(r.stats.rays.reflection, 0u);
+  EXPECT_EQ(r.stats.rays.refraction, 0u);
+  EXPECT_FALSE(r.stats.effects.shadows);
+  EXPECT_EQ(r.stats.effects.describe(), "reflection");
+}
+
+TEST(Effects, GlossyHighlightsCostNoRays) {
+  Material glossy = material("g", MaterialType::Glossy);
+  glossy.specular = Vec3(0.5f);
+  auto d = render_counting({material("a", MaterialType::Diffuse), material("b", MaterialType::Diffuse)},
+                           {point_light({2, 5, 3}, 30)});
+  auto g = render_counting({glossy, material("b", MaterialType::Diffuse)}, {point_light({2, 5, 3}, 30)});
+  EXPECT_TRUE(g.stats.effects.glossy);
+  EXPECT_FALSE(d.stats.effects.glossy);
+  EXPECT_EQ(g.stats.rays.total(), d.stats.rays.total());
+  EXPECT_NE(0, std::memcmp(g.color.pixels.data(), d.color.pixels.data(), g.color.pixels.size() * sizeof(float)));
+}
+
+TEST(Effects, GlassSpawnsRefractionAndMaxDepthZeroSwitchesBouncesOff) {
+  auto g = render_counting({material("g", MaterialType::Glass), material("b", MaterialType::Diffuse)},
+                           {point_light({2, 5, 3}, 30)});
+  EXPECT_GT(g.stats.rays.refraction, 0u);
+  EXPECT_GT(g.stats.rays.reflection, 0u);
+  auto flat = render_counting({material("g", MaterialType::Glass), material("b", MaterialType::Diffuse)},
+                              {point_light({2, 5, 3}, 30)}, 0);
+  EXPECT_EQ(flat.stats.rays.refraction + flat.stats.rays.reflection, 0u);
+  EXPECT_FALSE(flat.stats.effects.refraction);
+}
+
+TEST(Effects, OnlyMaterialsTheGeometryUsesCount) {
+  Scene s = base_scene(4, 4);
+  s.materials = {material("d", MaterialType::Diffuse), material("glass", MaterialType::Glass)};
+  s.lights.push_back(point_light({0, 5, 0}, 1));
+  const std::vector<int> used = {0};
+  const Effects e = effects_for(s, used);
+  EXPECT_FALSE(e.refraction);
+  EXPECT_FALSE(e.reflection);
+  EXPECT_EQ(e.describe(), "diffuse, shadows (1 light)");
+}
+
+TEST(Determinism, SameImageForOneAndTwoThreads) {
+  auto render_with_threads = [](int threads) {
+    tbb::global_control limit(tbb::global_control::max_allowed_parallelism, size_t(threads));
+    Scene s = base_scene(48, 36);
+    s.camera.eye = {0.5, 2, 5};
+    s.camera.look_at = {0, 0.8, 0};
+    s.materials = {material("glass", MaterialType::Glass), material("mirror", MaterialType::Mirror),
+                   material("floor", MaterialType::Diffuse)};
+    s.materials[2].specular = Vec3(0.3f);
+    s.lights = {point_light({2, 5, 3}, 30)};
+    Light sun;
+    sun.type = LightType::Directional;
+    sun.direction = glm::normalize(Vec3d(0.3, -1, -0.4));
+    s.lights.push_back(sun);
+    std::vector<TriangleMesh> meshes;
+    meshes.push_back(make_sphere({-0.6f, 1, 0}, 0.8f, 16, 32, 0));
+    meshes.push_back(make_box({0.6f, 0, -1}, {1.6f, 1.5f, 0}, 1));
+    meshes.push_back(make_ground_mesh(Ground{0, 20, 2}, s.camera));
+    RenderOptions o = quiet_options();
+    o.aov_depth = o.aov_triangle_id = true;
+    o.tile_size = 8;
+    return render_meshes(std::move(meshes), s, o);
+  };
+  const RenderResult a = render_with_threads(1), b = render_with_threads(2);
+  EXPECT_EQ(a.stats.threads, 1);
+  EXPECT_EQ(b.stats.threads, 2);
+  ASSERT_EQ(a.color.pixels.size(), b.color.pixels.size());
+  EXPECT_EQ(0, std::memcmp(a.color.pixels.data(), b.color.pixels.data(), a.color.pixels.size() * sizeof(float)));
+  EXPECT_EQ(0, std::memcmp(a.depth.pixels.data(), b.depth.pixels.data(), a.depth.pixels.size() * sizeof(float)));
+  EXPECT_EQ(a.triangle_id, b.triangle_id);
+  EXPECT_EQ(a.stats.rays.total(), b.stats.rays.total());
+  EXPECT_EQ(a.stats.rays.refraction, b.stats.rays.refraction);
+}
+
+TEST(Aov, DepthNormalAndTriangleIdOfTheCentrePixel) {
+  Scene s = base_scene(33, 33);
+  s.camera.eye = {0, 0, 5};
+  s.camera.look_at = {0, 0, 0};
+  s.materials = {material("d", MaterialType::Diffuse)};
+  s.spp = 1;
+  std::vector<TriangleMesh> meshes;
+  meshes.push_back(make_box({-1, -1, -1}, {1, 1, 1}, 0));
+  RenderOptions o = quiet_options();
+  o.aov_depth = o.aov_normal = o.aov_triangle_id = true;
+  RenderResult r = render_meshes(std::move(meshes), s, o);
+  EXPECT_NEAR(*r.depth.at(16, 16), 4.0f, 1e-3f);
+  EXPECT_NEAR(r.normal.at(16, 16)[2], 1.0f, 1e-5f);
+  EXPECT_LT(r.triangle_id[16 * 33 + 16], 12u);
+  EXPECT_EQ(*r.depth.at(0, 0), 0.0f);  // the corner sees the sky
+  EXPECT_EQ(r.triangle_id[0], kNoTriangle);
+  // Written next to the output as EXR, and read back exactly.
+  const auto dir = test_tmp("render-aov");
+  auto written = write_aovs(dir / "out.png", r);
+  ASSERT_TRUE(written.is_ok()) << written.status().message();
+  ASSERT_EQ(written->size(), 3u);
+  EXPECT_EQ((*written)[0], dir / "out.depth.exr");
+  auto depth = read_image(dir / "out.depth.exr");
+  ASSERT_TRUE(depth.is_ok());
+  EXPECT_EQ(depth->pixels, r.depth.pixels);
+}
+
+TEST(ImageIo, PngAndExrRoundTripAndLeaveNoTemporaries) {
+  Image img(5, 3, 3);
+  for (size_t i = 0; i < img.pixels.size(); ++i) img.pixels[i] = float(i) / float(img.pixels.size());
+  const auto dir = test_tmp("render-io");
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir);
+  ASSERT_TRUE(write_image(dir / "a.exr", img).is_ok());
+  ASSERT_TRUE(write_image(dir / "a.png", img).is_ok());
+  auto exr = read_image(dir / "a.exr");
+  auto png = read_image(dir / "a.png");
+  ASSERT_TRUE(exr.is_ok() && png.is_ok());
+  EXPECT_EQ(exr->pixels, img.pixels);
+  for (size_t i = 0; i < img.pixels.size(); ++i) EXPECT_NEAR(png->pixels[i], img.pixels[i], 0.01f);
+  size_t files = 0;
+  for (auto& e : std::filesystem::directory_iterator(dir)) { (void)e; ++files; }
+  EXPECT_EQ(files, 2u);
+  EXPECT_FALSE(check_output_image(dir / "a.unknownext").is_ok());
+  EXPECT_FALSE(check_output_image(dir / "missing-dir" / "a.png").is_ok());
+  EXPECT_TRUE(check_output_image(dir / "b.jpg").is_ok());
+}
+
+// --- Scenes from files: loading, transforms, memory limit, errors ---
+
+std::filesystem::path write_file(const std::filesystem::path& p, const std::string& text) {
+  std::ofstream f(p, std::ios::binary);
+  f << text;
+  return p;
+}
+
+const char* kTetraPly =
+    "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\nproperty float z\n"
+    "element face 4\nproperty list uchar int vertex_indices\nend_header\n"
+    "0 0 0\n1 0 0\n0 1 0\n0 0 1\n3 0 2 1\n3 0 1 3\n3 0 3 2\n3 1 2 3\n";
+
+std::string scene_json(const std::string& mesh, const std::string& extra = "") {
+  return R"({"camera": {"eye": [3, 3, 3], "look_at": [0, 0, 0], "width": 16, "height": 12},
+             "materials": {"m": {"type": "diffuse"}},
+             "objects": [{"mesh": ")" + mesh + R"(", "material": "m",
+                          "transform": {"translate": [10, 0, 0], "scale": 2}}],
+             "lights": [{"type": "point", "position": [5, 5, 5], "intensity": 20}])" + extra + "}";
+}
+
+TEST(SceneFiles, LoadsTransformsAndRenders) {
+  const auto dir = test_tmp("render-scenes");
+  write_file(dir / "tetra.ply", kTetraPly);
+  auto scene = parse_scene(scene_json("tetra.ply"), dir, "test.json");
+  ASSERT_TRUE(scene.is_ok()) << scene.status().message();
+  RenderStats stats;
+  auto meshes = load_scene_meshes(*scene, quiet_options(), stats);
+  ASSERT_TRUE(meshes.is_ok()) << meshes.status().message();
+  ASSERT_EQ(meshes->size(), 1u);
+  const TriangleMesh& m = (*meshes)[0];
+  EXPECT_EQ(m.triangle_count(), 4u);
+  EXPECT_EQ(m.positions.size(), 4u);
+  Bbox b;
+  for (const Vec3& p : m.positions) b.expand(p);
+  EXPECT_EQ(b.lo, Vec3d(10, 0, 0));
+  EXPECT_EQ(b.hi, Vec3d(12, 2, 2));
+  auto r = render(*scene, quiet_options());
+  ASSERT_TRUE(r.is_ok()) << r.status().message();
+  EXPECT_EQ(r->stats.triangles, 4u);
+}
+
+TEST(SceneFiles, MirroringTransformKeepsFacesOutward) {
+  const auto dir = test_tmp("render-scenes");
+  write_file(dir / "tetra.ply", kTetraPly);
+  std::string json = scene_json("tetra.ply");
+  json.replace(json.find("\"scale\": 2"), 10, "\"scale\": [-1, 1, 1]");
+  auto scene = parse_scene(json, dir, "test.json");
+  ASSERT_TRUE(scene.is_ok()) << scene.status().message();
+  RenderStats stats;
+  auto meshes = load_scene_meshes(*scene, quiet_options(), stats);
+  ASSERT_TRUE(meshes.is_ok());
+  const TriangleMesh& m = (*meshes)[0];
+  Vec3d c(0);
+  for (const Vec3& p : m.positions) c += Vec3d(p) / 4.0;
+  for (size_t t = 0; t < 4; ++t) {
+    const Vec3d a(m.positions[m.indices[3 * t]]), b(m.positions[m.indices[3 * t + 1]]), d(m.positions[m.indices[3 * t + 2]]);
+    EXPECT_GT(glm::dot(glm::cross(b - a, d - a), (a + b + d) / 3.0 - c), 0) << "face " << t;
+  }
+}
+
+TEST(SceneFiles, MemoryLimitStopsBeforeLoadingAndSaysWhatFits) {
+  const auto dir = test_tmp("render-scenes");
+  write_file(dir / "tetra.ply", kTetraPly);
+  auto scene = parse_scene(scene_json("tetra.ply"), dir, "test.json");
+  ASSERT_TRUE(scene.is_ok());
+  RenderOptions o = quiet_options();
+  o.memory_limit = 1 << 20;
+  auto r = render(*scene, o);
+  ASSERT_FALSE(r.is_ok());
+  const std::string msg = r.status().message();
+  EXPECT_NE(msg.find("memory limit"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("would fit"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("raylod run"), std::string::npos) << msg;
+  o.memory_limit = estimate_render_memory(4);
+  EXPECT_TRUE(render(*scene, o).is_ok());
+  // The advertised count is consistent with the estimate.
+  const uint64_t fit = triangles_that_fit(uint64_t(1) << 30);
+  EXPECT_LE(estimate_render_memory(fit), uint64_t(1) << 30);
+  EXPECT_GT(estimate_render_memory(fit + 1), uint64_t(1) << 30);
+}
+
+TEST(SceneFiles, BadMeshesGiveClearErrors) {
+  const auto dir = test_tmp("render-scenes");
+  std::string truncated = kTetraPly;
+  truncated.resize(truncated.size() - 20);
+  write_file(dir / "truncated.ply", truncated);
+  write_file(dir / "garbage.stl", "this is not an stl file at all");
+  for (const char* name : {"truncated.ply", "garbage.stl"}) {
+    auto scene = parse_scene(scene_json(name), dir, "test.json");
+    ASSERT_TRUE(scene.is_ok()) << scene.status().message();
+    auto r = render(*scene, quiet_options());
+    ASSERT_FALSE(r.is_ok()) << name;
+    EXPECT_NE(r.status().message().find(name), std::string::npos) << r.status().message();
+  }
+}
+
+TEST(SceneFiles, UnresolvedGeneratedMeshAndTooManyOverridesAreErrors) {
+  auto scene = default_scene();
+  ASSERT_TRUE(scene.is_ok());
+  auto r = render(*scene, quiet_options());
+  ASSERT_FALSE(r.is_ok());
+  EXPECT_NE(r.status().message().find("teapot"), std::string::npos) << r.status().message();
+  RenderOptions o = quiet_options();
+  o.mesh_override = {"a.ply", "b.ply"};
+  auto r2 = render(*scene, o);
+  ASSERT_FALSE(r2.is_ok());
+  EXPECT_NE(r2.status().message().find("replacement"), std::string::npos) << r2.status().message();
+}
+
+TEST(SceneFiles, MeshOverrideReplacesTheObjectMesh) {
+  const auto dir = test_tmp("render-scenes");
+  write_file(dir / "tetra.ply", kTetraPly);
+  auto scene = default_scene();
+  ASSERT_TRUE(scene.is_ok());
+  scene->camera.width = 8;
+  scene->camera.height = 6;
+  RenderOptions o = quiet_options();
+  o.mesh_override = {dir / "tetra.ply"};
+  auto r = render(*scene, o);
+  ASSERT_TRUE(r.is_ok()) << r.status().message();
+  EXPECT_EQ(r->stats.triangles, 4u + 2u);  // plus the ground
+}
+
+}  // namespace
+}  // namespace raylod
