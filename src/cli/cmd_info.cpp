@@ -6,6 +6,7 @@
 
 #include "cli/cli.h"
 #include "core/system.h"
+#include "streaming/cut_file.h"
 #include "streaming/mesh_reader.h"
 
 namespace raylod::cli {
@@ -54,6 +55,10 @@ int run_info(int argc, char** argv) {
   // branch here, before the mesh fallback:
   //   - octree stores (`.raylod`, written by `raylod build`): OctreeStore::open(path) and print its header;
   //   - cut files (written by `raylod probe`): is_cut_file(path) / read_cut(path) and print the cut.
+  if (is_cut_file(path)) {
+    if (Status st = print_cut_info(path, stdout); !st) return fail("info", st);
+    return 0;
+  }
   return print_mesh_info(path);
 }
 
