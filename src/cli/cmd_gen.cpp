@@ -65,7 +65,8 @@ int run_gen(int argc, char** argv) {
   options.shape = args.positionals()[0];
   options.triangles = *tri;
   options.normals = !args.has("--no-normals");
-  options.progress = !args.has("--quiet");
+  // A progress bar only where there is time to watch one.
+  options.progress = !args.has("--quiet") && options.triangles >= 5000000;
   const std::string out = args.get("--output", options.shape + "-" + human_count(options.triangles) + ".ply");
   auto report = generate_mesh(options, out);
   if (!report) return fail("gen", report.status());

@@ -135,6 +135,29 @@ TEST(Teapot, PoleNormalsAreVertical) {
   EXPECT_EQ(std::count_if(teapot.pieces().begin(), teapot.pieces().end(), [](auto& g) { return g.pole_first; }), 8);
 }
 
+TEST(Teapot, NormalIsContinuousIntoThePoles) {
+  // At a collapsed row dP/dt = 0; the limit normal used there must be the
+  // limit of the ordinary normal dP/ds x dP/dt as s -> 0, for every t.
+  const BezierTeapot teapot(plan_teapot(5000));
+  int poles = 0;
+  for (int patch = 0; patch < teapot_data::kPatchCount; ++patch) {
+    if (!teapot.pieces()[patch].pole_first) continue;
+    ++poles;
+    for (double t : {0.0, 0.3, 0.5, 1.0}) {
+      Vec3d p0, n0, p1, n1, p2, n2;
+      teapot.evaluate(patch, 0.0, t, p0, n0);
+      teapot.evaluate(patch, 1e-6, t, p1, n1);
+      teapot.evaluate(patch, 1e-3, t, p2, n2);
+      ASSERT_TRUE(is_finite(n0));
+      EXPECT_NEAR(glm::length(n0), 1.0, 1e-12);
+      EXPECT_GT(glm::dot(n0, n1), 1.0 - 1e-9) << "patch " << patch << " t " << t;
+      EXPECT_GT(glm::dot(n0, n2), 0.999) << "patch " << patch << " t " << t;
+      EXPECT_NEAR(std::abs(n0.y), 1.0, 1e-12);  // lid top and base are flat at the centre
+    }
+  }
+  EXPECT_EQ(poles, 8);
+}
+
 // The samples of one boundary edge of a patch, in increasing parameter order.
 std::vector<Vec3> edge_samples(const BezierTeapot& teapot, int patch, int edge) {
   const GridPiece& g = teapot.pieces()[patch];
