@@ -393,9 +393,14 @@ Plan make_plan(const Scan& scan, const StoreOptions& options, uint64_t memory_li
 
   plan.max_nodes = std::max<uint64_t>(64, uint64_t(0.35 * double(memory_limit)) / kBytesPerLeafNode);
   const int max_depth = std::min(options.max_depth, int(kMaxLevel));
+  // Below the level where cells hold about two vertices on average, levels
+  // add nodes but little clustering (Luebke and Erikson stop splitting at a
+  // single vertex), so they are not worth their memory.
+  const double vertices = plan.est_nodes[kMaxLevel];
   plan.quadric_depth = 0;
   for (int l = 1; l <= max_depth; ++l)
-    if (plan.est_nodes[size_t(l)] * 1.25 <= double(plan.max_nodes)) plan.quadric_depth = l;
+    if (plan.est_nodes[size_t(l)] * 1.25 <= double(plan.max_nodes) && plan.est_nodes[size_t(l) - 1] < 0.5 * vertices)
+      plan.quadric_depth = l;
   plan.page_level = 0;
   for (int l = 1; l <= int(kMaxLevel); ++l)
     if (double(scan.triangles) / est_pages[size_t(l)] >= double(std::max<uint32_t>(1, options.page_triangles)))
@@ -718,6 +723,11 @@ StatusOr<BuildReport> build_store_from_stream(const MeshStreamOpener& open, cons
   RAYLOD_ASSIGN_OR_RETURN(auto reader1, open());
   RAYLOD_ASSIGN_OR_RETURN(Scan scan, scan_pass(*reader1, ntokens));
   reader1.reset();
+  auto now = [] { return std::chrono::steady_clock::now(); };
+  auto since = [](auto t) { return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count(); };
+  BuildReport report;
+  report.scan_seconds = since(t0);
+  auto t1 = now();
   const Plan plan = make_plan(scan, options, memory_limit);
 
   // Pass 2.
@@ -731,6 +741,8 @@ StatusOr<BuildReport> build_store_from_stream(const MeshStreamOpener& open, cons
     RAYLOD_RETURN_IF_ERROR(bin_pass(*reader2, ntokens, plan, scan.has_normals, scan.triangles, runs, binned));
   }
   const auto levels = build_levels(std::move(binned.leaves), binned.depth);
+  report.bin_seconds = since(t1);
+  auto t2 = now();
 
   StoreHeader header;
   header.source_path = source.path;
@@ -793,9 +805,11 @@ StatusOr<BuildReport> build_store_from_stream(const MeshStreamOpener& open, cons
   RAYLOD_RETURN_IF_ERROR(pwrite_all(fd, head.data(), head.size(), 0, tmp));
   if (::ftruncate(fd, off_t(layout.file_bytes)) != 0)
     return Status::error(store_path.string() + ": cannot size the store: " + std::strerror(errno));
+  report.write_seconds = since(t2);
+  auto t3 = now();
   RAYLOD_RETURN_IF_ERROR(output.commit());
+  report.commit_seconds = since(t3);
 
-  BuildReport report;
   report.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   report.triangles = scan.triangles;
   report.peak_rss = peak_rss_bytes();

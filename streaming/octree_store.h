@@ -135,6 +135,9 @@ struct BuildReport {
   uint64_t store_bytes = 0;       // size of the written store file
   uint64_t source_bytes = 0;
   bool coarsened = false;         // quadric_depth had to be lowered during the build
+  // Wall time of the phases: pass 1 (bounds), pass 2 (binning and quadrics),
+  // page assembly and writing, fsync + rename.
+  double scan_seconds = 0, bin_seconds = 0, write_seconds = 0, commit_seconds = 0;
 };
 // Builds (or reuses, if up to date for the same mesh and options) the store.
 StatusOr<BuildReport> build_store(const std::filesystem::path& mesh, const std::filesystem::path& store,

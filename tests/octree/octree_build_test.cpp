@@ -292,15 +292,20 @@ TEST(OctreeBuild, FarFromTheOriginKeepsPrecision) {
     ASSERT_EQ(la.size(), lb.size());
     for (size_t i = 0; i < la.size(); ++i) expect_node_near(lb[i], la[i], 1e-12, "level " + std::to_string(l));
   }
-  // Every vertex lies on the planes of its own triangles, so in the deepest
-  // level (about one vertex per cell) the quadric vanishes at the cell's mean vertex.
+  // Every vertex lies on the planes of its own triangles, so in a cell that
+  // holds a single grid vertex the quadric vanishes at that vertex.
   const int deep = sb->header().quadric_depth;
+  std::map<uint64_t, std::vector<Vec3d>> in_cell;
+  for (int i = 0; i <= 40; ++i)
+    for (int j = 0; j <= 40; ++j) {
+      const Vec3d v = Vec3d(i * 0.25, j * 0.25, z(i, j)) + Vec3d(shift);
+      in_cell[sb->cell_of(v, deep).code].push_back(v);
+    }
   size_t single = 0;
   for (const auto& n : sb->level(deep)) {
-    const Vec3d mean = n.vertex_sum / double(n.corner_count);
-    const auto cell = sb->cell_bounds({uint32_t(deep), n.code});
-    if (cell.extent().x > 0.2) continue;  // may hold several vertices
-    EXPECT_NEAR(quadric_error(n.quadric, mean), 0, 1e-9);
+    const auto& verts = in_cell.at(n.code);
+    if (verts.size() != 1) continue;
+    EXPECT_NEAR(quadric_error(n.quadric, verts[0] - sb->header().origin), 0, 1e-12 * n.quadric.a22);
     ++single;
   }
   EXPECT_GT(single, 100u);

@@ -259,7 +259,7 @@ TEST(OctreeStore, InfoPrintsLevelsPagesAndOptions) {
   auto dir = testing::scratch_dir("info");
   StoreOptions opt;
   opt.memory_limit = 256 << 20;
-  opt.max_depth = 6;
+  opt.max_depth = 4;
   ASSERT_TRUE(build_memory(testing::sphere(30, 40), dir / "s.raylod", opt).is_ok());
   char* text = nullptr;
   size_t len = 0;
@@ -268,7 +268,7 @@ TEST(OctreeStore, InfoPrintsLevelsPagesAndOptions) {
   std::fclose(f);
   std::string s(text, len);
   std::free(text);
-  for (const char* part : {"--memory-limit 256.00 MiB", "--max-depth 6", "levels        0..6", "pages", "quadric mem",
+  for (const char* part : {"--memory-limit 256.00 MiB", "--max-depth 4", "levels        0..4", "pages", "quadric mem",
                            "2400 (with vertex normals)"})
     EXPECT_NE(s.find(part), std::string::npos) << "missing '" << part << "' in\n" << s;
 }

@@ -1,0 +1,90 @@
+// raylod build MESH [-o STORE] [--memory-limit SIZE] [--max-depth N] [--threads T]
+#include <cstdio>
+
+#include "cli/cli.h"
+#include "core/progress.h"
+#include "core/system.h"
+#include "streaming/octree_store.h"
+
+namespace raylod::cli {
+namespace {
+
+int run_build(int argc, char** argv) {
+  Args args("build", "MESH [-o STORE] [--memory-limit SIZE] [--max-depth N] [--threads T]",
+            "Streams MESH (.ply, .stl, .obj, .drc) twice -- bounds, then binning -- into a\n"
+            "disk-backed octree store: triangles in checksummed pages on disk, and per-node\n"
+            "quadrics (Lindstrom, eq. 4 of the method) for levels 0..quadric_depth in a node\n"
+            "table. quadric_depth is the deepest level <= --max-depth whose node table fits\n"
+            "in about a third of --memory-limit. Building again for an unchanged mesh (size,\n"
+            "modification time, content hash) with the same options does nothing.",
+            {{"--output", "-o", "store to write (default MESH.raylod beside the mesh)", true, "STORE"},
+             {"--memory-limit", "", "memory bound for the build, e.g. 1G (default: a quarter of RAM)", true, "SIZE"},
+             {"--max-depth", "", "deepest octree level that may keep quadrics, 0..21 (default 12)", true, "N"},
+             {"--threads", "", "worker threads (default: all cores); the store does not depend on it", true, "T"},
+             {"--page-triangles", "", "target triangles per page (default 4096)", true, "N"},
+             {"--force", "", "rebuild even if the store is up to date", false, ""},
+             {"--quiet", "-q", "no progress bar", false, ""}});
+  if (Status st = args.parse(argc, argv); !st) return fail("build", st);
+  if (args.help_requested()) {
+    std::printf("%s", args.help_text().c_str());
+    return 0;
+  }
+  if (args.positionals().size() != 1) return fail("build", Status::error("expected one MESH (see raylod build --help)"));
+  const std::filesystem::path mesh = args.positionals()[0];
+  const std::filesystem::path store = args.has("--output") ? std::filesystem::path(args.get("--output"))
+                                                           : default_store_path(mesh);
+  StoreOptions options;
+  auto limit = args.get_size("--memory-limit", 0);
+  if (!limit) return fail("build", limit.status());
+  options.memory_limit = *limit;
+  auto depth = args.get_int("--max-depth", options.max_depth, 0, 21);
+  if (!depth) return fail("build", depth.status());
+  options.max_depth = int(*depth);
+  auto threads = args.get_int("--threads", 0, 0, 1024);
+  if (!threads) return fail("build", threads.status());
+  options.threads = int(*threads);
+  auto page = args.get_int("--page-triangles", options.page_triangles, 1, 1 << 24);
+  if (!page) return fail("build", page.status());
+  options.page_triangles = uint32_t(*page);
+  if (args.has("--quiet")) Progress::set_enabled(false);
+  StatusOr<BuildReport> built = Status::error("not built");
+  if (args.has("--force")) {
+    // Replaces the old store atomically; it stays in place if the build fails.
+    auto source = fingerprint_file(mesh, true);
+    if (!source) return fail("build", source.status());
+    auto opener = [&]() -> StatusOr<std::unique_ptr<MeshReader>> { return open_mesh(mesh); };
+    built = build_store_from_stream(opener, *source, store, options);
+    if (built) built->reason = "--force";
+  } else {
+    built = build_store(mesh, store, options);
+  }
+  if (!built) return fail("build", built.status());
+  const BuildReport& r = *built;
+  if (r.reused) {
+    std::printf("%s: %s; nothing to do (use --force to rebuild)\n", store.string().c_str(), r.reason.c_str());
+    return 0;
+  }
+  std::printf("built %s (%s)\n", store.string().c_str(), r.reason.c_str());
+  std::printf("  triangles      %llu\n", (unsigned long long)r.triangles);
+  std::printf("  levels         0..%d with quadrics%s, pages at level %d\n", r.quadric_depth,
+              r.coarsened ? " (lowered during the build to fit --memory-limit)" : "", r.page_level);
+  std::printf("  nodes          %llu (quadric memory %s)\n", (unsigned long long)r.nodes,
+              format_bytes(r.node_table_bytes).c_str());
+  std::printf("  pages          %llu (%.0f triangles per page on average)\n", (unsigned long long)r.pages,
+              r.pages ? double(r.triangles) / double(r.pages) : 0.0);
+  std::printf("  store          %s (%.2fx the mesh's %s)\n", format_bytes(r.store_bytes).c_str(),
+              r.source_bytes ? double(r.store_bytes) / double(r.source_bytes) : 0.0,
+              format_bytes(r.source_bytes).c_str());
+  std::printf("  time           %.2f s (%.2f M triangles/s): bounds %.2f, binning %.2f, pages %.2f, fsync %.2f\n",
+              r.seconds, double(r.triangles) / r.seconds / 1e6, r.scan_seconds, r.bin_seconds, r.write_seconds,
+              r.commit_seconds);
+  std::printf("  peak RSS       %s (limit %s)\n", format_bytes(peak_rss_bytes()).c_str(),
+              format_bytes(resolved_memory_limit(options)).c_str());
+  return 0;
+}
+
+}  // namespace
+
+RAYLOD_COMMAND("build", "stream a mesh into a disk-backed octree store with per-node quadrics", run_build);
+
+}  // namespace raylod::cli
