@@ -8,6 +8,7 @@
 #include "core/system.h"
 #include "streaming/cut_file.h"
 #include "streaming/mesh_reader.h"
+#include "streaming/octree_store.h"
 
 namespace raylod::cli {
 namespace {
@@ -55,6 +56,10 @@ int run_info(int argc, char** argv) {
   // branch here, before the mesh fallback:
   //   - octree stores (`.raylod`, written by `raylod build`): OctreeStore::open(path) and print its header;
   //   - cut files (written by `raylod probe`): is_cut_file(path) / read_cut(path) and print the cut.
+  if (is_store_file(path)) {
+    if (Status st = print_store_info(path, stdout); !st) return fail("info", st);
+    return 0;
+  }
   if (is_cut_file(path)) {
     if (Status st = print_cut_info(path, stdout); !st) return fail("info", st);
     return 0;
