@@ -50,7 +50,7 @@ StatusOr<std::shared_ptr<const Page>> PageCache::get(const OctreeStore& store, u
     TriangleBatch batch;
     Status s = store.read_page(index, batch);
     if (!s) {
-      result = s.with_context(store.header().source_path + " store, page " + std::to_string(index));
+      result = s;  // names the store file and the page
     } else {
       bytes_read = (batch.positions.size() + batch.normals.size()) * sizeof(Vec3);
       result = std::shared_ptr<const Page>(std::make_shared<Page>(make_page(std::move(batch))));

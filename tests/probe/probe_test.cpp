@@ -1,0 +1,431 @@
+// The probe end to end on small stores built with build_store: the store
+// tracer against brute force, the page cache bound, the cut file format, the
+// effects a scene calls for (counters), hard camera set-ups, a corrupt page,
+// thread-count determinism and the properties of the cut.
+#include <gtest/gtest.h>
+
+#include <cstdlib>
+#include <fstream>
+#include <random>
+#include <set>
+
+#include <glm/gtc/matrix_transform.hpp>
+
+#include "core/system.h"
+#include "gen/generate.h"
+#include "probe/probe.h"
+#include "probe/store_tracer.h"
+#include "streaming/cut_file.h"
+#include "streaming/mesh_writer.h"
+#include "streaming/octree_store.h"
+#include "test_scenes.h"
+
+namespace raylod {
+namespace {
+
+namespace fs = std::filesystem;
+
+fs::path tmp_dir() {
+  const char* env = std::getenv("RAYLOD_TEST_TMP");
+  fs::path d = fs::path(env ? env : "/tmp") / "probe";
+  fs::create_directories(d);
+  return d;
+}
+
+fs::path write_ply(const test::TestMesh& m, const std::string& name) {
+  const fs::path path = tmp_dir() / name;
+  TriangleBatch batch;
+  for (size_t i = 0; i < m.p.size(); ++i) {
+    batch.positions.push_back(Vec3(m.p[i]));
+    batch.normals.push_back(Vec3(m.n[i]));
+  }
+  auto w = create_mesh_writer(path);
+  EXPECT_TRUE(w) << w.status().message();
+  EXPECT_TRUE(w.value()->write(batch));
+  EXPECT_TRUE(w.value()->finish());
+  return path;
+}
+
+struct Built {
+  fs::path mesh, store_path;
+  std::unique_ptr<OctreeStore> store;
+  test::TestMesh soup;  // the triangles as the store holds them (float)
+};
+
+// A small teapot (~20k triangles) or sphere, stored with small pages.
+Built build(const std::string& name, const test::TestMesh& mesh) {
+  Built b;
+  b.mesh = write_ply(mesh, name + ".ply");
+  b.store_path = tmp_dir() / (name + ".raylod");
+  StoreOptions o;
+  o.memory_limit = uint64_t(256) << 20;
+  o.max_depth = 8;
+  o.page_triangles = 512;
+  auto r = build_store(b.mesh, b.store_path, o);
+  EXPECT_TRUE(r) << r.status().message();
+  auto s = OctreeStore::open(b.store_path);
+  EXPECT_TRUE(s) << s.status().message();
+  b.store = std::move(s.value());
+  for (size_t i = 0; i < mesh.p.size(); ++i) {
+    b.soup.p.push_back(Vec3d(Vec3(mesh.p[i])));
+    b.soup.n.push_back(Vec3d(Vec3(mesh.n[i])));
+  }
+  return b;
+}
+
+const Built& teapot() {
+  static Built b = [] {
+    auto surface = make_generated_surface("teapot", 20000);
+    EXPECT_TRUE(surface);
+    return build("teapot20k", test::mesh_from_surface(*surface.value(), 1.0, Vec3d(0)));
+  }();
+  return b;
+}
+
+Scene make_scene(MaterialType type, const Vec3d& eye, const Vec3d& look_at, bool ground = true, bool lights = true) {
+  Scene s;
+  s.camera.eye = eye;
+  s.camera.look_at = look_at;
+  s.camera.width = 320;
+  s.camera.height = 240;
+  s.camera.fov_y_deg = 40;
+  Material m;
+  m.name = "object";
+  m.type = type;
+  m.ior = 1.5f;
+  Material floor;
+  floor.name = "floor";
+  s.materials = {m, floor};
+  if (ground) s.ground = Ground{0.0, 40.0, 1};
+  if (lights) s.lights.push_back(Light{});
+  s.max_depth = 5;
+  return s;
+}
+
+StatusOr<ProbeResult> probe(const Scene& scene, const Built& b, uint64_t rays, int threads = 2, double k = 1.0,
+                            uint64_t cache = uint64_t(64) << 20) {
+  ProbeStore store{b.store.get(), b.store_path};
+  ProbeObject object{0, glm::dmat4(1.0), 0};
+  ProbeConfig c;
+  c.rays = rays;
+  c.seed = 7;
+  c.threads = threads;
+  c.footprint_scale = k;
+  c.cache_bytes = cache;
+  return run_probe(scene, std::span<const ProbeStore>(&store, 1), std::span<const ProbeObject>(&object, 1), c);
+}
+
+const Vec3d kEye(6.5, 4.8, 8.5), kLook(0.2, 1.3, 0.0);
+
+TEST(StoreTracer, MatchesBruteForce) {
+  const Built& b = teapot();
+  ASSERT_GT(b.store->pages().size(), 8u);
+  PageCache cache(uint64_t(64) << 20);
+  StoreTracer tracer(*b.store, cache);
+  std::mt19937_64 rng(1);
+  std::uniform_real_distribution<double> u(-1, 1);
+  const test::Scene3 scene{test::Prim{test::Prim::Mesh, Vec3d(0), Vec3d(0), 1, test::Mat::Diffuse, 1.5, &b.soup}};
+  int hits = 0;
+  for (int i = 0; i < 300; ++i) {
+    // Half from outside, half from inside the bounds.
+    const Vec3d o = i % 2 ? Vec3d(6 * u(rng), 3 + 4 * u(rng), 6 * u(rng)) : Vec3d(1.5 * u(rng), 1.5 + u(rng), 1.5 * u(rng));
+    const Vec3d target(2 * u(rng), 1.5 + 1.2 * u(rng), 1.5 * u(rng));
+    const Vec3d d = glm::normalize(target - o);
+    TriangleHit h;
+    TraceCounters tc;
+    ASSERT_TRUE(tracer.intersect(o, d, 0, 1e30, {}, h, &tc));
+    const test::TestHit ref = test::intersect(scene, o, d, 0, -1, -1);
+    ASSERT_EQ(h.found(), ref.found()) << "ray " << i;
+    if (!ref.found()) continue;
+    ++hits;
+    EXPECT_NEAR(h.t, ref.t, 1e-12 * (1 + ref.t));
+    const Vec3d p = o + h.t * d;
+    EXPECT_LT(glm::length(p - ref.s.point), 1e-9);
+    EXPECT_LT(tc.page_visits, b.store->pages().size());  // front to back: not every page
+  }
+  EXPECT_GT(hits, 100);
+}
+
+TEST(PageCache, BoundedCacheGivesSameHits) {
+  const Built& b = teapot();
+  PageCache big(uint64_t(1) << 30), tiny(1);
+  StoreTracer t1(*b.store, big), t2(*b.store, tiny);
+  std::mt19937_64 rng(2);
+  std::uniform_real_distribution<double> u(-1, 1);
+  for (int i = 0; i < 200; ++i) {
+    const Vec3d o(6 * u(rng), 4 + 2 * u(rng), 6 * u(rng));
+    const Vec3d d = glm::normalize(Vec3d(u(rng), 1.5 + u(rng), u(rng)) - o);
+    TriangleHit h1, h2;
+    ASSERT_TRUE(t1.intersect(o, d, 0, 1e30, {}, h1));
+    ASSERT_TRUE(t2.intersect(o, d, 0, 1e30, {}, h2));
+    EXPECT_EQ(h1.found(), h2.found());
+    EXPECT_EQ(h1.t, h2.t);
+    EXPECT_EQ(h1.ref, h2.ref);
+  }
+  const PageCacheCounters cb = big.counters(), ct = tiny.counters();
+  EXPECT_EQ(cb.evictions, 0u);
+  EXPECT_GT(ct.evictions, 0u);
+  EXPECT_GT(ct.pages_read, cb.pages_read);
+  EXPECT_EQ(cb.pages_read, cb.misses);
+  EXPECT_GT(cb.hits, 0u);
+  // The tiny cache keeps one page at a time.
+  EXPECT_LT(ct.resident_bytes, cb.peak_bytes);
+}
+
+TEST(CutFile, RoundTripAndCorruption) {
+  Cut cut;
+  cut.store_hash = 0x1234;
+  cut.store_path = "/x/teapot.ply.raylod";
+  cut.key = "abcdef0123456789";
+  cut.rays = 5000;
+  cut.seed = 3;
+  cut.footprint_scale = 0.5;
+  cut.min_footprint = 0.25f;
+  cut.counters = {{"hits", 10}, {"rays_primary", 5000}};
+  cut.cells = {{CellKey{2, 5}, 0.5f, 3}, {CellKey{3, 7}, 0.0f, 0}, {CellKey{3, 0x1ff}, 1.0f, 1}};
+  const fs::path path = tmp_dir() / "round.cut";
+  ASSERT_TRUE(write_cut(path, cut));
+  EXPECT_TRUE(is_cut_file(path));
+  auto back = read_cut(path);
+  ASSERT_TRUE(back) << back.status().message();
+  EXPECT_EQ(back->store_hash, cut.store_hash);
+  EXPECT_EQ(back->store_path, cut.store_path);
+  EXPECT_EQ(back->key, cut.key);
+  EXPECT_EQ(back->counters, cut.counters);
+  ASSERT_EQ(back->cells.size(), 3u);
+  EXPECT_EQ(back->cells[2].key, (CellKey{3, 0x1ff}));
+  EXPECT_EQ(back->cells[0].hits, 3u);
+  EXPECT_EQ(back->footprint_scale, 0.5);
+
+  std::string bytes;
+  {
+    std::ifstream f(path, std::ios::binary);
+    bytes.assign(std::istreambuf_iterator<char>(f), {});
+  }
+  auto write_bytes = [&](const std::string& b) {
+    std::ofstream f(path, std::ios::binary | std::ios::trunc);
+    f.write(b.data(), std::streamsize(b.size()));
+  };
+  std::string flipped = bytes;
+  flipped[bytes.size() - 3] ^= 0x40;
+  write_bytes(flipped);
+  auto bad = read_cut(path);
+  ASSERT_FALSE(bad);
+  EXPECT_NE(bad.status().message().find("checksum"), std::string::npos) << bad.status().message();
+  write_bytes(bytes.substr(0, bytes.size() - 5));
+  bad = read_cut(path);
+  ASSERT_FALSE(bad);
+  EXPECT_NE(bad.status().message().find("truncated"), std::string::npos) << bad.status().message();
+  write_bytes("not a cut file at all, just text");
+  EXPECT_FALSE(is_cut_file(path));
+  EXPECT_FALSE(read_cut(path));
+
+  // A cell inside another marked cell is not a cut.
+  cut.cells = {{CellKey{2, 5}, 0, 0}, {CellKey{3, 5 * 8 + 1}, 0, 0}};
+  ASSERT_TRUE(write_cut(path, cut));
+  bad = read_cut(path);
+  ASSERT_FALSE(bad);
+  EXPECT_NE(bad.status().message().find("inside another"), std::string::npos) << bad.status().message();
+}
+
+TEST(Probe, DiffuseSceneTracesNoSecondaryRays) {
+  auto r = probe(make_scene(MaterialType::Diffuse, kEye, kLook), teapot(), 2000);
+  ASSERT_TRUE(r) << r.status().message();
+  EXPECT_EQ(r->counters.at("rays_primary"), 2000u);
+  EXPECT_EQ(r->counters.at("rays_reflection"), 0u);
+  EXPECT_EQ(r->counters.at("rays_refraction"), 0u);
+  EXPECT_GT(r->counters.at("hits"), 200u);
+  EXPECT_GT(r->counters.at("hits_ground"), 200u);
+  EXPECT_EQ(r->magnification, 1.0);
+  // Glossy is not specular either.
+  auto g = probe(make_scene(MaterialType::Glossy, kEye, kLook), teapot(), 500);
+  ASSERT_TRUE(g);
+  EXPECT_EQ(g->counters.at("rays_reflection") + g->counters.at("rays_refraction"), 0u);
+}
+
+TEST(Probe, MirrorSceneReflectsOnly) {
+  auto r = probe(make_scene(MaterialType::Mirror, kEye, kLook), teapot(), 1000);
+  ASSERT_TRUE(r) << r.status().message();
+  EXPECT_GT(r->counters.at("rays_reflection"), 100u);
+  EXPECT_EQ(r->counters.at("rays_refraction"), 0u);
+}
+
+TEST(Probe, GlassSceneRefractsAndHandlesTir) {
+  auto r = probe(make_scene(MaterialType::Glass, kEye, kLook), teapot(), 1000);
+  ASSERT_TRUE(r) << r.status().message();
+  EXPECT_GT(r->counters.at("rays_refraction"), 100u);
+  EXPECT_GT(r->counters.at("rays_reflection"), 100u);
+  EXPECT_GT(r->counters.at("total_internal_reflections"), 0u);
+  EXPECT_LE(r->magnification, 1.0);
+  EXPECT_GT(r->magnification, 0.0);
+  // Secondary rays per test ray are bounded by the max depth (a binary tree of depth 5).
+  const uint64_t all = r->counters.at("rays_primary") + r->counters.at("rays_reflection") + r->counters.at("rays_refraction");
+  EXPECT_LE(all, 1000u * 63u);
+}
+
+// Properties of the cut: an antichain within quadric_depth; every marked cell
+// is finer than K times the smallest footprint of the hits inside it; visible
+// unreached cells are no coarser than the pinhole bound; larger K is coarser.
+TEST(Probe, CutRespectsFinestNeedAndPolicy) {
+  const Built& b = teapot();
+  const Scene scene = make_scene(MaterialType::Diffuse, kEye, kLook);
+  auto r1 = probe(scene, b, 2000, 2, 1.0);
+  auto r4 = probe(scene, b, 2000, 2, 4.0);
+  ASSERT_TRUE(r1 && r4);
+  const Cut& cut = r1->cuts[0];
+  const int Q = b.store->header().quadric_depth;
+  ASSERT_FALSE(cut.cells.empty());
+  const PinholeCamera cam = make_pinhole_camera(scene.camera);
+  double a_min = 1e30;
+  for (double px : {0.0, double(cam.width)})
+    for (double py : {0.0, double(cam.height)}) {
+      const RayDerivatives d = cam.derivatives(px, py);
+      a_min = std::min({a_min, glm::length(d.dd_dx), glm::length(d.dd_dy)});
+    }
+  std::set<CellKey> keys;
+  for (const CollapsedCell& c : cut.cells) {
+    ASSERT_LE(int(c.key.level), Q);
+    ASSERT_NE(b.store->find(c.key), nullptr);
+    const double diag = b.store->cell_diagonal(int(c.key.level));
+    if (c.hits > 0) {
+      EXPECT_LT(diag, 1.0 * c.min_footprint * (1 + 1e-6));
+    }
+    // No cell is coarser than the pinhole bound at its nearest point allows
+    // (for unreached parts); for cells with hits the measured need may exceed it.
+    if (c.hits == 0) {
+      const Bbox box = b.store->cell_bounds(c.key);
+      const Vec3d q = glm::max(box.lo - cam.eye, glm::max(Vec3d(0), cam.eye - box.hi));
+      EXPECT_LT(diag, a_min * glm::length(q) * (1 + 1e-9));
+    }
+    keys.insert(c.key);
+  }
+  for (const CollapsedCell& c : cut.cells)
+    for (CellKey a = c.key; a.level > 0;) {
+      a = a.parent();
+      EXPECT_EQ(keys.count(a), 0u) << "not an antichain";
+    }
+  // Coverage of the finest level: K = 4 collapses at least as much as K = 1.
+  auto covered = [&](const Cut& c) {
+    uint64_t n = 0;
+    for (const CollapsedCell& cell : c.cells) n += uint64_t(1) << (3 * (Q - int(cell.key.level)));
+    return n;
+  };
+  EXPECT_GE(covered(r4->cuts[0]), covered(cut));
+  EXPECT_GT(covered(cut), 0u);
+}
+
+TEST(Probe, SameCutOnOneOrTwoThreads) {
+  const Scene scene = make_scene(MaterialType::Glass, kEye, kLook);
+  auto a = probe(scene, teapot(), 800, 1, 1.0, uint64_t(1) << 30);
+  auto b = probe(scene, teapot(), 800, 2, 1.0, uint64_t(1) << 20);  // and a cache that evicts
+  ASSERT_TRUE(a && b);
+  EXPECT_EQ(a->counters.at("cache_evictions"), 0u);
+  EXPECT_GT(b->counters.at("cache_evictions"), 0u);
+  const Cut &ca = a->cuts[0], &cb = b->cuts[0];
+  ASSERT_EQ(ca.cells.size(), cb.cells.size());
+  for (size_t i = 0; i < ca.cells.size(); ++i) {
+    EXPECT_EQ(ca.cells[i].key, cb.cells[i].key);
+    EXPECT_EQ(ca.cells[i].min_footprint, cb.cells[i].min_footprint);
+    EXPECT_EQ(ca.cells[i].hits, cb.cells[i].hits);
+  }
+  for (const char* k : {"rays_primary", "rays_reflection", "rays_refraction", "hits", "hits_ground", "misses",
+                        "total_internal_reflections", "differentials_dropped"})
+    EXPECT_EQ(ca.counters.at(k), cb.counters.at(k)) << k;
+  EXPECT_EQ(ca.min_footprint, cb.min_footprint);
+  EXPECT_EQ(ca.key, cb.key);
+}
+
+TEST(Probe, CameraInsideTheBoundingBox) {
+  // Eye inside the teapot's body: every ray hits the inside of the shell.
+  const Built& b = teapot();
+  auto r = probe(make_scene(MaterialType::Diffuse, Vec3d(0, 1.2, 0), Vec3d(1, 1.2, 0.3), false), b, 500);
+  ASSERT_TRUE(r) << r.status().message();
+  EXPECT_EQ(r->counters.at("hits"), 500u);
+  // The cell holding the eye (at every level) is never collapsed.
+  for (const CollapsedCell& c : r->cuts[0].cells) EXPECT_FALSE(b.store->cell_bounds(c.key).contains(Vec3d(0, 1.2, 0)));
+}
+
+TEST(Probe, MeshBehindTheCameraAndEmptyView) {
+  const Built& b = teapot();
+  // Looking away from the teapot, no ground, no lights: nothing can be seen,
+  // shadowed or reflected, so the whole mesh collapses into the root.
+  auto r = probe(make_scene(MaterialType::Diffuse, Vec3d(0, 1.5, 8), Vec3d(0, 1.5, 20), false, false), b, 500);
+  ASSERT_TRUE(r) << r.status().message();
+  EXPECT_EQ(r->counters.at("hits"), 0u);
+  EXPECT_EQ(r->counters.at("misses"), 500u);
+  ASSERT_EQ(r->cuts[0].cells.size(), 1u);
+  EXPECT_EQ(r->cuts[0].cells[0].key, (CellKey{0, 0}));
+  EXPECT_EQ(r->cuts[0].min_footprint, 0.0f);
+  // With lights it may cast shadows into the view: collapsed, but not into one vertex.
+  auto lit = probe(make_scene(MaterialType::Diffuse, Vec3d(0, 1.5, 8), Vec3d(0, 1.5, 20), true, true), b, 500);
+  ASSERT_TRUE(lit);
+  EXPECT_EQ(lit->counters.at("hits"), 0u);
+  auto not_root = [](const Cut& c) {
+    for (const CollapsedCell& cell : c.cells)
+      if (cell.key.level == 0) return false;
+    return true;
+  };
+  EXPECT_TRUE(not_root(lit->cuts[0]));
+  // A mirror in the scene could show it: no hard collapse either.
+  Scene mirror = make_scene(MaterialType::Mirror, Vec3d(0, 1.5, 8), Vec3d(0, 1.5, 20), false, false);
+  auto m = probe(mirror, b, 500);
+  ASSERT_TRUE(m);
+  EXPECT_TRUE(not_root(m->cuts[0]));
+  // An empty view beside the mesh (sky only) works too.
+  auto sky = probe(make_scene(MaterialType::Diffuse, Vec3d(0, 1.5, 8), Vec3d(0, 30, 8.1), false), b, 300);
+  ASSERT_TRUE(sky);
+  EXPECT_EQ(sky->counters.at("hits"), 0u);
+}
+
+TEST(Probe, CorruptPageIsReportedNotTraced) {
+  const Built& b = teapot();
+  const fs::path bad = tmp_dir() / "teapot20k-corrupt.raylod";
+  fs::copy_file(b.store_path, bad, fs::copy_options::overwrite_existing);
+  // Flip a byte in the middle of every page's triangle data.
+  {
+    std::fstream f(bad, std::ios::in | std::ios::out | std::ios::binary);
+    for (const PageInfo& p : b.store->pages()) {
+      const uint64_t at = p.offset + 18 * p.triangle_count;
+      f.seekg(std::streamoff(at));
+      char c;
+      f.read(&c, 1);
+      c ^= 0x55;
+      f.seekp(std::streamoff(at));
+      f.write(&c, 1);
+    }
+  }
+  auto opened = OctreeStore::open(bad);
+  if (!opened) {
+    EXPECT_NE(opened.status().message().find("corrupt"), std::string::npos);
+    return;
+  }
+  Built corrupt;
+  corrupt.store = std::move(opened.value());
+  corrupt.store_path = bad;
+  auto r = probe(make_scene(MaterialType::Diffuse, kEye, kLook), corrupt, 200);
+  ASSERT_FALSE(r);
+  EXPECT_NE(r.status().message().find("checksum"), std::string::npos) << r.status().message();
+  EXPECT_NE(r.status().message().find("page"), std::string::npos) << r.status().message();
+}
+
+TEST(Probe, ObjectTransformScalesFootprints) {
+  // The same mesh scaled by 2 in world: footprints measured in store units
+  // are halved, so fewer cells collapse than with a camera twice as far.
+  const Built& b = teapot();
+  Scene scene = make_scene(MaterialType::Diffuse, kEye * 2.0, kLook * 2.0, false);
+  ProbeStore store{b.store.get(), b.store_path};
+  ProbeObject object{0, glm::scale(glm::dmat4(1.0), Vec3d(2.0)), 0};
+  ProbeConfig c;
+  c.rays = 1000;
+  c.seed = 7;
+  auto scaled = run_probe(scene, std::span<const ProbeStore>(&store, 1), std::span<const ProbeObject>(&object, 1), c);
+  auto plain = probe(make_scene(MaterialType::Diffuse, kEye, kLook, false), b, 1000);
+  ASSERT_TRUE(scaled && plain);
+  // Twice the size seen from twice the distance is the same picture.
+  EXPECT_NEAR(double(scaled->cuts[0].min_footprint), double(plain->cuts[0].min_footprint),
+              1e-6 * double(plain->cuts[0].min_footprint));
+  EXPECT_EQ(scaled->cuts[0].cells.size(), plain->cuts[0].cells.size());
+}
+
+}  // namespace
+}  // namespace raylod
