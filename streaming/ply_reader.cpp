@@ -7,6 +7,7 @@
 // loop; every other layout goes through the generic record decoder. ASCII
 // files are read twice: once on open to spill the vertices to a mapped
 // scratch file and to check the element counts, then once for the faces.
+#include <algorithm>
 #include <bit>
 #include <cstring>
 #include <string>
@@ -72,8 +73,14 @@ class PlyReader final : public MeshReader {
   Status skip_binary_record(const PlyElement& e, size_t& pos, uint64_t record) const;
   Status skip_binary_element(const PlyElement& e, size_t& pos) const;
   Status finish_binary();
-  template <class IndexT>
+  template <class IndexT, bool kPacked, bool kNormals>
   StatusOr<bool> next_binary_fast(TriangleBatch& batch);
+  template <class IndexT>
+  StatusOr<bool> dispatch_fast(TriangleBatch& batch) {
+    const bool packed = pos_.packed_float && (!has_normals_ || nrm_.packed_float);
+    if (packed) return has_normals_ ? next_binary_fast<IndexT, true, true>(batch) : next_binary_fast<IndexT, true, false>(batch);
+    return has_normals_ ? next_binary_fast<IndexT, false, true>(batch) : next_binary_fast<IndexT, false, false>(batch);
+  }
   StatusOr<bool> next_binary_generic(TriangleBatch& batch);
   StatusOr<bool> next_ascii(TriangleBatch& batch);
   Status corner_error(int64_t index, uint64_t face, uint64_t line) const;
@@ -446,48 +453,103 @@ void PlyReader::release_behind_cursor(size_t cursor) {
   }
 }
 
-template <class IndexT>
+// The common layout: "list uchar int|uint vertex_indices" as the only face
+// property, host byte order. Triangles are written straight into the batch
+// (sized once; not cleared between calls, so nothing is zero-filled).
+template <class IndexT, bool kPacked, bool kNormals>
 StatusOr<bool> PlyReader::next_binary_fast(TriangleBatch& batch) {
   const uint8_t* data = file_.data();
   const size_t size = file_.size();
   const uint64_t face_count = elements_[face_el_].count;
-  const size_t cap = options_.batch_triangles;
+  // Batch limit in corners; the buffers start at what the faces left fill as
+  // triangles (so a huge limit on a small mesh does not zero-fill memory) and
+  // grow when polygons need more.
+  const size_t cap = 3 * options_.batch_triangles;
+  const size_t initial = size_t(std::min<uint64_t>(cap, 3 * (face_count - faces_done_)));
   const uint64_t vcount = pos_.count;
+  const uint8_t* vbase = pos_.base;
+  const size_t stride = pos_.stride;
+  const uint32_t po = pos_.offset[0], no = nrm_.offset[0];
+  std::vector<Vec3>& P = batch.positions;
+  std::vector<Vec3>& N = batch.normals;
+  if (P.size() != initial) P.resize(initial);
+  if (kNormals && N.size() != initial) N.resize(initial);
+  if (!kNormals) N.clear();
+  Vec3* pp = P.data();
+  Vec3* np = N.data();
+  size_t out = 0;
   size_t pos = cursor_;
-  while (faces_done_ < face_count && batch.positions.size() < 3 * cap) {
-    if (pos >= size) return truncated_faces();
+  auto fail = [&](Status s) {
+    batch.clear();
+    return s;
+  };
+  while (faces_done_ < face_count && out < cap) {
+    if (pos >= size) return fail(truncated_faces());
     const size_t n = data[pos];
-    if (size - pos - 1 < 4 * n) return truncated_faces();
+    if (size - pos - 1 < 4 * n) return fail(truncated_faces());
     const uint8_t* q = data + pos + 1;
     if (n == 3) {
+      if (out + 3 > P.size()) [[unlikely]] {
+        P.resize(std::min(cap, 2 * P.size() + 3));
+        if (kNormals) N.resize(P.size());
+        pp = P.data();
+        np = N.data();
+      }
       IndexT raw[3];
       std::memcpy(raw, q, sizeof raw);
-      Vec3 p[3], nn[3];
+      if (int64_t(raw[0]) < 0 || uint64_t(raw[0]) >= vcount || int64_t(raw[1]) < 0 || uint64_t(raw[1]) >= vcount ||
+          int64_t(raw[2]) < 0 || uint64_t(raw[2]) >= vcount) {
+        for (IndexT r : raw)
+          if (int64_t(r) < 0 || uint64_t(r) >= vcount) return fail(corner_error(int64_t(r), faces_done_, 0));
+      }
+      // Copy the corners straight into the batch, then validate them there:
+      // one well-predicted branch per triangle on the common path.
+      bool ok = true;
       for (int k = 0; k < 3; ++k) {
-        const int64_t i = int64_t(raw[k]);
-        if (i < 0 || uint64_t(i) >= vcount) return corner_error(i, faces_done_, 0);
-        p[k] = pos_.load(uint64_t(i));
-        if (!is_finite(p[k])) return corner_error(i, faces_done_, 0);
-        if (has_normals_) {
-          nn[k] = nrm_.load(uint64_t(i));
-          if (!unit_normal(nn[k])) return corner_error(i, faces_done_, 0);
+        const uint8_t* rec = vbase + uint64_t(raw[k]) * stride;
+        Vec3& p = pp[out + size_t(k)];
+        if constexpr (kPacked) std::memcpy(&p.x, rec + po, 12);
+        else p = pos_.load(uint64_t(raw[k]));
+        ok &= is_finite(p);
+        if constexpr (kNormals) {
+          Vec3& nn = np[out + size_t(k)];
+          if constexpr (kPacked) std::memcpy(&nn.x, rec + no, 12);
+          else nn = nrm_.load(uint64_t(raw[k]));
+          const float l2 = nn.x * nn.x + nn.y * nn.y + nn.z * nn.z;
+          ok &= l2 > 0.999999f && l2 < 1.000001f;
         }
       }
-      batch.positions.insert(batch.positions.end(), p, p + 3);
-      if (has_normals_) batch.normals.insert(batch.normals.end(), nn, nn + 3);
+      if (!ok) {
+        // Rare: non-finite data (an error) or a non-unit normal (normalised).
+        for (int k = 0; k < 3; ++k) {
+          if (!is_finite(pp[out + size_t(k)])) return fail(corner_error(int64_t(raw[k]), faces_done_, 0));
+          if (kNormals && !unit_normal(np[out + size_t(k)])) return fail(corner_error(int64_t(raw[k]), faces_done_, 0));
+        }
+      }
+      out += 3;
       ++triangles_;
     } else {
+      // Polygons (rare here) go through the generic emitter.
       poly_.resize(n);
       for (size_t k = 0; k < n; ++k) {
         IndexT raw;
         std::memcpy(&raw, q + 4 * k, 4);
         poly_[k] = int64_t(raw);
       }
-      RAYLOD_RETURN_IF_ERROR(emit_polygon(poly_.data(), n, batch, faces_done_, 0));
+      P.resize(out);
+      if (kNormals) N.resize(out);
+      if (Status s = emit_polygon(poly_.data(), n, batch, faces_done_, 0); !s) return fail(s);
+      out = P.size();
+      if (P.size() < initial) P.resize(initial);
+      if (kNormals && N.size() < P.size()) N.resize(P.size());
+      pp = P.data();
+      np = N.data();
     }
     pos += 1 + 4 * n;
     ++faces_done_;
   }
+  P.resize(out);
+  if (kNormals) N.resize(out);
   cursor_ = pos;
   release_behind_cursor(pos);
   if (batch.size() > 0) return true;
@@ -590,14 +652,18 @@ StatusOr<bool> PlyReader::end_of_faces() {
 }
 
 StatusOr<bool> PlyReader::next(TriangleBatch& batch) {
+  if (done_) {
+    batch.clear();
+    return false;
+  }
+  if (fast_ == 1) return dispatch_fast<int32_t>(batch);
+  if (fast_ == 2) return dispatch_fast<uint32_t>(batch);
   batch.clear();
-  if (done_) return false;
   batch.positions.reserve(3 * options_.batch_triangles);
   if (has_normals_) batch.normals.reserve(3 * options_.batch_triangles);
-  if (encoding_ == PlyEncoding::Ascii) return next_ascii(batch);
-  if (fast_ == 1) return next_binary_fast<int32_t>(batch);
-  if (fast_ == 2) return next_binary_fast<uint32_t>(batch);
-  return next_binary_generic(batch);
+  StatusOr<bool> r = encoding_ == PlyEncoding::Ascii ? next_ascii(batch) : next_binary_generic(batch);
+  if (!r.is_ok()) batch.clear();
+  return r;
 }
 
 }  // namespace

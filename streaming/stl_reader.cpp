@@ -254,7 +254,10 @@ StatusOr<bool> StlReader::next_ascii(TriangleBatch& batch) {
 }
 
 StatusOr<bool> StlReader::next(TriangleBatch& batch) {
-  batch.clear();
+  // Binary batches are resized, not cleared first, so that a batch of the
+  // same size as the last one is not zero-filled again.
+  if (done_ || !binary_) batch.clear();
+  batch.normals.clear();
   if (done_) return false;
   StatusOr<bool> r = binary_ ? next_binary(batch) : next_ascii(batch);
   if (r.is_ok() && !r.value()) {

@@ -80,7 +80,7 @@ struct Vec3Table {
     packed_float = !swap && type[0] == ScalarType::Float32 && type[1] == ScalarType::Float32 &&
                    type[2] == ScalarType::Float32 && offset[1] == offset[0] + 4 && offset[2] == offset[0] + 8;
   }
-  Vec3 load(uint64_t i) const {
+  [[gnu::always_inline]] Vec3 load(uint64_t i) const {
     const uint8_t* r = base + i * stride;
     Vec3 v;
     if (packed_float) {
@@ -96,6 +96,9 @@ struct Vec3Table {
 
 // Unit normal from a stored normal; false if it is zero-length or not finite.
 inline bool unit_normal(Vec3& n) {
+  // Fast accept for normals that are already unit length (almost all of them).
+  const float l2f = n.x * n.x + n.y * n.y + n.z * n.z;
+  if (l2f > 0.999999f && l2f < 1.000001f) return true;
   // In double so that huge or tiny (denormal) components neither overflow nor vanish.
   double len2 = double(n.x) * n.x + double(n.y) * n.y + double(n.z) * n.z;
   if (!(len2 > 0.0) || !std::isfinite(len2)) return false;
