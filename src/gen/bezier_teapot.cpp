@@ -72,9 +72,13 @@ uint64_t teapot_triangle_count(uint32_t r, uint32_t c) {
 }
 
 TeapotPlan plan_teapot(uint64_t target) {
-  TeapotPlan best;
-  best.triangles = teapot_triangle_count(1, 1);
-  double best_err = std::abs(double(best.triangles) - double(target)), best_aspect = 0;
+  struct Candidate {
+    uint32_t r, c;
+    uint64_t n;
+    double err, aspect;
+  };
+  std::vector<Candidate> candidates{{1, 1, teapot_triangle_count(1, 1), 0, 0}};
+  candidates[0].err = std::abs(double(candidates[0].n) - double(target));
   // r c ~ target / 64 with r / c within [1/2, 2].
   const uint32_t c_max = uint32_t(std::sqrt(double(target) / 32.0)) + 2;
   for (uint32_t c = 1; c <= c_max; ++c) {
@@ -84,17 +88,21 @@ TeapotPlan plan_teapot(uint64_t target) {
       const uint32_t r = uint32_t(rr);
       if (r > 2 * c || c > 2 * r) continue;
       const uint64_t n = teapot_triangle_count(r, c);
-      const double err = std::abs(double(n) - double(target));
-      const double aspect = std::abs(std::log(double(r) / double(c)));
-      if (err < best_err || (err == best_err && aspect < best_aspect)) {
-        best = TeapotPlan{r, c, n, 0};
-        best_err = err;
-        best_aspect = aspect;
-      }
+      candidates.push_back({r, c, n, std::abs(double(n) - double(target)), std::abs(std::log(double(r) / c))});
     }
   }
-  best.vertices = BezierTeapot(best).vertex_count();
-  return best;
+  // The squarest grid among those within 0.05% of the best count (or the
+  // best count itself): near-square parameter cells give better triangles.
+  double min_err = 1e300;
+  for (const auto& k : candidates) min_err = std::min(min_err, k.err);
+  const double tolerance = std::max(min_err, 5e-4 * double(target));
+  const Candidate* best = nullptr;
+  for (const auto& k : candidates)
+    if (k.err <= tolerance && (!best || k.aspect < best->aspect || (k.aspect == best->aspect && k.err < best->err)))
+      best = &k;
+  TeapotPlan plan{best->r, best->c, best->n, 0};
+  plan.vertices = BezierTeapot(plan).vertex_count();
+  return plan;
 }
 
 BezierTeapot::BezierTeapot(const TeapotPlan& plan) : plan_(plan) {

@@ -142,8 +142,13 @@ BottlePlan plan_bottle(uint64_t target, const BottleConfig& config) {
   const BottleProfile profile(config);
   // Equal spacing on the body: 2 pi R / around = length / profile_segments.
   const double ideal = 2.0 * kPi * config.body_radius / profile.length();
-  BottlePlan best{2, 3, bottle_triangle_count(2, 3), 0};
-  double best_err = std::abs(double(best.triangles) - double(target)), best_aspect = 1e300;
+  struct Candidate {
+    uint32_t n, m;
+    uint64_t tri;
+    double err, aspect;
+  };
+  std::vector<Candidate> candidates{{2, 3, bottle_triangle_count(2, 3), 0, 1e300}};
+  candidates[0].err = std::abs(double(candidates[0].tri) - double(target));
   const uint32_t n_max = uint32_t(std::sqrt(double(target) / ideal)) + 3;
   for (uint32_t n = 2; n <= n_max; ++n) {
     const double m_real = double(target) / (2.0 * (n - 1));
@@ -153,16 +158,20 @@ BottlePlan plan_bottle(uint64_t target, const BottleConfig& config) {
       const double ratio = (double(m) / n) / ideal;
       if (ratio < 0.5 || ratio > 2.0) continue;
       const uint64_t tri = bottle_triangle_count(n, m);
-      const double err = std::abs(double(tri) - double(target)), aspect = std::abs(std::log(ratio));
-      if (err < best_err || (err == best_err && aspect < best_aspect)) {
-        best = BottlePlan{n, m, tri, 0};
-        best_err = err;
-        best_aspect = aspect;
-      }
+      candidates.push_back({n, m, tri, std::abs(double(tri) - double(target)), std::abs(std::log(ratio))});
     }
   }
-  best.vertices = uint64_t(best.around) * (best.profile_segments - 1) + 2;
-  return best;
+  // The best-proportioned resolution within 0.05% of the closest count.
+  double min_err = 1e300;
+  for (const auto& k : candidates) min_err = std::min(min_err, k.err);
+  const double tolerance = std::max(min_err, 5e-4 * double(target));
+  const Candidate* best = nullptr;
+  for (const auto& k : candidates)
+    if (k.err <= tolerance && (!best || k.aspect < best->aspect || (k.aspect == best->aspect && k.err < best->err)))
+      best = &k;
+  BottlePlan plan{best->n, best->m, best->tri, 0};
+  plan.vertices = uint64_t(plan.around) * (plan.profile_segments - 1) + 2;
+  return plan;
 }
 
 BottleSurface::BottleSurface(const BottlePlan& plan, const BottleConfig& config)
