@@ -27,7 +27,7 @@
 namespace raylod {
 
 struct GridPiece {
-  uint32_t rows = 0;         // vertex rows, poles included (>= 2)
+  uint32_t rows = 0;         // vertex rows, poles included (>= 2; >= 3 with two poles)
   uint32_t cols = 0;         // vertices per regular row (>= 2; >= 3 if wrap)
   bool wrap = false;         // column cols-1 connects back to column 0
   bool pole_first = false;   // row 0 is a single vertex
