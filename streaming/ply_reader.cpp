@@ -106,7 +106,7 @@ class PlyReader final : public MeshReader {
   SpillFile spill_;
   Vec3Table pos_, nrm_;
 
-  size_t face_offset_ = 0, cursor_ = 0, released_ = 0;
+  size_t face_offset_ = 0, cursor_ = 0, released_ = 0, vertex_window_start_ = 0;
   text::LineCursor lines_;
   uint64_t faces_done_ = 0, triangles_ = 0;
   bool done_ = false;
@@ -303,6 +303,7 @@ Status PlyReader::locate_binary() {
   }
   cursor_ = face_offset_;
   released_ = face_offset_;
+  vertex_window_start_ = face_offset_;
   file_.advise_sequential(face_offset_, file_.size());
   return Status::ok();
 }
@@ -450,6 +451,16 @@ void PlyReader::release_behind_cursor(size_t cursor) {
   if (cursor >= released_ + kChunk) {
     file_.release(released_, cursor);
     released_ = cursor & ~(size_t(4095));
+  }
+  // The binary vertex table is read at random, so it cannot be released
+  // behind a cursor; instead its mapping is dropped after every 64 MiB of
+  // face data, which bounds the resident part to the vertices one such
+  // window touches (pages come back from the page cache on the next use).
+  constexpr size_t kVertexWindow = size_t(1) << 26;
+  if (encoding_ != PlyEncoding::Ascii && cursor >= vertex_window_start_ + kVertexWindow) {
+    const size_t begin = size_t(pos_.base - file_.data());
+    file_.release(begin, begin + pos_.stride * pos_.count);
+    vertex_window_start_ = cursor;
   }
 }
 
