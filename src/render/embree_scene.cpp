@@ -311,7 +311,7 @@ bool EmbreeScene::occluded(const Ray& ray, double tnear, double tfar) const {
   return r.tfar < 0;  // Embree sets tfar to -inf on a hit
 }
 
-SurfacePoint surface_point(const EmbreeScene& scene, const Hit& hit) {
+SurfacePoint surface_point(const EmbreeScene& scene, const Hit& hit, bool with_edge_distance) {
   const TriangleMesh& m = scene.mesh(hit.geom);
   const uint32_t* tri = &m.indices[size_t(hit.prim) * 3];
   const Vec3d a(m.positions[tri[0]]), b(m.positions[tri[1]]), c(m.positions[tri[2]]);
@@ -327,6 +327,7 @@ SurfacePoint surface_point(const EmbreeScene& scene, const Hit& hit) {
     const double len = glm::length(n);
     if (len > 1e-12) sp.shading = n / len;
   }
+  if (!with_edge_distance) return sp;
   // Distance to edge i = barycentric_i * height over that edge = b_i * 2A / |edge_i|.
   const double la = glm::length(c - b), lb = glm::length(c - a), lc = glm::length(b - a);
   double d = std::numeric_limits<double>::infinity();

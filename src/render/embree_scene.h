@@ -125,8 +125,8 @@ struct SurfacePoint {
   Vec3d position{0};   // on the triangle, from the barycentrics (not o + t d)
   Vec3d geometric{0};  // unit face normal, right-hand rule over the winding
   Vec3d shading{0};    // unit interpolated vertex normal, or the face normal
-  double edge_distance = 0;  // distance to the nearest triangle edge (wireframe)
+  double edge_distance = 0;  // distance to the nearest triangle edge (only if asked for)
 };
-SurfacePoint surface_point(const EmbreeScene& scene, const Hit& hit);
+SurfacePoint surface_point(const EmbreeScene& scene, const Hit& hit, bool with_edge_distance = false);
 
 }  // namespace raylod

@@ -125,7 +125,7 @@ CameraSample Integrator::sample(double px, double py, RayCounters& counters) con
     out.color = scene_.background;
     return out;
   }
-  const SurfacePoint sp = surface_point(geometry_, hit);
+  const SurfacePoint sp = surface_point(geometry_, hit, config_.wireframe);
   out.hit = true;
   out.depth = hit.t;
   out.triangle = geometry_.triangle_id(hit.geom, hit.prim);

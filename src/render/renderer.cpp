@@ -102,26 +102,41 @@ std::string render_stats_json(const RenderStats& s) {
   return j.dump(2);
 }
 
-// Per triangle: the welded mesh (12 B of indices, ~0.5 vertices of 24 B with
-// normals, plus vector growth slack) and Embree's build peak (its BVH plus
-// the build's primitive references), measured with tools/bench_render on the
-// 1M..30M teapots and rounded up.
+// Per triangle: the welded mesh arrays (12 B of indices plus ~0.5 vertices
+// of 24 B with normals, and vector slack; measured 34-36 B) and Embree's
+// allocation peak during the build (BVH plus the builder's temporary
+// primitive references). Measured with tools/bench_render on the teapots:
+// high quality (1M) 99 B, medium (10M) 119 B, medium+compact (30M) 38 B per
+// triangle; rounded up here so the check errs on the side of refusing.
 uint64_t estimate_render_memory(uint64_t triangles, const BvhConfig& config) {
   const double mesh = 40.0;
-  double bvh = 150.0;                                        // medium quality
-  if (triangles < config.high_quality_below) bvh = 230.0;    // spatial splits duplicate references
-  else if (triangles >= config.compact_from) bvh = 110.0;    // index-only leaves
+  double bvh = 130.0;                                        // medium quality
+  if (triangles < config.high_quality_below) bvh = 110.0;    // spatial splits, smaller scenes
+  else if (triangles >= config.compact_from) bvh = 50.0;     // index-only leaves
   return uint64_t(16ull << 20) + uint64_t(double(triangles) * (mesh + bvh));
 }
 
 uint64_t triangles_that_fit(uint64_t bytes, const BvhConfig& config) {
-  uint64_t lo = 0, hi = uint64_t(1) << 40;
-  while (lo < hi) {  // the estimate is not monotone across layout thresholds; take the largest fitting count
-    const uint64_t mid = lo + (hi - lo + 1) / 2;
-    if (estimate_render_memory(mid, config) <= bytes) lo = mid;
-    else hi = mid - 1;
+  // The estimate is linear within each BVH layout's range of triangle counts
+  // (and drops where the compact layout starts), so take the largest count
+  // that fits within any of the ranges.
+  const uint64_t ranges[3][2] = {{0, config.high_quality_below},
+                                 {config.high_quality_below, config.compact_from},
+                                 {config.compact_from, uint64_t(1) << 40}};
+  uint64_t best = 0;
+  for (const auto& r : ranges) {
+    if (r[0] >= r[1]) continue;
+    // Bisect for the largest n in [r0, r1) with estimate(n) <= bytes.
+    if (estimate_render_memory(r[0], config) > bytes) continue;
+    uint64_t lo = r[0], hi = r[1] - 1;
+    while (lo < hi) {
+      const uint64_t mid = lo + (hi - lo + 1) / 2;
+      if (estimate_render_memory(mid, config) <= bytes) lo = mid;
+      else hi = mid - 1;
+    }
+    best = std::max(best, lo);
   }
-  return lo;
+  return best;
 }
 
 StatusOr<std::vector<TriangleMesh>> load_scene_meshes(const Scene& scene, const RenderOptions& options,

@@ -13,6 +13,7 @@
 #include "render/integrator.h"
 #include "render/renderer.h"
 #include "render_test_util.h"
+#include "streaming/draco_io.h"
 
 namespace raylod {
 namespace {
@@ -417,10 +418,34 @@ TEST(SceneFiles, MemoryLimitStopsBeforeLoadingAndSaysWhatFits) {
   EXPECT_NE(msg.find("raylod run"), std::string::npos) << msg;
   o.memory_limit = estimate_render_memory(4);
   EXPECT_TRUE(render(*scene, o).is_ok());
-  // The advertised count is consistent with the estimate.
-  const uint64_t fit = triangles_that_fit(uint64_t(1) << 30);
-  EXPECT_LE(estimate_render_memory(fit), uint64_t(1) << 30);
-  EXPECT_GT(estimate_render_memory(fit + 1), uint64_t(1) << 30);
+  // The advertised count is consistent with the estimate, also where the
+  // compact BVH layout makes a larger scene cheaper than a smaller one.
+  for (uint64_t budget : {uint64_t(64) << 20, uint64_t(1) << 30, uint64_t(2) << 30, uint64_t(8) << 30}) {
+    const uint64_t fit = triangles_that_fit(budget);
+    EXPECT_LE(estimate_render_memory(fit), budget);
+    EXPECT_GT(estimate_render_memory(fit + 1), budget);
+    for (uint64_t n = fit + 1; n < fit * 4; n += fit / 16 + 1) EXPECT_GT(estimate_render_memory(n), budget) << n;
+  }
+  EXPECT_GE(triangles_that_fit(uint64_t(2) << 30), BvhConfig{}.compact_from);
+}
+
+TEST(SceneFiles, RendersADracoMeshInPlaceOfTheSceneMesh) {
+  const auto dir = test_tmp("render-scenes");
+  write_file(dir / "tetra.ply", kTetraPly);
+  const TriangleMesh sphere = make_sphere({0, 0, 0}, 1, 8, 16, 0);
+  IndexedMesh im;
+  im.positions = sphere.positions;
+  im.normals = sphere.normals;
+  im.indices = sphere.indices;
+  auto written = write_draco(dir / "sphere.drc", im, DracoOptions{});
+  ASSERT_TRUE(written.is_ok()) << written.status().message();
+  auto scene = parse_scene(scene_json("tetra.ply"), dir, "test.json");
+  ASSERT_TRUE(scene.is_ok());
+  RenderOptions o = quiet_options();
+  o.mesh_override = {dir / "sphere.drc"};
+  auto r = render(*scene, o);
+  ASSERT_TRUE(r.is_ok()) << r.status().message();
+  EXPECT_EQ(r->stats.triangles, sphere.triangle_count());
 }
 
 TEST(SceneFiles, BadMeshesGiveClearErrors) {
