@@ -104,6 +104,17 @@ std::filesystem::path default_cache_dir() {
   return std::filesystem::temp_directory_path() / "raylod-cache";
 }
 
+Status write_file_atomic(const std::filesystem::path& path, const std::string& text) {
+  AtomicOutput out(path);
+  {
+    std::ofstream f(out.temp_path(), std::ios::binary);
+    if (!f) return Status::error(path.string() + ": cannot open for writing");
+    f << text;
+    if (!f.flush()) return Status::error(path.string() + ": write failed (disk full?)");
+  }
+  return out.commit();
+}
+
 uint64_t fnv1a64(const void* data, size_t bytes, uint64_t h) {
   const auto* p = static_cast<const unsigned char*>(data);
   for (size_t i = 0; i < bytes; ++i) { h ^= p[i]; h *= 0x100000001b3ull; }

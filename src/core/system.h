@@ -46,6 +46,9 @@ class AtomicOutput {
 // else ~/.cache/raylod (created on demand by the callers).
 std::filesystem::path default_cache_dir();
 
+// Writes text to path atomically (AtomicOutput).
+Status write_file_atomic(const std::filesystem::path& path, const std::string& text);
+
 // FNV-1a 64-bit hash, for keys and content fingerprints (not security).
 uint64_t fnv1a64(const void* data, size_t bytes, uint64_t seed = 0xcbf29ce484222325ull);
 

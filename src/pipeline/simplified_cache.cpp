@@ -48,16 +48,6 @@ std::string hex64(uint64_t v) {
   return buf;
 }
 
-Status write_text_atomically(const fs::path& path, const std::string& text) {
-  AtomicOutput out(path);
-  {
-    std::ofstream f(out.temp_path(), std::ios::binary);
-    f << text;
-    if (!f.good()) return Status::error(path.string() + ": cannot write");
-  }
-  return out.commit();
-}
-
 std::optional<CacheEntry> read_meta(const fs::path& json_path) {
   std::ifstream in(json_path);
   if (!in) return std::nullopt;
@@ -91,7 +81,7 @@ Status write_meta(const fs::path& dir, const CacheEntry& e) {
   j["triangles"] = e.triangles;
   j["footprint_scale"] = e.footprint_scale;
   j["last_used_ns"] = e.last_used_ns;
-  return write_text_atomically(dir / (e.key + ".json"), j.dump(2) + "\n");
+  return write_file_atomic(dir / (e.key + ".json"), j.dump(2) + "\n");
 }
 
 void remove_entry_files(const fs::path& dir, const std::string& key) {

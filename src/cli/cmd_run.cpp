@@ -1,0 +1,144 @@
+// raylod run: the whole pipeline (build, probe, simplify, render) for one
+// view, with simplified meshes cached across views.
+#include <cstdio>
+
+#include "cli/cli.h"
+#include "core/progress.h"
+#include "core/system.h"
+#include "gen/generate.h"
+#include "pipeline/image_compare.h"
+#include "pipeline/pipeline.h"
+#include "render/renderer.h"
+
+namespace raylod::cli {
+namespace {
+
+// Chosen from the footprint-scale sweep of `raylod report` (README, "What
+// accuracy costs"): the largest K that kept the default scene's PSNR at or
+// above 38 dB against the full-resolution render.
+constexpr double kDefaultFootprintScale = 1.0;
+
+Status run_run(int argc, char** argv, bool& help) {
+  Args args("run", "[SCENE] -o IMAGE [options]",
+            "Builds (or reuses) the octree store of the scene's mesh, traces test rays with ray\n"
+            "differentials, collapses the cells no ray can resolve, and renders the simplified\n"
+            "mesh. Without SCENE, renders the embedded default scene (its teapot is generated\n"
+            "on first use into the cache). Simplified meshes are cached and reused for later\n"
+            "views that need no finer detail anywhere their probe looks.",
+            {{"--output", "-o", "output image (format by extension; default raylod-run.png)", true, "IMAGE"},
+             {"--mesh", "", "mesh to use in place of the scene's first object's mesh", true, "FILE"},
+             {"--memory-limit", "", "memory cap (default: a quarter of physical memory); the cut is\n"
+                                    "                              coarsened until the simplified mesh fits", true, "SIZE"},
+             {"--rays", "", "test rays (default 5000)", true, "N"},
+             {"--footprint-scale", "", "K: collapse cells whose diagonal < K x footprint (default 1)", true, "K"},
+             {"--spp", "", "samples per pixel (default: the scene's)", true, "N"},
+             {"--threads", "", "worker threads (default: all cores)", true, "T"},
+             {"--cache", "", "cache directory (default $XDG_CACHE_HOME/raylod or ~/.cache/raylod)", true, "DIR"},
+             {"--cache-limit", "", "cache size limit, least recently used evicted (default 4G)", true, "SIZE"},
+             {"--no-cache", "", "neither reuse nor keep simplified meshes", false, ""},
+             {"--compare", "", "also render the full-resolution mesh and report the error", false, ""},
+             {"--stats-json", "", "write triangle counts, stage times, memory and cache use as JSON", true, "FILE"},
+             {"--quiet", "-q", "no progress bars or log lines", false, ""}});
+  RAYLOD_RETURN_IF_ERROR(args.parse(argc, argv));
+  if (args.help_requested()) {
+    std::fputs(args.help_text().c_str(), stdout);
+    help = true;
+    return {};
+  }
+  if (args.positionals().size() > 1) return Status::error("expected at most one SCENE argument");
+  const std::filesystem::path output = args.get("--output", "raylod-run.png");
+  RAYLOD_RETURN_IF_ERROR(check_output_image(output));
+
+  RunOptions opts;
+  RAYLOD_ASSIGN_OR_RETURN(opts.memory_limit, args.get_size("--memory-limit", 0));
+  RAYLOD_ASSIGN_OR_RETURN(int64_t rays, args.get_int("--rays", 5000, 1, 100000000));
+  RAYLOD_ASSIGN_OR_RETURN(opts.footprint_scale, args.get_double("--footprint-scale", kDefaultFootprintScale));
+  if (!(opts.footprint_scale > 0)) return Status::error("--footprint-scale must be > 0");
+  RAYLOD_ASSIGN_OR_RETURN(int64_t spp, args.get_int("--spp", 0, 1, 4096));
+  RAYLOD_ASSIGN_OR_RETURN(int64_t threads, args.get_int("--threads", 0, 1, 4096));
+  RAYLOD_ASSIGN_OR_RETURN(opts.cache_limit, args.get_size("--cache-limit", uint64_t(4) << 30));
+  opts.rays = uint64_t(rays);
+  opts.spp = int(spp);
+  opts.threads = int(threads);
+  opts.cache_dir = args.get("--cache", default_cache_dir().string());
+  opts.use_cache = !args.has("--no-cache");
+  if (args.has("--mesh")) opts.mesh_override = std::filesystem::path(args.get("--mesh"));
+  const bool quiet = args.has("--quiet");
+  opts.progress = !quiet;
+  if (quiet) Progress::set_enabled(false);
+  LogFn log;
+  if (!quiet) log = [](const std::string& m) { std::fprintf(stderr, "raylod run: %s\n", m.c_str()); };
+
+  Scene scene;
+  if (args.positionals().empty()) {
+    RAYLOD_ASSIGN_OR_RETURN(scene, default_scene());
+  } else {
+    RAYLOD_ASSIGN_OR_RETURN(scene, load_scene(args.positionals()[0]));
+  }
+
+  RAYLOD_ASSIGN_OR_RETURN(RunResult r, run_pipeline(scene, opts, log));
+  RAYLOD_RETURN_IF_ERROR(write_image(output, r.render.color));
+
+  std::printf("raylod run: %s\n", args.positionals().empty() ? "embedded default scene" : args.positionals()[0].c_str());
+  std::printf("  triangles  %llu -> %llu (%.1fx fewer)\n", (unsigned long long)r.triangles_in,
+              (unsigned long long)r.triangles_out, r.triangles_out ? double(r.triangles_in) / double(r.triangles_out) : 0.0);
+  std::printf("  build      %7.2f s\n", r.seconds.build);
+  std::printf("  probe      %7.2f s  (%llu test rays, K = %g%s)\n", r.seconds.probe, (unsigned long long)opts.rays,
+              r.footprint_scale, r.coarsening_steps ? ", coarsened to fit the memory limit" : "");
+  std::printf("  simplify   %7.2f s  (%s)\n", r.seconds.simplify, r.cache_hit ? "from cache" : "simplified");
+  for (const auto& m : r.meshes) std::printf("             %s\n", m.cache_note.c_str());
+  std::printf("  render     %7.2f s  (load %.2f s, BVH %.2f s, trace %.2f s)\n", r.seconds.render,
+              r.render.stats.load_seconds, r.render.stats.bvh_seconds, r.render.stats.render_seconds);
+  std::printf("  total      %7.2f s, peak memory %s\n", r.seconds.total(), format_bytes(r.peak_rss).c_str());
+
+  std::string stats = run_stats_json(r, opts);
+  if (args.has("--compare")) {
+    // The full-resolution render the method is measured against.
+    RAYLOD_RETURN_IF_ERROR(resolve_generated_meshes(scene, opts.cache_dir));
+    RenderOptions ro;
+    ro.spp = opts.spp;
+    ro.threads = opts.threads;
+    ro.memory_limit = opts.memory_limit;
+    ro.progress = opts.progress;
+    if (opts.mesh_override) ro.mesh_override = {*opts.mesh_override};
+    auto full = render(scene, ro);
+    if (!full.is_ok()) {
+      std::printf("  full-resolution render skipped: %s\n", full.status().message().c_str());
+    } else {
+      RAYLOD_ASSIGN_OR_RETURN(ImageError e, compare_images(r.render.color, full->color));
+      const RenderStats& fs = full->stats;
+      double full_seconds = fs.load_seconds + fs.bvh_seconds + fs.render_seconds;
+      std::printf("  full mesh  %7.2f s  (load %.2f s, BVH %.2f s, trace %.2f s)\n", full_seconds, fs.load_seconds,
+                  fs.bvh_seconds, fs.render_seconds);
+      std::printf("  error      PSNR %.2f dB, SSIM %.4f, largest pixel difference %.3f\n", e.psnr, e.ssim, e.max_diff);
+      std::filesystem::path ref = output;
+      ref.replace_extension(".full" + output.extension().string());
+      RAYLOD_RETURN_IF_ERROR(write_image(ref, full->color));
+      std::filesystem::path diff = output;
+      diff.replace_extension(".diff" + output.extension().string());
+      RAYLOD_RETURN_IF_ERROR(write_image(diff, difference_image(r.render.color, full->color)));
+      std::printf("  wrote      %s (full mesh), %s (difference x4)\n", ref.string().c_str(), diff.string().c_str());
+      stats.pop_back();  // trailing newline
+      stats.pop_back();  // closing brace
+      char extra[256];
+      std::snprintf(extra, sizeof extra, ",\n  \"full_render_seconds\": %.6f,\n  \"psnr\": %.4f,\n  \"ssim\": %.6f,\n  \"max_diff\": %.6f\n}\n",
+                    full_seconds, e.psnr, e.ssim, e.max_diff);
+      stats += extra;
+    }
+  }
+  std::printf("  wrote      %s\n", output.string().c_str());
+  if (args.has("--stats-json")) RAYLOD_RETURN_IF_ERROR(write_file_atomic(args.get("--stats-json"), stats));
+  return {};
+}
+
+int cmd_run(int argc, char** argv) {
+  bool help = false;
+  Status st = run_run(argc, argv, help);
+  return st.is_ok() ? 0 : fail("run", st);
+}
+
+}  // namespace
+
+RAYLOD_COMMAND("run", "the whole pipeline: build, probe, simplify and render one view (cached)", cmd_run);
+
+}  // namespace raylod::cli

@@ -1,0 +1,245 @@
+#include "pipeline/pipeline.h"
+
+#include <chrono>
+#include <cstdio>
+#include <map>
+#include <sstream>
+
+#include <nlohmann/json.hpp>
+
+#include "core/system.h"
+#include "gen/generate.h"
+#include "pipeline/simplified_cache.h"
+#include "streaming/draco_io.h"
+
+namespace raylod {
+namespace fs = std::filesystem;
+
+namespace {
+
+double seconds_since(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+void say(const LogFn& log, const std::string& text) {
+  if (log) log(text);
+}
+
+std::string fmt(const char* f, double v) {
+  char buf[64];
+  std::snprintf(buf, sizeof buf, f, v);
+  return buf;
+}
+
+}  // namespace
+
+double draco_error_bound(const Cut& cut, const OctreeStore& store) {
+  // An eighth of the finest footprint keeps quantisation far below what any
+  // probed ray resolves; without measured hits, 1e-5 of the model size.
+  if (cut.min_footprint > 0) return double(cut.min_footprint) / 8.0;
+  return store.header().root_size * 1e-5;
+}
+
+StatusOr<SceneStores> prepare_scene_stores(Scene& scene, const std::optional<fs::path>& mesh_override,
+                                           const StoreOptions& store_options, const fs::path& cache_dir,
+                                           const LogFn& log) {
+  auto t0 = std::chrono::steady_clock::now();
+  if (mesh_override) {
+    std::error_code ec;
+    if (!fs::is_regular_file(*mesh_override, ec)) return Status::error(mesh_override->string() + ": mesh file not found");
+    scene.objects[0].mesh = *mesh_override;
+    scene.objects[0].generate.reset();
+  }
+  RAYLOD_RETURN_IF_ERROR(resolve_generated_meshes(scene, cache_dir));
+
+  SceneStores out;
+  std::map<fs::path, size_t> index;
+  for (const auto& obj : scene.objects) {
+    fs::path mesh = fs::absolute(obj.mesh).lexically_normal();
+    auto [it, fresh] = index.emplace(mesh, out.meshes.size());
+    if (fresh) out.meshes.push_back(mesh);
+    out.objects.push_back(ProbeObject{it->second, obj.transform, obj.material});
+  }
+  for (const auto& mesh : out.meshes) {
+    fs::path store_path = default_store_path(mesh);
+    std::string reason;
+    if (!store_is_current(mesh, store_path, store_options, &reason))
+      say(log, "building store " + store_path.string() + " (" + reason + ")");
+    auto report = build_store(mesh, store_path, store_options);
+    if (!report.is_ok()) return report.status();
+    auto store = OctreeStore::open(store_path);
+    if (!store.is_ok()) return store.status();
+    out.triangles += (*store)->header().triangle_count;
+    out.store_paths.push_back(store_path);
+    out.builds.push_back(*report);
+    out.stores.push_back(std::move(store.value()));
+  }
+  for (size_t i = 0; i < out.stores.size(); ++i) out.probe_stores.push_back(ProbeStore{out.stores[i].get(), out.store_paths[i]});
+  out.seconds = seconds_since(t0);
+  return out;
+}
+
+StatusOr<RunResult> run_pipeline(Scene scene, const RunOptions& options, const LogFn& log) {
+  RunResult result;
+  const fs::path cache_dir = options.cache_dir.empty() ? default_cache_dir() : options.cache_dir;
+  StoreOptions store_options;
+  store_options.memory_limit = options.memory_limit;
+  store_options.threads = options.threads;
+  const uint64_t memory_limit = resolved_memory_limit(store_options);
+
+  // A. Stores (method step A1), reused when current.
+  RAYLOD_ASSIGN_OR_RETURN(SceneStores stores,
+                          prepare_scene_stores(scene, options.mesh_override, store_options, cache_dir, log));
+  result.seconds.build = stores.seconds;
+  result.triangles_in = stores.triangles;
+  say(log, "stores ready: " + std::to_string(stores.triangles) + " triangles in " + std::to_string(stores.stores.size()) +
+               " store(s), " + fmt("%.2f s", stores.seconds));
+
+  // B. Probe (A2-A4); if the simplified meshes would not fit the memory
+  // limit, coarsen by doubling K until they do.
+  ProbeConfig probe;
+  probe.rays = options.rays;
+  probe.seed = scene.seed;
+  probe.footprint_scale = options.footprint_scale;
+  probe.threads = options.threads;
+  probe.cache_bytes = std::clamp<uint64_t>(memory_limit / 8, uint64_t(16) << 20, uint64_t(512) << 20);
+  probe.progress = options.progress;
+  auto t_probe = std::chrono::steady_clock::now();
+  for (;;) {
+    RAYLOD_ASSIGN_OR_RETURN(result.probe, run_probe(scene, stores.probe_stores, stores.objects, probe));
+    uint64_t estimate = 0;
+    for (size_t i = 0; i < stores.stores.size(); ++i)
+      estimate += estimate_simplify(*stores.stores[i], result.probe.cuts[i]).triangles;
+    uint64_t need = estimate_render_memory(estimate + 2);
+    if (need <= memory_limit) break;
+    if (result.coarsening_steps >= options.max_coarsening_steps)
+      return Status::error("even at footprint scale " + fmt("%g", probe.footprint_scale) + " the simplified mesh (" +
+                           std::to_string(estimate) + " triangles, " + format_bytes(need) + ") does not fit in " +
+                           format_bytes(memory_limit));
+    ++result.coarsening_steps;
+    say(log, "the simplified mesh would need " + format_bytes(need) + " (about " + std::to_string(estimate) +
+                 " triangles), over the memory limit of " + format_bytes(memory_limit) +
+                 ": coarsening the cut, footprint scale " + fmt("%g", probe.footprint_scale) + " -> " +
+                 fmt("%g", probe.footprint_scale * 2));
+    probe.footprint_scale *= 2;
+  }
+  result.footprint_scale = probe.footprint_scale;
+  result.cuts = result.probe.cuts;
+  result.seconds.probe = seconds_since(t_probe);
+
+  // C. Simplify (A5), or reuse a cached simplified mesh that is fine enough.
+  auto t_simplify = std::chrono::steady_clock::now();
+  std::optional<SimplifiedCache> cache;
+  if (options.use_cache) {
+    RAYLOD_ASSIGN_OR_RETURN(SimplifiedCache c, SimplifiedCache::open(cache_dir, options.cache_limit));
+    cache.emplace(std::move(c));
+  }
+  fs::path scratch = cache ? cache->dir() / "simplified" : fs::temp_directory_path();
+  result.cache_hit = true;
+  std::vector<fs::path> scratch_files;  // staged .drc files, removed after rendering
+  struct RemoveScratch {
+    std::vector<fs::path>& files;
+    ~RemoveScratch() { for (const auto& f : files) { std::error_code ec; fs::remove(f, ec); } }
+  } remove_scratch{scratch_files};
+  for (size_t i = 0; i < stores.stores.size(); ++i) {
+    const OctreeStore& store = *stores.stores[i];
+    const Cut& cut = result.cuts[i];
+    SimplifiedMesh sm;
+    if (cache) {
+      const std::string key = SimplifiedCache::key_for(cut);
+      std::string note;
+      std::optional<CacheEntry> entry = cache->find_exact(key, &note);
+      if (entry) {
+        note = "cache hit: " + entry->key + " was made for this cut";
+      } else {
+        if (!note.empty()) say(log, note);
+        std::string why;
+        entry = cache->find_reusable(cut, &why);
+        if (entry) note = "reusing " + entry->key + ": " + why;
+      }
+      if (entry) {
+        cache->touch(*entry);
+        sm.drc = entry->mesh;
+        sm.triangles = entry->triangles;
+        sm.cache_hit = true;
+        sm.cache_note = note;
+      }
+    }
+    if (!sm.cache_hit) {
+      result.cache_hit = false;
+      SimplifyConfig sc;
+      sc.memory_limit = memory_limit;
+      sc.progress = options.progress;
+      RAYLOD_ASSIGN_OR_RETURN(SimplifyResult simplified, simplify(store, cut, sc));
+      DracoOptions dopt;
+      dopt.max_position_error = draco_error_bound(cut, store);
+      AtomicOutput tmp(scratch / ("simplified-" + std::to_string(::getpid()) + "-" + std::to_string(i) + ".drc"));
+      fs::path staged = tmp.temp_path();
+      staged += ".drc";
+      RAYLOD_ASSIGN_OR_RETURN(DracoWriteReport written, write_draco(staged, simplified.mesh, dopt));
+      sm.triangles = simplified.mesh.triangle_count();
+      sm.position_bits = written.position_bits;
+      sm.max_position_error = written.max_position_error;
+      sm.drc = staged;
+      scratch_files.push_back(staged);
+      sm.cache_note = "simplified (cache disabled)";
+      if (cache) {
+        RAYLOD_ASSIGN_OR_RETURN(CacheEntry entry, cache->insert(cut, staged, sm.triangles));
+        std::error_code ec;
+        if (fs::is_regular_file(entry.mesh, ec)) {
+          sm.drc = entry.mesh;
+          sm.cache_note = "simplified and cached as " + entry.key;
+        } else {
+          sm.cache_note = "simplified; not cached (larger than the cache limit)";
+        }
+      }
+    }
+    std::error_code ec;
+    sm.drc_bytes = fs::file_size(sm.drc, ec);
+    result.triangles_out += sm.triangles;
+    say(log, stores.meshes[i].filename().string() + ": " + std::to_string(store.header().triangle_count) + " -> " +
+                 std::to_string(sm.triangles) + " triangles; " + sm.cache_note);
+    result.meshes.push_back(sm);
+  }
+  result.seconds.simplify = seconds_since(t_simplify);
+
+  // D. Render the simplified meshes.
+  RenderOptions ro;
+  ro.spp = options.spp;
+  ro.threads = options.threads;
+  ro.memory_limit = memory_limit;
+  ro.progress = options.progress;
+  ro.log = log;
+  for (const auto& obj : stores.objects) ro.mesh_override.push_back(result.meshes[obj.store].drc);
+  auto t_render = std::chrono::steady_clock::now();
+  RAYLOD_ASSIGN_OR_RETURN(result.render, render(scene, ro));
+  result.seconds.render = seconds_since(t_render);
+  result.peak_rss = peak_rss_bytes();
+  return result;
+}
+
+std::string run_stats_json(const RunResult& r, const RunOptions& options) {
+  nlohmann::json j;
+  j["triangles_in"] = r.triangles_in;
+  j["triangles_out"] = r.triangles_out;
+  j["reduction"] = r.triangles_out ? double(r.triangles_in) / double(r.triangles_out) : 0.0;
+  j["seconds"] = {{"build", r.seconds.build}, {"probe", r.seconds.probe}, {"simplify", r.seconds.simplify},
+                  {"render", r.seconds.render}, {"total", r.seconds.total()}};
+  j["peak_rss_bytes"] = r.peak_rss;
+  j["cache_hit"] = r.cache_hit;
+  j["footprint_scale"] = r.footprint_scale;
+  j["footprint_scale_requested"] = options.footprint_scale;
+  j["coarsening_steps"] = r.coarsening_steps;
+  j["rays"] = options.rays;
+  nlohmann::json meshes = nlohmann::json::array();
+  for (const auto& m : r.meshes)
+    meshes.push_back({{"drc", m.drc.string()}, {"triangles", m.triangles}, {"drc_bytes", m.drc_bytes},
+                      {"position_bits", m.position_bits}, {"max_position_error", m.max_position_error},
+                      {"cache_hit", m.cache_hit}, {"cache_note", m.cache_note}});
+  j["meshes"] = meshes;
+  j["probe_counters"] = r.probe.counters;
+  j["render"] = nlohmann::json::parse(render_stats_json(r.render.stats));
+  return j.dump(2) + "\n";
+}
+
+}  // namespace raylod

@@ -1,0 +1,98 @@
+// The whole method as `raylod run` performs it: build (or reuse) the octree
+// store of every mesh in the scene, probe with test rays, simplify the cut
+// (or reuse a cached simplified mesh that is fine enough), and render the
+// simplified meshes. Also the building blocks `raylod probe` and
+// `raylod report` share.
+#pragma once
+
+#include <cstdint>
+#include <filesystem>
+#include <functional>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "core/status.h"
+#include "probe/probe.h"
+#include "render/renderer.h"
+#include "scene/scene.h"
+#include "simplify/collapse.h"
+#include "streaming/octree_store.h"
+
+namespace raylod {
+
+using LogFn = std::function<void(const std::string&)>;
+
+// The stores of a scene's meshes, opened, with the objects that use them.
+struct SceneStores {
+  std::vector<std::filesystem::path> meshes;  // one per distinct mesh file
+  std::vector<std::filesystem::path> store_paths;
+  std::vector<std::unique_ptr<OctreeStore>> stores;
+  std::vector<ProbeStore> probe_stores;
+  std::vector<ProbeObject> objects;           // one per scene object
+  std::vector<BuildReport> builds;            // one per store (reused or built)
+  uint64_t triangles = 0;                     // all stores
+  double seconds = 0;
+};
+
+// Resolves generated meshes (into cache_dir), applies mesh_override to the
+// first object, and builds every store that is missing or stale (saying so
+// through log), then opens them.
+StatusOr<SceneStores> prepare_scene_stores(Scene& scene, const std::optional<std::filesystem::path>& mesh_override,
+                                           const StoreOptions& store_options, const std::filesystem::path& cache_dir,
+                                           const LogFn& log);
+
+struct RunOptions {
+  std::optional<std::filesystem::path> mesh_override;
+  uint64_t memory_limit = 0;          // 0 = a quarter of physical memory
+  uint64_t rays = 5000;
+  double footprint_scale = 1.0;       // K (see README: why this default)
+  int threads = 0;
+  std::filesystem::path cache_dir;    // empty = default_cache_dir()
+  uint64_t cache_limit = uint64_t(4) << 30;
+  bool use_cache = true;
+  bool progress = true;
+  int spp = 0;                        // 0 = the scene's
+  int max_coarsening_steps = 12;      // K doubles per step when over memory
+};
+
+struct StageTimes {
+  double build = 0, probe = 0, simplify = 0, render = 0;  // render includes load and BVH
+  double total() const { return build + probe + simplify + render; }
+};
+
+struct SimplifiedMesh {
+  std::filesystem::path drc;          // the mesh rendered (in the cache or a temporary)
+  uint64_t triangles = 0;
+  uint64_t drc_bytes = 0;
+  int position_bits = 0;
+  double max_position_error = 0;
+  bool cache_hit = false;
+  std::string cache_note;             // which entry was reused and why, or why rebuilt
+};
+
+struct RunResult {
+  RenderResult render;
+  uint64_t triangles_in = 0, triangles_out = 0;
+  std::vector<SimplifiedMesh> meshes; // one per store
+  std::vector<Cut> cuts;              // one per store
+  ProbeResult probe;
+  StageTimes seconds;
+  double footprint_scale = 1;         // K used (after any coarsening for memory)
+  int coarsening_steps = 0;
+  bool cache_hit = false;             // every simplified mesh came from the cache
+  uint64_t peak_rss = 0;
+};
+
+StatusOr<RunResult> run_pipeline(Scene scene, const RunOptions& options, const LogFn& log);
+
+// JSON for --stats-json: triangles_in, triangles_out, seconds per stage,
+// peak memory, cache hit, and the render's own statistics.
+std::string run_stats_json(const RunResult& result, const RunOptions& options);
+
+// The Draco error bound for a cut: well below the smallest footprint the
+// probe measured (an eighth), so quantisation never shows at the probed scale.
+double draco_error_bound(const Cut& cut, const OctreeStore& store);
+
+}  // namespace raylod
