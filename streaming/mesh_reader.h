@@ -10,7 +10,9 @@
 //     stops filling a batch once it holds >= B triangles; a polygon is never
 //     split across batches), plus O(P + header size) reader state;
 //   * vertex table: binary PLY indexes vertices in place in the memory-mapped
-//     file (stride = vertex record size); ASCII PLY and OBJ first spill their
+//     file (stride = vertex record size) and drops that mapping after every
+//     64 MiB of face data, so only the vertex pages touched within such a
+//     window stay resident (they refault from the page cache); ASCII PLY and OBJ first spill their
 //     vertices (12 bytes per position, 12 per normal, as float) to an unlinked
 //     scratch file in $TMPDIR that is then memory-mapped. These pages are file
 //     backed and clean, so the OS pages them out under memory pressure;

@@ -623,6 +623,9 @@ StatusOr<bool> PlyReader::next_ascii(TriangleBatch& batch) {
       if (!p.is_list) continue;
       int64_t len = 0;
       if (!text::parse_number(t, len) || len < 0) return bad("bad list length '" + std::string(text::clip(t)) + "'");
+      // Each value takes at least 2 characters: a bound before allocating.
+      if (uint64_t(len) > tok.rest.size() / 2 + 1)
+        return bad("face has fewer indices than its list length " + std::to_string(len));
       if (int(k) == index_prop_) {
         n = size_t(len);
         poly_.resize(n);

@@ -321,6 +321,8 @@ TEST(PlyReaderErrors, AsciiMalformedRecords) {
   EXPECT_READ_ERROR(write_file("longv.ply", simple_header() + "0 0 0\n1 0 0 5\n0 1 0\n3 0 1 2\n"), "line 11: vertex 1 has more values");
   EXPECT_READ_ERROR(write_file("nan_text.ply", simple_header() + "0 0 0\n1 zero 0\n0 1 0\n3 0 1 2\n"), "line 11: 'zero' is not a number");
   EXPECT_READ_ERROR(write_file("shortf.ply", simple_header() + "0 0 0\n1 0 0\n0 1 0\n3 0 1\n"), "line 13: face has fewer indices");
+  EXPECT_READ_ERROR(write_file("hugef.ply", simple_header() + "0 0 0\n1 0 0\n0 1 0\n4000000000 0 1 2\n"),
+                    "line 13: face has fewer indices than its list length 4000000000");
   EXPECT_READ_ERROR(write_file("longf.ply", simple_header() + "0 0 0\n1 0 0\n0 1 0\n3 0 1 2 2\n"), "line 13: face has more values");
   EXPECT_READ_ERROR(write_file("badidx.ply", simple_header() + "0 0 0\n1 0 0\n0 1 0\n3 0 1 x\n"), "line 13: vertex index 'x' is not an integer");
 }
@@ -367,6 +369,35 @@ TEST(PlyReaderErrors, ZeroLengthNormal) {
   for (float c : {0.f, 0.f, 0.f, 0.f, 0.f, 1.f, 1.f, 0.f, 0.f, 0.f, 0.f, 1.f, 0.f, 1.f, 0.f, 0.f, 0.f, 0.f}) b.put<float>(c);
   b.put<uint8_t>(3).put<int32_t>(0).put<int32_t>(1).put<int32_t>(2);
   EXPECT_READ_ERROR(write_file("zeron_bin.ply", b.data), "face 0: vertex 2 has a zero-length or non-finite normal");
+}
+
+// Little endian, float x y z nx ny nz, uchar/int faces: the in-place fast path.
+std::string fast_path_ply(const std::vector<float>& vertex_data, int faces = 1) {
+  Bytes b;
+  b.text(simple_header("binary_little_endian", 3, faces, "float", "property float nx\nproperty float ny\nproperty float nz\n"));
+  for (float c : vertex_data) b.put<float>(c);
+  for (int f = 0; f < faces; ++f) b.put<uint8_t>(3).put<int32_t>(0).put<int32_t>(1).put<int32_t>(2);
+  return b.data;
+}
+
+TEST(PlyReader, FastPathNormalisesNonUnitNormals) {
+  auto r = read_all(write_file("fast_n.ply", fast_path_ply({0, 0, 0, 0, 0, 1, 1, 0, 0, 0, 0, 4, 0, 1, 0, 3, 4, 0}, 2)));
+  ASSERT_TRUE(r.status.is_ok()) << r.status.message();
+  ASSERT_EQ(r.normals.size(), 6u);
+  EXPECT_EQ(r.normals[1], Vec3(0, 0, 1));
+  EXPECT_NEAR(r.normals[2].x, 0.6f, 1e-7f);
+  EXPECT_NEAR(r.normals[2].y, 0.8f, 1e-7f);
+  EXPECT_EQ(r.normals[5], r.normals[2]);
+}
+
+TEST(PlyReaderErrors, FastPathBadNormalsAndCoordinates) {
+  const float nan = std::numeric_limits<float>::quiet_NaN(), inf = std::numeric_limits<float>::infinity();
+  EXPECT_READ_ERROR(write_file("fast_zero.ply", fast_path_ply({0, 0, 0, 0, 0, 1, 1, 0, 0, 0, 0, 0, 0, 1, 0, 0, 0, 1})),
+                    "face 0: vertex 1 has a zero-length or non-finite normal (0, 0, 0)");
+  EXPECT_READ_ERROR(write_file("fast_nan_n.ply", fast_path_ply({0, 0, 0, 0, 0, 1, 1, 0, 0, 0, 0, 1, 0, 1, 0, nan, 0, 1})),
+                    "face 0: vertex 2 has a zero-length or non-finite normal");
+  EXPECT_READ_ERROR(write_file("fast_inf_p.ply", fast_path_ply({0, inf, 0, 0, 0, 1, 1, 0, 0, 0, 0, 1, 0, 1, 0, 0, 0, 1})),
+                    "face 0: vertex 0 has a non-finite coordinate");
 }
 
 TEST(PlyReaderErrors, BinaryTruncated) {
