@@ -62,8 +62,16 @@ using namespace store_format;
 constexpr uint64_t kBytesPerLeafNode = 192;
 constexpr uint64_t kSampleTriangles = 1 << 17;
 
+// Inline here: the merge is the build's hottest loop.
+inline void add_quadric(Quadric& q, const Quadric& r) {
+  q.a00 += r.a00; q.a01 += r.a01; q.a02 += r.a02;
+  q.a11 += r.a11; q.a12 += r.a12; q.a22 += r.a22;
+  q.b0 += r.b0; q.b1 += r.b1; q.b2 += r.b2;
+  q.c += r.c;
+}
+
 void add_node(NodeRecord& a, const NodeRecord& b) {
-  quadric_add(a.quadric, b.quadric);
+  add_quadric(a.quadric, b.quadric);
   a.vertex_sum += b.vertex_sum;
   a.normal_sum += b.normal_sum;
   a.corner_count += b.corner_count;
@@ -268,6 +276,7 @@ struct Scan {
   uint64_t triangles = 0;
   bool has_normals = false;
   uint64_t vertex_hint = 0;  // declared vertex count (0 = unknown)
+  uint64_t reader_bytes = 0; // what the reader may keep resident (its vertex table)
   uint64_t stride = 1;
   std::vector<Vec3> sample;  // 3 corners per sampled triangle
 };
@@ -280,6 +289,11 @@ StatusOr<Scan> scan_pass(MeshReader& reader, size_t ntokens) {
   Scan scan;
   scan.has_normals = reader.header().has_normals;
   scan.vertex_hint = reader.header().format == MeshFormat::Stl ? 0 : reader.header().vertex_count;
+  // Indexed readers keep a memory-mapped vertex table whose touched pages
+  // count as resident (12 bytes per position, 12 per normal, or the records
+  // of a binary PLY in place); STL streams whole triangles.
+  scan.reader_bytes = std::min(reader.header().file_bytes ? reader.header().file_bytes : UINT64_MAX,
+                               scan.vertex_hint * (scan.has_normals ? 24 : 12));
   const std::string name = reader.path().string();
   Progress progress("bounds", reader.header().face_count, "triangles");
   Status s = run_pass<ScanToken>(
@@ -341,6 +355,7 @@ struct Plan {
   int quadric_depth = 0, page_level = 0;
   uint64_t max_nodes = 0;      // leaf nodes the global table may hold
   uint64_t run_triangles = 0;  // triangles per sorted run
+  uint64_t budget_bytes = 0;   // what the plan expects to be resident at most
   std::vector<double> est_nodes;
 };
 
@@ -366,7 +381,7 @@ std::vector<double> estimate_cells(std::vector<uint64_t> codes21, bool complete,
   return est;
 }
 
-Plan make_plan(const Scan& scan, const StoreOptions& options, uint64_t memory_limit) {
+Plan make_plan(const Scan& scan, const StoreOptions& options, uint64_t memory_limit, size_t ntokens) {
   Plan plan;
   plan.origin = scan.bounds.center();
   const Vec3d ext = scan.bounds.extent();
@@ -391,7 +406,15 @@ Plan make_plan(const Scan& scan, const StoreOptions& options, uint64_t memory_li
   plan.est_nodes = estimate_cells(std::move(corners), complete, corner_cap);
   const auto est_pages = estimate_cells(std::move(centroids), complete, double(scan.triangles));
 
-  plan.max_nodes = std::max<uint64_t>(64, uint64_t(0.35 * double(memory_limit)) / kBytesPerLeafNode);
+  // Memory: the reader's vertex table and the in-flight batches (each token
+  // holds a batch, its local node table and page codes, ~3 batches' bytes)
+  // come first; of the rest, half goes to the node table and a quarter to
+  // the run buffer, leaving a margin for the allocator and the sample.
+  const uint64_t token_bytes = 3 * 65536 * (triangle_bytes(scan.has_normals) + 8);
+  const uint64_t overhead = scan.reader_bytes + (48ull << 20) + ntokens * token_bytes;
+  const double avail = memory_limit > overhead ? double(memory_limit - overhead) : 0.0;
+  const uint64_t node_budget = uint64_t(std::max(0.5 * avail, 0.1 * double(memory_limit)));
+  plan.max_nodes = std::max<uint64_t>(64, node_budget / kBytesPerLeafNode);
   const int max_depth = std::min(options.max_depth, int(kMaxLevel));
   // Below the level where cells hold about two vertices on average, levels
   // add nodes but little clustering (Luebke and Erikson stop splitting at a
@@ -406,8 +429,10 @@ Plan make_plan(const Scan& scan, const StoreOptions& options, uint64_t memory_li
     if (double(scan.triangles) / est_pages[size_t(l)] >= double(std::max<uint32_t>(1, options.page_triangles)))
       plan.page_level = l;
 
-  const uint64_t run_bytes = std::clamp<uint64_t>(uint64_t(0.15 * double(memory_limit)), 1 << 20, 256ull << 20);
+  const uint64_t run_bytes = std::clamp<uint64_t>(uint64_t(0.25 * avail), std::max<uint64_t>(1 << 20, memory_limit / 20),
+                                                  256ull << 20);
   plan.run_triangles = std::max<uint64_t>(1024, run_bytes / (triangle_bytes(scan.has_normals) + 8));
+  plan.budget_bytes = overhead + node_budget + run_bytes;
   return plan;
 }
 
@@ -547,7 +572,7 @@ void bin_batch(BinToken& t, const Plan& plan, int depth, bool has_normals) {
     for (int k = 0; k < 3; ++k) {
       const Vec3d x = p[k] - plan.origin;
       NodeRecord& node = t.local.upsert(cells.code(p[k]));
-      if (weight > 0) quadric_add(node.quadric, quadric_from_plane(normal, x, weight));
+      if (weight > 0) add_quadric(node.quadric, quadric_from_plane(normal, x, weight));
       node.vertex_sum += x;
       node.normal_sum += weight * (has_normals ? Vec3d(t.batch.normals[3 * i + k]) : normal);
       ++node.corner_count;
@@ -728,7 +753,7 @@ StatusOr<BuildReport> build_store_from_stream(const MeshStreamOpener& open, cons
   BuildReport report;
   report.scan_seconds = since(t0);
   auto t1 = now();
-  const Plan plan = make_plan(scan, options, memory_limit);
+  const Plan plan = make_plan(scan, options, memory_limit, ntokens);
 
   // Pass 2.
   RunFile runs(scan.has_normals, plan.run_triangles);
@@ -821,6 +846,10 @@ StatusOr<BuildReport> build_store_from_stream(const MeshStreamOpener& open, cons
   report.store_bytes = layout.file_bytes;
   report.source_bytes = source.bytes;
   report.coarsened = header.coarsened;
+  if (plan.budget_bytes > memory_limit)
+    report.warning = "--memory-limit " + format_bytes(memory_limit) + " is below what the reader's vertex table (" +
+                     format_bytes(scan.reader_bytes) + ") and the minimal buffers need (" +
+                     format_bytes(plan.budget_bytes) + "); peak memory may exceed it";
   return report;
 }
 

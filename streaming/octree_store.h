@@ -138,6 +138,7 @@ struct BuildReport {
   // Wall time of the phases: pass 1 (bounds), pass 2 (binning and quadrics),
   // page assembly and writing, fsync + rename.
   double scan_seconds = 0, bin_seconds = 0, write_seconds = 0, commit_seconds = 0;
+  std::string warning;            // e.g. a memory limit too small to honour
 };
 // Builds (or reuses, if up to date for the same mesh and options) the store.
 StatusOr<BuildReport> build_store(const std::filesystem::path& mesh, const std::filesystem::path& store,

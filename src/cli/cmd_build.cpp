@@ -64,6 +64,7 @@ int run_build(int argc, char** argv) {
     std::printf("%s: %s; nothing to do (use --force to rebuild)\n", store.string().c_str(), r.reason.c_str());
     return 0;
   }
+  if (!r.warning.empty()) std::fprintf(stderr, "raylod build: warning: %s\n", r.warning.c_str());
   std::printf("built %s (%s)\n", store.string().c_str(), r.reason.c_str());
   std::printf("  triangles      %llu\n", (unsigned long long)r.triangles);
   std::printf("  levels         0..%d with quadrics%s, pages at level %d\n", r.quadric_depth,

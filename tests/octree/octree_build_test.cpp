@@ -251,8 +251,8 @@ TEST(OctreeBuild, OutOfCoreQuadricsEqualInMemoryBruteForce) {
 }
 
 TEST(OctreeBuild, TightMemoryLimitCoarsensAndStaysExact) {
-  // 1 MiB: about 1900 leaf nodes and 13k triangles per run, so this mesh needs
-  // several sorted runs and the estimate-then-coarsen path.
+  // 1 MiB: a few hundred leaf nodes and 13k triangles per run, so this mesh
+  // needs several sorted runs and the estimate-then-coarsen path.
   auto m = testing::soup(60000, 5, true);
   StoreOptions opt;
   opt.memory_limit = 1 << 20;
@@ -262,10 +262,43 @@ TEST(OctreeBuild, TightMemoryLimitCoarsensAndStaysExact) {
   auto store = build(m, dir / "t.raylod", opt, 4096, &report);
   ASSERT_TRUE(store);
   EXPECT_LE(store->level(store->header().quadric_depth).size(), size_t(0.35 * (1 << 20) / 192));
+  EXPECT_FALSE(report.warning.empty()) << "1 MiB cannot hold the batches in flight; the build must say so";
   expect_matches_brute_force(m, *store, 1e-10);
   uint64_t total = 0;
   for (const auto& p : store->pages()) total += p.triangle_count;
   EXPECT_EQ(total, m.size());
+}
+
+TEST(OctreeBuild, UnderestimatedOccupancyCoarsensExactly) {
+  // Past 2^18 triangles the plan samples every other triangle. Even triangles
+  // tile a plane; odd ones are tiny and scattered through the volume, so the
+  // sample sees a surface and the plan picks a level whose real occupancy is
+  // far over budget: the build must coarsen while streaming, and stay exact.
+  SoupMesh m;
+  std::mt19937 rng(17);
+  std::uniform_real_distribution<float> u(0.f, 1.f);
+  const int n = 280000, side = 300;
+  for (int i = 0; i < n; ++i) {
+    if (i % 2 == 0) {
+      const int cell = (i / 2) % (side * side);
+      const float x = float(cell % side) / side, y = float(cell / side) / side, d = 1.f / side;
+      for (Vec3 p : {Vec3(x, y, 0), Vec3(x + d, y, 0), Vec3(x, y + d, 0)}) m.positions.push_back(p);
+    } else {
+      const Vec3 a(u(rng), u(rng), u(rng));
+      for (Vec3 p : {a, a + Vec3(1e-3f, 0, 0), a + Vec3(0, 1e-3f, 0)}) m.positions.push_back(p);
+    }
+  }
+  StoreOptions opt;
+  opt.memory_limit = 4 << 20;
+  BuildReport report;
+  auto dir = testing::scratch_dir("coarsen");
+  auto store = build(m, dir / "c.raylod", opt, 20000, &report);
+  ASSERT_TRUE(store);
+  EXPECT_TRUE(report.coarsened);
+  EXPECT_TRUE(store->header().coarsened);
+  const size_t max_nodes = size_t(0.1 * double(opt.memory_limit)) / 192;
+  EXPECT_LE(store->level(store->header().quadric_depth).size(), max_nodes);
+  expect_matches_brute_force(m, *store, 1e-10);
 }
 
 TEST(OctreeBuild, FarFromTheOriginKeepsPrecision) {
