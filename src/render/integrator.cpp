@@ -33,7 +33,7 @@ Effects effects_for(const Scene& scene, std::span<const int> used_materials) {
   for (int idx : used_materials) {
     const Material& m = scene.materials.at(size_t(idx));
     if (lit && nonzero(m.color)) e.diffuse = true;
-    if (lit && nonzero(m.specular) && m.shininess >= 0) e.glossy = true;
+    if (lit && nonzero(m.specular)) e.glossy = true;
     if (bounces && m.type == MaterialType::Mirror && m.reflectance > 0) e.reflection = true;
     if (bounces && m.type == MaterialType::Glass) e.reflection = e.refraction = true;
   }

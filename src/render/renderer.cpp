@@ -169,6 +169,10 @@ StatusOr<std::vector<TriangleMesh>> load_scene_meshes(const Scene& scene, const 
                          " triangles would fit. Use `raylod run`, which simplifies the mesh first.");
   }
 
+  if (options.log && options.memory_limit == 0 && stats.estimated_bytes > physical_memory_bytes())
+    options.log("warning: the scene needs about " + format_bytes(stats.estimated_bytes) + " for " +
+                std::to_string(declared) + " triangles, more than this machine's " +
+                format_bytes(physical_memory_bytes()) + " of memory; consider `raylod run`");
   std::vector<TriangleMesh> meshes;
   std::optional<Progress> progress;
   if (options.progress) progress.emplace("load", declared, "triangles");
