@@ -54,13 +54,14 @@ bool same_bits(const Vec3& a, const Vec3& b) {
 
 Vec3 canonical(const Vec3& v) { return Vec3(v.x + 0.0f, v.y + 0.0f, v.z + 0.0f); }
 
-// Zero area at float precision: height below 2^-24 of the longest edge, i.e.
-// |cross| <= 2^-24 * longest_edge^2 (also true when two corners coincide).
+// Zero area, exactly: the corners are collinear (or coincide). For float
+// corners the double cross product is exact enough to decide this: the
+// differences are exact, each product of two is exact, and a difference of
+// exact products rounds to zero only if they are equal. Thin slivers are
+// kept: dropping one would open a crack in a closed surface.
 bool zero_area(const Vec3& a, const Vec3& b, const Vec3& c) {
-  const Vec3d e0 = Vec3d(b) - Vec3d(a), e1 = Vec3d(c) - Vec3d(a), e2 = Vec3d(c) - Vec3d(b);
-  const double longest2 = std::max({glm::dot(e0, e0), glm::dot(e1, e1), glm::dot(e2, e2)});
-  const double cross = glm::length(glm::cross(e0, e1));
-  return !(cross > 0x1p-24 * longest2);
+  const Vec3d cross = glm::cross(Vec3d(b) - Vec3d(a), Vec3d(c) - Vec3d(a));
+  return cross.x == 0 && cross.y == 0 && cross.z == 0;
 }
 
 std::array<uint32_t, 3> rotate_min_first(const std::array<uint32_t, 3>& t) {
@@ -99,14 +100,15 @@ CutLookup::CutLookup(const Vec3d& root_lo, double root_size, std::span<const Cel
 
 uint32_t CutLookup::find(const Vec3d& p) const {
   if (levels_.empty()) return kKeepVertex;
-  // Cell coordinates at the deepest cut level; an ancestor at level L is the
-  // code shifted right by 3 (deepest - L) (multiplying by 2^L is exact, so
-  // this equals binning at L directly).
-  const double scale = double(uint64_t(1) << deepest_);
+  // Cell coordinates at the deepest cut level, binned exactly as the store
+  // build bins corners (floor((p - lo) * (2^L / size))); an ancestor at level
+  // L is the code shifted right by 3 (deepest - L): the factors differ by a
+  // power of two, so this equals binning at L directly.
+  const double inv_cell = double(uint64_t(1) << deepest_) / root_size_;
   const uint32_t max_coord = uint32_t((uint64_t(1) << deepest_) - 1);
   uint32_t c[3];
   for (int a = 0; a < 3; ++a) {
-    const double t = std::floor((p[a] - root_lo_[a]) / root_size_ * scale);
+    const double t = std::floor((p[a] - root_lo_[a]) * inv_cell);
     c[a] = t <= 0 ? 0u : (t >= double(max_coord) ? max_coord : uint32_t(t));
   }
   const uint64_t code = morton_encode(c[0], c[1], c[2]);

@@ -11,8 +11,8 @@
 //
 // Decisions (see collapse.cpp for the reasons):
 //   * A triangle is dropped if two of its output vertices are the same vertex,
-//     if its area is zero at float precision (height below 2^-24 of its
-//     longest edge; also removes corners that coincide in position only), or
+//     if its area is exactly zero (collinear corners, or corners that coincide
+//     in position only; slivers are kept so that no crack opens), or
 //     if it repeats an earlier triangle with the same three output vertices in
 //     the same cyclic order. Its reverse-wound twin (same vertices, opposite
 //     orientation) is KEPT: a thin wall collapsed to zero thickness keeps both
@@ -59,8 +59,8 @@ Representative make_representative(const NodeRecord& node, const Bbox& cell_boun
 
 // Finds the cut cell containing a point. Cells are (level, Morton code) keys
 // of the cube (root_lo, root_size); a point's cell at level L is
-// floor((p - root_lo) / root_size * 2^L) per axis, clamped to the grid, i.e.
-// the binning of OctreeStore::cell_of. The cut is an antichain, so at most one
+// floor((p - root_lo) * (2^L / root_size)) per axis, clamped to the grid, i.e.
+// the binning the store build uses for corners. The cut is an antichain, so at most one
 // of the point's ancestors at the cut's levels is in it.
 class CutLookup {
  public:
@@ -81,7 +81,7 @@ struct CollapseStats {
   uint64_t input_triangles = 0;
   uint64_t output_triangles = 0;
   uint64_t dropped_collapsed = 0;   // two corners became the same output vertex
-  uint64_t dropped_zero_area = 0;   // distinct vertices, zero area at float precision
+  uint64_t dropped_zero_area = 0;   // distinct vertices, exactly zero area
   uint64_t dropped_duplicate = 0;   // same vertices and orientation as an earlier triangle
   uint64_t reverse_twins = 0;       // kept triangles whose reverse-wound twin is also kept
   uint64_t output_vertices = 0;

@@ -29,7 +29,7 @@ Vec3d quadric_plane_normal(const Vec3d& a, const Vec3d& b, const Vec3d& c, const
   if (normals) {
     const Vec3d m = Vec3d(normals[0]) + Vec3d(normals[1]) + Vec3d(normals[2]);
     const double len = glm::length(m);
-    if (len > 0) return m / len;
+    if (len > 1e-12) return m / len;
   }
   return face_normal(a, b, c);
 }
@@ -37,10 +37,11 @@ Vec3d quadric_plane_normal(const Vec3d& a, const Vec3d& b, const Vec3d& c, const
 IndexedMesh cluster_vertices(const TriangleBatch& soup, const VertexClusteringConfig& config) {
   const bool has_normals = !soup.normals.empty();
   const int64_t n = int64_t(1) << config.level;
+  const double inv_cell = double(n) / config.root_size;
   auto grid_index = [&](const Vec3& p) {
     GridIndex g;
     for (int a = 0; a < 3; ++a) {
-      const double t = std::floor((double(p[a]) - config.root_lo[a]) / config.root_size * double(n));
+      const double t = std::floor((double(p[a]) - config.root_lo[a]) * inv_cell);
       g[a] = std::clamp<int64_t>(int64_t(t), 0, n - 1);
     }
     return g;
@@ -57,7 +58,7 @@ IndexedMesh cluster_vertices(const TriangleBatch& soup, const VertexClusteringCo
     const double area2 = glm::length(cross);
     for (int k = 0; k < 3; ++k) {
       Cell& c = cells[grid_index(soup.positions[3 * t + k])];
-      quadric_add(c.quadric, quadric_from_plane(plane_n, p[k]));
+      if (area2 > 0) quadric_add(c.quadric, quadric_from_plane(plane_n, p[k], area2 / 6.0));
       c.vertex_sum += p[k];
       ++c.count;
       c.normal_sum += tn ? area2 * Vec3d(tn[k]) : cross;
@@ -92,8 +93,7 @@ IndexedMesh cluster_vertices(const TriangleBatch& soup, const VertexClusteringCo
     }
     if (v[0] == v[1] || v[1] == v[2] || v[0] == v[2]) continue;
     const Vec3d a(mesh.positions[v[0]]), b(mesh.positions[v[1]]), c(mesh.positions[v[2]]);
-    const double longest2 = std::max({glm::dot(b - a, b - a), glm::dot(c - a, c - a), glm::dot(c - b, c - b)});
-    if (!(glm::length(glm::cross(b - a, c - a)) > 0x1p-24 * longest2)) continue;
+    if (glm::cross(b - a, c - a) == Vec3d(0)) continue;  // collinear: zero area
     const int m = std::min({v[0], v[1], v[2]});
     std::array<int, 3> key = v;
     while (key[0] != m) key = {key[1], key[2], key[0]};

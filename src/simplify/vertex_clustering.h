@@ -21,15 +21,15 @@ struct VertexClusteringConfig {
 
 // soup: triangles as in TriangleBatch (normals empty or per corner).
 // The quadric of a cell sums, over the corners in it, the plane quadric of the
-// corner's triangle (unit plane normal: the normalised mean of the triangle's
-// vertex normals, else its face normal; weight 1). Triangles whose corners
-// fall in fewer than three cells, or have zero area at float precision, are
+// corner's triangle (unit plane normal: quadric_plane_normal; weight: a third
+// of the triangle's area), as the octree store does. Triangles whose corners
+// fall in fewer than three cells, or have exactly zero area, are
 // dropped, as are same-orientation repeats. Normals as in collapse.h.
 IndexedMesh cluster_vertices(const TriangleBatch& soup, const VertexClusteringConfig& config);
 
-// The plane normal a triangle contributes to the quadrics, as octree_store.h
-// defines it: the normalised mean of the vertex normals if given and non-zero,
-// else the face normal (zero for a degenerate triangle without normals).
+// The plane normal a triangle contributes to the quadrics, as the store build
+// defines it: the normalised mean of the vertex normals if given and not
+// cancelling (length > 1e-12), else the face normal (zero if degenerate).
 Vec3d quadric_plane_normal(const Vec3d& a, const Vec3d& b, const Vec3d& c, const Vec3* normals);
 
 }  // namespace raylod

@@ -57,6 +57,7 @@ inline TriangleBatch closed_box(const Vec3& lo, const Vec3& hi, int n) {
 inline TriangleBatch uv_sphere(const Vec3& c, float r, int stacks, int slices) {
   TriangleBatch b;
   auto at = [&](int i, int j) {
+    if (i == 0 || i == stacks) return Vec3d(0, i == 0 ? 1 : -1, 0);  // exact poles: closed by position
     const double th = M_PI * double(i) / stacks, ph = 2 * M_PI * double(j % slices) / slices;
     return Vec3d(std::sin(th) * std::cos(ph), std::cos(th), std::sin(th) * std::sin(ph));
   };
@@ -71,9 +72,9 @@ inline TriangleBatch uv_sphere(const Vec3& c, float r, int stacks, int slices) {
   return b;
 }
 
-// In-memory node records at one level, as the octree store defines them
-// (octree_store.h): per corner, the plane quadric of its triangle relative to
-// origin, the corner position, and its area-weighted normal.
+// In-memory node records at one level, as the octree store build defines
+// them: per corner, the plane quadric of its triangle relative to origin
+// (weight area / 3), the corner position, and its area-weighted normal.
 struct MemoryNodes {
   Vec3d root_lo{0};
   double root_size = 1;
@@ -100,16 +101,17 @@ inline MemoryNodes accumulate_nodes(const TriangleBatch& soup, const Vec3d& root
     const Vec3* tn = soup.normals.empty() ? nullptr : &soup.normals[3 * t];
     const Vec3d plane_n = quadric_plane_normal(p[0], p[1], p[2], tn);
     const Vec3d cross = glm::cross(p[1] - p[0], p[2] - p[0]);
+    const double area2 = glm::length(cross);
     for (int k = 0; k < 3; ++k) {
       uint32_t c[3];
       for (int a = 0; a < 3; ++a)
-        c[a] = uint32_t(std::clamp(std::floor((double(soup.positions[3 * t + k][a]) - root_lo[a]) / (root_size / n)),
+        c[a] = uint32_t(std::clamp(std::floor((double(soup.positions[3 * t + k][a]) - root_lo[a]) * (n / root_size)),
                                    0.0, n - 1));
       NodeRecord& r = m.nodes[morton_encode(c[0], c[1], c[2])];
       r.code = morton_encode(c[0], c[1], c[2]);
-      quadric_add(r.quadric, quadric_from_plane(plane_n, p[k]));
+      if (area2 > 0) quadric_add(r.quadric, quadric_from_plane(plane_n, p[k], area2 / 6.0));
       r.vertex_sum += p[k];
-      r.normal_sum += tn ? glm::length(cross) * Vec3d(tn[k]) : cross;
+      r.normal_sum += tn ? area2 * Vec3d(tn[k]) : cross;
       ++r.corner_count;
     }
   }

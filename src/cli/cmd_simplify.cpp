@@ -1,0 +1,145 @@
+// raylod simplify STORE CUT -o OUT.drc|.ply|.obj [--memory-limit SIZE]
+// Method step A5: collapse the cut's cells to their QEM representative
+// vertices and write the simplified mesh.
+#include <algorithm>
+#include <cctype>
+#include <cstdio>
+#include <string>
+
+#include "cli/cli.h"
+#include "core/system.h"
+#include "probe/probe.h"
+#include "simplify/collapse.h"
+#include "simplify/indexed_mesh_writer.h"
+#include "streaming/cut_file.h"
+#include "streaming/draco_io.h"
+#include "streaming/octree_store.h"
+
+namespace raylod::cli {
+namespace {
+
+std::string lower_extension(const std::filesystem::path& p) {
+  std::string e = p.extension().string();
+  for (char& c : e) c = char(std::tolower(static_cast<unsigned char>(c)));
+  return e;
+}
+
+unsigned long long ull(uint64_t v) { return static_cast<unsigned long long>(v); }
+
+int run_simplify(int argc, char** argv) {
+  Args args("simplify", "STORE CUT -o OUT.drc|OUT.ply|OUT.obj [options]",
+            "Collapses every cell of the cut (from `raylod probe`) to its representative vertex\n"
+            "(minimum of the cell's quadric, kept inside the cell), keeps all other vertices exactly,\n"
+            "drops triangles that become degenerate or duplicated, and writes the simplified mesh\n"
+            "with vertex normals. Draco positions are quantised so that the error stays below 1/8\n"
+            "of the smallest footprint the probe measured (override with --position-error).",
+            {{"--output", "-o", "output mesh: .drc (Draco), .ply (binary) or .obj (required)", true, "FILE"},
+             {"--memory-limit", "", "memory the simplified mesh may use (default: a quarter of RAM)", true, "SIZE"},
+             {"--position-error", "", "Draco: largest position error in world units (default: footprint / 8)",
+              true, "E"},
+             {"--normal-bits", "", "Draco: octahedral normal quantisation bits, 2..30 (default 10)", true, "N"},
+             {"--speed", "", "Draco: encoder speed 0 (smallest) .. 10 (fastest) (default 5)", true, "S"},
+             {"--quiet", "-q", "no progress bar", false, ""}});
+  if (Status st = args.parse(argc, argv); !st) return fail("simplify", st);
+  if (args.help_requested()) {
+    std::printf("%s", args.help_text().c_str());
+    return 0;
+  }
+  if (args.positionals().size() != 2)
+    return fail("simplify", Status::error("expected STORE and CUT (see raylod simplify --help)"));
+  if (!args.has("--output")) return fail("simplify", Status::error("-o OUT.drc|.ply|.obj is required"));
+  const std::filesystem::path store_path = args.positionals()[0], cut_path = args.positionals()[1];
+  const std::filesystem::path out_path = args.get("--output");
+  const std::string ext = lower_extension(out_path);
+  if (ext != ".drc" && ext != ".ply" && ext != ".obj")
+    return fail("simplify", Status::error(out_path.string() + ": unknown output format '" + ext +
+                                          "' (use .drc, .ply or .obj)"));
+  auto limit = args.get_size("--memory-limit", physical_memory_bytes() / 4);
+  if (!limit) return fail("simplify", limit.status());
+  auto normal_bits = args.get_int("--normal-bits", 10, 2, 30);
+  if (!normal_bits) return fail("simplify", normal_bits.status());
+  auto speed = args.get_int("--speed", 5, 0, 10);
+  if (!speed) return fail("simplify", speed.status());
+  auto position_error = args.get_double("--position-error", 0);
+  if (!position_error) return fail("simplify", position_error.status());
+  if (*position_error < 0) return fail("simplify", Status::error("--position-error must be positive"));
+
+  auto store = OctreeStore::open(store_path);
+  if (!store) return fail("simplify", store.status());
+  auto cut = read_cut(cut_path);
+  if (!cut) return fail("simplify", cut.status());
+  if (cut->store_hash != store_fingerprint(**store))
+    return fail("simplify", Status::error(cut_path.string() + ": the cut was made for a different store (" +
+                                          cut->store_path + "), not " + store_path.string() +
+                                          "; run raylod probe on this store"));
+
+  // Refuse before any work if the output would not fit.
+  const SimplifyEstimate estimate = estimate_simplify(**store, *cut);
+  if (estimate.bytes > *limit)
+    return fail("simplify", Status::error("the simplified mesh (about " + std::to_string(estimate.triangles) +
+                                          " triangles) needs about " + format_bytes(estimate.bytes) +
+                                          ", over the memory limit of " + format_bytes(*limit) +
+                                          "; nothing was written. Raise --memory-limit or probe with a larger "
+                                          "--footprint-scale"));
+
+  SimplifyConfig config;
+  config.memory_limit = *limit;
+  config.progress = !args.has("--quiet");
+  auto result = simplify(**store, *cut, config);
+  if (!result) return fail("simplify", result.status().with_context(store_path.string()));
+  const SimplifyResult& r = *result;
+  if (r.mesh.triangle_count() == 0)
+    return fail("simplify", Status::error("the simplified mesh has no triangles; nothing was written"));
+
+  uint64_t bytes = 0;
+  std::string quantisation;
+  if (ext == ".drc") {
+    DracoOptions opt;
+    opt.normal_bits = int(*normal_bits);
+    opt.speed = int(*speed);
+    // The smallest footprint the probe measured, with a safety factor of 8,
+    // so quantisation stays well below what any test ray can resolve.
+    float footprint = cut->min_footprint;
+    if (!(footprint > 0))
+      for (const auto& c : cut->cells) if (c.min_footprint > 0 && (!(footprint > 0) || c.min_footprint < footprint)) footprint = c.min_footprint;
+    opt.max_position_error = *position_error > 0 ? *position_error : (footprint > 0 ? footprint / 8.0 : 0.0);
+    auto report = write_draco(out_path, r.mesh, opt);
+    if (!report) return fail("simplify", report.status());
+    bytes = report->bytes;
+    char line[256];
+    std::snprintf(line, sizeof line,
+                  "  draco      position %d bits (max error %.3g, target %.3g), normal %d bits (max %.3g deg)\n",
+                  report->position_bits, report->max_position_error, report->requested_position_error,
+                  report->normal_bits, report->max_normal_error * 180.0 / M_PI);
+    quantisation = line;
+  } else {
+    Status st = ext == ".ply" ? write_indexed_ply(out_path, r.mesh) : write_indexed_obj(out_path, r.mesh);
+    if (!st) return fail("simplify", st);
+    std::error_code ec;
+    bytes = std::filesystem::file_size(out_path, ec);
+  }
+
+  const CollapseStats& s = r.stats;
+  std::printf("wrote %s\n", out_path.string().c_str());
+  std::printf("  triangles  %llu of %llu (%.2f%%)\n", ull(s.output_triangles), ull(s.input_triangles),
+              s.input_triangles ? 100.0 * double(s.output_triangles) / double(s.input_triangles) : 0.0);
+  std::printf("  vertices   %llu (%llu representatives, %llu kept)\n", ull(s.output_vertices),
+              ull(s.representatives_used), ull(s.kept_vertices));
+  std::printf("  cut        %llu cells (%llu not in the store), %llu representatives clamped to their cell\n",
+              ull(r.cut_cells), ull(r.cut_cells_missing), ull(r.clamped_representatives));
+  std::printf("  dropped    %llu collapsed, %llu zero-area, %llu duplicate; %llu reverse-wound twins kept\n",
+              ull(s.dropped_collapsed), ull(s.dropped_zero_area), ull(s.dropped_duplicate), ull(s.reverse_twins));
+  if (s.normal_fallbacks) std::printf("  normals    %llu fell back (merged normals cancelled)\n", ull(s.normal_fallbacks));
+  std::printf("%s", quantisation.c_str());
+  std::printf("  bytes      %llu (%s)\n", ull(bytes), format_bytes(bytes).c_str());
+  std::printf("  time       %.2f s (%llu pages), peak memory %s (mesh build %s, estimate %s)\n", r.seconds,
+              ull(r.pages_read), format_bytes(peak_rss_bytes()).c_str(), format_bytes(s.peak_bytes).c_str(),
+              format_bytes(estimate.bytes).c_str());
+  return 0;
+}
+
+}  // namespace
+
+RAYLOD_COMMAND("simplify", "collapse the probed cells and write the simplified mesh (.drc/.ply/.obj)", run_simplify);
+
+}  // namespace raylod::cli

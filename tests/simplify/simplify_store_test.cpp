@@ -1,0 +1,184 @@
+// End to end through a real octree store: build_store_from_stream, a cut,
+// simplify(), and the Draco output of the result.
+#include <gtest/gtest.h>
+
+#include "core/progress.h"
+#include "octree/octree_test_util.h"
+#include "simplify/collapse.h"
+#include "simplify/indexed_mesh_writer.h"
+#include "simplify/vertex_clustering.h"
+#include "streaming/cut_file.h"
+#include "streaming/draco_io.h"
+#include "test_meshes.h"
+
+namespace raylod {
+namespace {
+
+struct BuiltStore {
+  std::unique_ptr<OctreeStore> store;
+  std::filesystem::path dir;
+};
+
+BuiltStore build(const TriangleBatch& soup, const std::string& name, int max_depth = 7) {
+  Progress::set_enabled(false);
+  auto mesh = std::make_shared<testing::SoupMesh>();
+  mesh->positions = soup.positions;
+  mesh->normals = soup.normals;
+  BuiltStore b;
+  b.dir = testing::scratch_dir("simplify-" + name);
+  StoreOptions opt;
+  opt.max_depth = max_depth;
+  opt.page_triangles = 256;  // several pages even for small meshes
+  opt.threads = 2;
+  auto report = build_store_from_stream(testing::opener(mesh, 700), testing::fake_source(), b.dir / "s.raylod", opt);
+  if (!report.is_ok()) {
+    ADD_FAILURE() << report.status().message();
+    return b;
+  }
+  auto store = OctreeStore::open(b.dir / "s.raylod");
+  if (!store.is_ok()) {
+    ADD_FAILURE() << store.status().message();
+    return b;
+  }
+  b.store = std::move(store).value();
+  return b;
+}
+
+Cut uniform_cut(const OctreeStore& store, int level) {
+  Cut cut;
+  for (const NodeRecord& n : store.level(level)) cut.cells.push_back({{uint32_t(level), n.code}, 0.01f, 1});
+  return cut;
+}
+
+// Triangles compared as sorted canonical position triples with a tolerance:
+// the store sums quadrics in a different order than the reference, so a
+// representative may differ in its last bits.
+void expect_meshes_match(const IndexedMesh& a, const IndexedMesh& b, float tol) {
+  ASSERT_EQ(a.triangle_count(), b.triangle_count());
+  const auto ta = test::canonical_triangles(a), tb = test::canonical_triangles(b);
+  size_t bad = 0;
+  for (size_t i = 0; i < ta.size(); ++i)
+    for (int k = 0; k < 3; ++k)
+      for (int c = 0; c < 3; ++c)
+        if (std::abs(ta[i][k][c] - tb[i][k][c]) > tol) ++bad;
+  EXPECT_EQ(bad, 0u);
+}
+
+TEST(SimplifyStore, UniformCutEqualsReferenceClustering) {
+  // Sphere with normals plus a box without a normal attribute would mix; use
+  // two meshes, one each.
+  const TriangleBatch sphere = test::uv_sphere({0.3f, 1.2f, -0.4f}, 1.5f, 48, 80);
+  const TriangleBatch box = test::closed_box({-1, -0.5f, -2}, {2, 0.5f, 1}, 24);
+  for (const TriangleBatch* soup : {&sphere, &box}) {
+    BuiltStore b = build(*soup, soup == &sphere ? "sphere" : "box");
+    ASSERT_TRUE(b.store);
+    const StoreHeader& h = b.store->header();
+    ASSERT_GE(h.quadric_depth, 5);
+    uint64_t page_triangles = 0;
+    for (const PageInfo& p : b.store->pages()) page_triangles += p.triangle_count;
+    ASSERT_EQ(page_triangles, soup->size());  // each triangle in exactly one page
+    for (int level : {3, 5}) {
+      auto result = simplify(*b.store, uniform_cut(*b.store, level));
+      ASSERT_TRUE(result.is_ok()) << result.status().message();
+      EXPECT_EQ(result->stats.input_triangles, soup->size());
+      EXPECT_EQ(result->cut_cells_missing, 0u);
+      EXPECT_GT(result->pages_read, 1u);
+      VertexClusteringConfig cfg;
+      cfg.root_lo = h.root_lo;
+      cfg.root_size = h.root_size;
+      cfg.level = level;
+      cfg.origin = h.origin;
+      const IndexedMesh ref = cluster_vertices(*soup, cfg);
+      expect_meshes_match(result->mesh, ref, 1e-5f);
+    }
+  }
+}
+
+TEST(SimplifyStore, MixedCutKeepsOtherTrianglesExactly) {
+  const TriangleBatch sphere = test::uv_sphere({0, 0, 0}, 1.0f, 40, 64);
+  BuiltStore b = build(sphere, "mixed");
+  ASSERT_TRUE(b.store);
+  // Collapse the level-4 cells in the upper half (y > 0.2) only.
+  Cut cut;
+  for (const NodeRecord& n : b.store->level(4)) {
+    const Bbox box = b.store->cell_bounds({4, n.code});
+    if (box.lo.y > 0.2) cut.cells.push_back({{4, n.code}, 0.05f, 3});
+  }
+  cut.cells.push_back({{4, 0x7fff}, 0.05f, 0});  // a cell the store does not have
+  ASSERT_GT(cut.cells.size(), 5u);
+  auto result = simplify(*b.store, cut);
+  ASSERT_TRUE(result.is_ok()) << result.status().message();
+  EXPECT_EQ(result->cut_cells_missing, 1u);
+  EXPECT_LT(result->mesh.triangle_count(), sphere.size());
+  // Every input triangle entirely below y = 0.2 is in the output unchanged.
+  std::set<test::PosTri> out;
+  for (const auto& t : test::canonical_triangles(result->mesh)) out.insert(t);
+  IndexedMesh below;
+  for (size_t t = 0; t < sphere.size(); ++t) {
+    bool low = true;
+    for (int k = 0; k < 3; ++k) low &= sphere.positions[3 * t + k].y < 0.2f - 1e-3f;
+    if (!low) continue;
+    for (int k = 0; k < 3; ++k) {
+      below.indices.push_back(uint32_t(below.positions.size()));
+      below.positions.push_back(sphere.positions[3 * t + k]);
+    }
+  }
+  ASSERT_GT(below.triangle_count(), 100u);
+  for (const auto& t : test::canonical_triangles(below)) EXPECT_TRUE(out.count(t));
+  // Representatives lie inside their cells; kept vertices keep their normals.
+  for (const auto& c : cut.cells) {
+    const NodeRecord* n = b.store->find(c.key);
+    if (!n) continue;
+    const Representative r = make_representative(*n, b.store->cell_bounds(c.key), b.store->header().origin);
+    EXPECT_TRUE(test::inside(r.position, b.store->cell_bounds(c.key)));
+  }
+  // The simplified sphere is still closed.
+  size_t unpaired = 0;
+  EXPECT_TRUE(test::edges_paired(result->mesh, &unpaired)) << unpaired;
+
+  // And its Draco round trip keeps the triangle count.
+  const auto drc = b.dir / "mixed.drc";
+  DracoOptions opt;
+  opt.max_position_error = 0.05 / 8;
+  auto w = write_draco(drc, result->mesh, opt);
+  ASSERT_TRUE(w.is_ok()) << w.status().message();
+  EXPECT_LE(w->max_position_error, opt.max_position_error);
+  auto back = read_draco(drc);
+  ASSERT_TRUE(back.is_ok());
+  EXPECT_EQ(back->triangle_count(), result->mesh.triangle_count());
+  // PLY and OBJ outputs exist and the PLY size is as computed.
+  ASSERT_TRUE(write_indexed_ply(b.dir / "mixed.ply", result->mesh).is_ok());
+  EXPECT_EQ(std::filesystem::file_size(b.dir / "mixed.ply"), indexed_ply_bytes(result->mesh));
+  ASSERT_TRUE(write_indexed_obj(b.dir / "mixed.obj", result->mesh).is_ok());
+  auto obj = open_mesh(b.dir / "mixed.obj");
+  ASSERT_TRUE(obj.is_ok()) << obj.status().message();
+  TriangleBatch batch;
+  uint64_t obj_tris = 0;
+  while (true) {
+    auto more = (*obj)->next(batch);
+    ASSERT_TRUE(more.is_ok()) << more.status().message();
+    if (!*more) break;
+    obj_tris += batch.size();
+  }
+  EXPECT_EQ(obj_tris, result->mesh.triangle_count());
+}
+
+TEST(SimplifyStore, MemoryLimitRefusesBeforeWork) {
+  const TriangleBatch sphere = test::uv_sphere({0, 0, 0}, 1.0f, 20, 32);
+  BuiltStore b = build(sphere, "limit");
+  ASSERT_TRUE(b.store);
+  SimplifyConfig cfg;
+  cfg.memory_limit = 1000;  // bytes
+  auto result = simplify(*b.store, uniform_cut(*b.store, 6), cfg);
+  ASSERT_FALSE(result.is_ok());
+  EXPECT_NE(result.status().message().find("memory limit"), std::string::npos) << result.status().message();
+  // The estimate is an upper bound in practice: the real peak fits in it.
+  const Cut cut = uniform_cut(*b.store, 3);
+  const SimplifyEstimate e = estimate_simplify(*b.store, cut);
+  auto ok = simplify(*b.store, cut);
+  ASSERT_TRUE(ok.is_ok());
+  EXPECT_GE(e.triangles, ok->stats.output_triangles);
+}
+
+}  // namespace
+}  // namespace raylod
