@@ -8,17 +8,21 @@
 //   * heap: the caller's TriangleBatch, at most B + P - 3 triangles, i.e.
 //     36 bytes per triangle without normals and 72 with them (the reader
 //     stops filling a batch once it holds >= B triangles; a polygon is never
-//     split across batches), plus O(P + header size) reader state;
+//     split across batches), plus O(P + header size + longest OBJ logical
+//     line) reader state;
 //   * vertex table: binary PLY indexes vertices in place in the memory-mapped
 //     file (stride = vertex record size) and drops that mapping after every
 //     64 MiB of face data, so only the vertex pages touched within such a
-//     window stay resident (they refault from the page cache); ASCII PLY and OBJ first spill their
-//     vertices (12 bytes per position, 12 per normal, as float) to an unlinked
-//     scratch file in $TMPDIR that is then memory-mapped. These pages are file
-//     backed and clean, so the OS pages them out under memory pressure;
-//   * the input file itself is memory-mapped; face/facet data is read once
+//     window stay resident (they refault from the page cache). ASCII PLY and
+//     OBJ first spill their vertices (12 bytes per position, 12 per normal,
+//     as float) to an unlinked scratch file in $TMPDIR that is then
+//     memory-mapped (if $TMPDIR is a tmpfs, that is RAM). These pages are
+//     file backed and clean, so the OS pages them out under memory pressure;
+//   * the input file itself is memory-mapped; face/facet data is read
 //     sequentially (MADV_SEQUENTIAL) and the pages behind the cursor are
-//     dropped from the process after every batch (MADV_DONTNEED).
+//     dropped from the process (MADV_DONTNEED) in 4 MiB steps. Text formats
+//     are scanned twice: once on open (to spill vertices, count faces and
+//     check the structure) and once while streaming.
 //   STL needs no vertex table (triangles are stored whole). Draco files are
 //   decoded whole (they are the small, simplified meshes this project writes).
 //
