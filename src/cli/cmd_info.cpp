@@ -40,7 +40,8 @@ int run_info(int argc, char** argv) {
   Args args("info", "FILE",
             "Describes a file. For a mesh (.ply, .stl, .obj, .drc): format and encoding, triangle\n"
             "and vertex counts, bounds, whether it has per-vertex normals, and its size in bytes.\n"
-            "The whole mesh is read, so a malformed file is reported (exit status 1).",
+            "The whole mesh is read, so a malformed file is reported (exit status 1).\n"
+            "Octree stores (raylod build) and cut files (raylod probe) are recognised by content.",
             {});
   if (Status st = args.parse(argc, argv); !st) return fail("info", st);
   if (args.help_requested()) {
@@ -52,10 +53,8 @@ int run_info(int argc, char** argv) {
   std::error_code ec;
   if (!std::filesystem::exists(path, ec)) return fail("info", Status::error(path.string() + ": no such file"));
 
-  // Dispatch by content first, then by extension. Other file kinds get their
-  // branch here, before the mesh fallback:
-  //   - octree stores (`.raylod`, written by `raylod build`): OctreeStore::open(path) and print its header;
-  //   - cut files (written by `raylod probe`): is_cut_file(path) / read_cut(path) and print the cut.
+  // Dispatch by content (store and cut magic) first, then meshes by
+  // extension; a new file kind gets its branch here, before the mesh fallback.
   if (is_store_file(path)) {
     if (Status st = print_store_info(path, stdout); !st) return fail("info", st);
     return 0;
@@ -69,6 +68,6 @@ int run_info(int argc, char** argv) {
 
 }  // namespace
 
-RAYLOD_COMMAND("info", "describe a mesh file (format, counts, bounds, normals, bytes)", run_info);
+RAYLOD_COMMAND("info", "describe a mesh (format, counts, bounds, normals, bytes), store or cut file", run_info);
 
 }  // namespace raylod::cli
