@@ -437,12 +437,17 @@ Plan make_plan(const Scan& scan, const StoreOptions& options, uint64_t memory_li
 }
 
 // ---------------------------------------------------------------------------
-// Sorted runs of page-grouped triangles in an unlinked temporary file.
+// Sorted runs of page-grouped triangles in an unlinked temporary file. Each
+// page's piece of a run (a segment) carries the CRC-32C of its positions and
+// of its normals and its bounds, computed while the data is hot, so the final
+// page assembly only copies bytes (in the kernel where it can).
 class RunFile {
  public:
   struct Segment {
     uint64_t offset;  // of the segment's positions; normals follow
     uint32_t count;
+    uint32_t crc_positions, crc_normals;
+    Vec3 lo, hi;
   };
 
   RunFile(bool has_normals, uint64_t capacity) : normals_(has_normals), capacity_(capacity) {}
@@ -490,22 +495,17 @@ class RunFile {
     std::vector<uint32_t> order(n), fill(start.begin(), start.end() - 1);
     for (size_t i = 0; i < n; ++i) order[fill[page_of_[i]]++] = uint32_t(i);
     if (segments_.size() < num_pages) segments_.resize(num_pages);
-    std::vector<float> staging;
-    staging.reserve(kStagingFloats);
-    auto put = [&](const float* f) -> Status {
-      staging.insert(staging.end(), f, f + 9);
-      if (staging.size() + 9 > kStagingFloats) return drain(staging);
-      return {};
-    };
+    staging_.reserve(kStagingFloats);
     for (size_t p = 0; p < num_pages; ++p) {
       const uint32_t b = start[p], e = start[p + 1];
       if (b == e) continue;
-      segments_[p].push_back({offset_ + 4 * staging.size(), e - b});
-      for (uint32_t k = b; k < e; ++k) RAYLOD_RETURN_IF_ERROR(put(&positions_[9 * size_t(order[k])]));
-      if (normals_)
-        for (uint32_t k = b; k < e; ++k) RAYLOD_RETURN_IF_ERROR(put(&normals_data_[9 * size_t(order[k])]));
+      Segment seg{offset_ + 4 * staging_.size(), e - b, 0, 0, Vec3(std::numeric_limits<float>::infinity()),
+                  Vec3(-std::numeric_limits<float>::infinity())};
+      RAYLOD_RETURN_IF_ERROR(emit(positions_, order.data() + b, order.data() + e, seg.crc_positions, &seg));
+      if (normals_) RAYLOD_RETURN_IF_ERROR(emit(normals_data_, order.data() + b, order.data() + e, seg.crc_normals, nullptr));
+      segments_[p].push_back(seg);
     }
-    RAYLOD_RETURN_IF_ERROR(drain(staging));
+    RAYLOD_RETURN_IF_ERROR(drain());
     positions_.clear();
     normals_data_.clear();
     page_of_.clear();
@@ -520,14 +520,40 @@ class RunFile {
     std::vector<float>().swap(positions_);
     std::vector<float>().swap(normals_data_);
     std::vector<uint32_t>().swap(page_of_);
+    std::vector<float>().swap(staging_);
   }
 
  private:
-  static constexpr size_t kStagingFloats = 1 << 20;
-  Status drain(std::vector<float>& staging) {
-    RAYLOD_RETURN_IF_ERROR(pwrite_all(fd_, staging.data(), 4 * staging.size(), offset_, path_));
-    offset_ += 4 * staging.size();
-    staging.clear();
+  static constexpr size_t kStagingFloats = 9 << 18;  // 9 MiB, whole triangles
+
+  // Appends the 9 floats of triangles order[b..e) to the staging buffer,
+  // checksumming them (and taking their bounds if seg is given).
+  Status emit(const std::vector<float>& src, const uint32_t* b, const uint32_t* e, uint32_t& crc, Segment* seg) {
+    size_t mark = staging_.size();
+    for (const uint32_t* k = b; k != e; ++k) {
+      if (staging_.size() + 9 > kStagingFloats) {
+        crc = crc32c(staging_.data() + mark, 4 * (staging_.size() - mark), crc);
+        RAYLOD_RETURN_IF_ERROR(drain());
+        mark = 0;
+      }
+      const float* f = &src[9 * size_t(*k)];
+      staging_.insert(staging_.end(), f, f + 9);
+      if (seg) {
+        for (int v = 0; v < 3; ++v) {
+          const Vec3 p(f[3 * v], f[3 * v + 1], f[3 * v + 2]);
+          seg->lo = glm::min(seg->lo, p);
+          seg->hi = glm::max(seg->hi, p);
+        }
+      }
+    }
+    crc = crc32c(staging_.data() + mark, 4 * (staging_.size() - mark), crc);
+    return {};
+  }
+
+  Status drain() {
+    RAYLOD_RETURN_IF_ERROR(pwrite_all(fd_, staging_.data(), 4 * staging_.size(), offset_, path_));
+    offset_ += 4 * staging_.size();
+    staging_.clear();
     return {};
   }
 
@@ -536,7 +562,7 @@ class RunFile {
   std::filesystem::path path_;
   int fd_ = -1;
   uint64_t offset_ = 0;
-  std::vector<float> positions_, normals_data_;
+  std::vector<float> positions_, normals_data_, staging_;
   std::vector<uint32_t> page_of_;
   std::vector<std::vector<Segment>> segments_;
 };
@@ -663,8 +689,38 @@ std::vector<std::vector<NodeRecord>> build_levels(std::vector<NodeRecord> leaves
   return levels;
 }
 
-// Pages in code order, each assembled from its run segments (positions, then
-// normals), checksummed and written sequentially through one buffer.
+// Copies bytes between files, in the kernel (copy_file_range) where the
+// file system allows, else through a buffer.
+Status copy_range(int in_fd, uint64_t in_off, int out_fd, uint64_t out_off, uint64_t bytes,
+                  const std::filesystem::path& in_path, const std::filesystem::path& out_path, std::vector<char>& buffer) {
+  static std::atomic<bool> kernel_copy{true};
+  while (bytes > 0 && kernel_copy) {
+    loff_t i = loff_t(in_off), o = loff_t(out_off);
+    ssize_t r = ::copy_file_range(in_fd, &i, out_fd, &o, size_t(std::min<uint64_t>(bytes, 1ull << 30)), 0);
+    if (r < 0 && errno == EINTR) continue;
+    if (r <= 0) {
+      if (r < 0 && errno != EXDEV && errno != ENOSYS && errno != EINVAL && errno != EOPNOTSUPP)
+        return Status::error(out_path.string() + ": write failed: " + std::strerror(errno));
+      kernel_copy = false;
+      break;
+    }
+    in_off += uint64_t(r);
+    out_off += uint64_t(r);
+    bytes -= uint64_t(r);
+  }
+  while (bytes > 0) {
+    const size_t take = size_t(std::min<uint64_t>(bytes, buffer.size()));
+    RAYLOD_RETURN_IF_ERROR(pread_all(in_fd, buffer.data(), take, in_off, in_path));
+    RAYLOD_RETURN_IF_ERROR(pwrite_all(out_fd, buffer.data(), take, out_off, out_path));
+    in_off += take;
+    out_off += take;
+    bytes -= take;
+  }
+  return {};
+}
+
+// Pages in code order, each the concatenation of its run segments
+// (positions, then normals); checksums and bounds combine the segments'.
 Status write_pages(int fd, const std::filesystem::path& out_path, RunFile& runs, const Binned& binned,
                    bool has_normals, uint64_t data_offset, std::vector<PageInfo>& pages) {
   const size_t num_pages = binned.pages.codes.size();
@@ -672,17 +728,15 @@ Status write_pages(int fd, const std::filesystem::path& out_path, RunFile& runs,
   for (size_t i = 0; i < num_pages; ++i) order[i] = uint32_t(i);
   std::sort(order.begin(), order.end(),
             [&](uint32_t a, uint32_t b) { return binned.pages.codes[a] < binned.pages.codes[b]; });
-  constexpr size_t kBufferBytes = 36 << 17;  // a multiple of one triangle's 36 position bytes
-  std::vector<char> buffer(kBufferBytes);
-  size_t fill = 0;
-  uint64_t flushed = data_offset;
+  std::vector<char> buffer(4 << 20);
+  uint64_t offset = data_offset;
   Progress progress("pages", binned.triangles, "triangles");
   pages.clear();
   pages.reserve(num_pages);
   for (uint32_t id : order) {
     PageInfo info;
     info.code = binned.pages.codes[id];
-    info.offset = flushed + fill;
+    info.offset = offset;
     if (binned.page_counts[id] > UINT32_MAX)
       return Status::error(out_path.string() + ": a page would hold more than 2^32 triangles");
     info.triangle_count = uint32_t(binned.page_counts[id]);
@@ -690,28 +744,15 @@ Status write_pages(int fd, const std::filesystem::path& out_path, RunFile& runs,
     Vec3 lo(std::numeric_limits<float>::infinity()), hi(-std::numeric_limits<float>::infinity());
     for (int sweep = 0; sweep < (has_normals ? 2 : 1); ++sweep) {
       for (const auto& seg : runs.segments()[id]) {
-        uint64_t src = seg.offset + (sweep ? 36ull * seg.count : 0);
-        uint64_t remaining = 36ull * seg.count;
-        while (remaining > 0) {
-          if (fill == kBufferBytes) {
-            RAYLOD_RETURN_IF_ERROR(pwrite_all(fd, buffer.data(), fill, flushed, out_path));
-            flushed += fill;
-            fill = 0;
-          }
-          const size_t take = size_t(std::min<uint64_t>(remaining, kBufferBytes - fill));
-          RAYLOD_RETURN_IF_ERROR(pread_all(runs.fd(), buffer.data() + fill, take, src, runs.path()));
-          crc = crc32c(buffer.data() + fill, take, crc);
-          if (sweep == 0) {
-            const auto* v = reinterpret_cast<const Vec3*>(buffer.data() + fill);
-            for (size_t k = 0; k < take / 12; ++k) {
-              lo = glm::min(lo, v[k]);
-              hi = glm::max(hi, v[k]);
-            }
-            progress.advance(take / 36);
-          }
-          fill += take;
-          src += take;
-          remaining -= take;
+        const uint64_t bytes = 36ull * seg.count;
+        RAYLOD_RETURN_IF_ERROR(
+            copy_range(runs.fd(), seg.offset + (sweep ? bytes : 0), fd, offset, bytes, runs.path(), out_path, buffer));
+        crc = crc32c_combine(crc, sweep ? seg.crc_normals : seg.crc_positions, bytes);
+        offset += bytes;
+        if (sweep == 0) {
+          lo = glm::min(lo, seg.lo);
+          hi = glm::max(hi, seg.hi);
+          progress.advance(seg.count);
         }
       }
     }
@@ -719,7 +760,6 @@ Status write_pages(int fd, const std::filesystem::path& out_path, RunFile& runs,
     info.bounds = Bbox{Vec3d(lo), Vec3d(hi)};
     pages.push_back(info);
   }
-  RAYLOD_RETURN_IF_ERROR(pwrite_all(fd, buffer.data(), fill, flushed, out_path));
   progress.finish();
   return {};
 }

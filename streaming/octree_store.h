@@ -187,6 +187,8 @@ Status print_store_info(const std::filesystem::path& path, std::FILE* out);
 // CRC-32C (Castagnoli), hardware-accelerated where SSE4.2 is available.
 // Chainable: crc32c(b, crc32c(a)) == crc32c(a then b).
 uint32_t crc32c(const void* data, size_t bytes, uint32_t crc = 0);
+// crc32c of a then b, from crc32c(a), crc32c(b) and b's length.
+uint32_t crc32c_combine(uint32_t crc_a, uint32_t crc_b, uint64_t bytes_b);
 // 64-bit content hash (4-lane multiply-rotate, xxh64-style rounds), streaming.
 class ContentHasher {
  public:

@@ -81,6 +81,45 @@ uint32_t crc32c(const void* data, size_t bytes, uint32_t crc) {
   return ~crc;
 }
 
+namespace {
+
+// CRC combination: appending n zero bytes to a message is a linear map on
+// the CRC register, so crc(a + b) = Z^len(b) crc(a) ^ crc(b), with Z^len
+// built by repeated squaring of the one-zero-bit operator over GF(2).
+uint32_t gf2_times(const uint32_t* mat, uint32_t vec) {
+  uint32_t sum = 0;
+  for (; vec; vec >>= 1, ++mat)
+    if (vec & 1) sum ^= *mat;
+  return sum;
+}
+
+void gf2_square(uint32_t* square, const uint32_t* mat) {
+  for (int n = 0; n < 32; ++n) square[n] = gf2_times(mat, mat[n]);
+}
+
+}  // namespace
+
+uint32_t crc32c_combine(uint32_t crc_a, uint32_t crc_b, uint64_t bytes_b) {
+  if (bytes_b == 0) return crc_a;
+  uint32_t even[32], odd[32];
+  odd[0] = 0x82F63B78u;  // one zero bit
+  for (int n = 1; n < 32; ++n) odd[n] = 1u << (n - 1);
+  gf2_square(even, odd);  // two zero bits
+  gf2_square(odd, even);  // four zero bits
+  // Each step squares the operator (one zero byte, then 2, 4, ...).
+  for (;;) {
+    gf2_square(even, odd);
+    if (bytes_b & 1) crc_a = gf2_times(even, crc_a);
+    bytes_b >>= 1;
+    if (!bytes_b) break;
+    gf2_square(odd, even);
+    if (bytes_b & 1) crc_a = gf2_times(odd, crc_a);
+    bytes_b >>= 1;
+    if (!bytes_b) break;
+  }
+  return crc_a ^ crc_b;
+}
+
 void ContentHasher::update(const void* data, size_t bytes) {
   const auto* p = static_cast<const unsigned char*>(data);
   total_ += bytes;

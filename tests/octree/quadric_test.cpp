@@ -37,9 +37,13 @@ TEST(Checksum, Crc32cKnownValueAndChaining) {
   EXPECT_EQ(crc32c(text, 9), 0xE3069283u);  // the CRC-32C check value
   EXPECT_EQ(crc32c(text + 4, 5, crc32c(text, 4)), 0xE3069283u);
   EXPECT_EQ(crc32c(nullptr, 0), 0u);
+  EXPECT_EQ(crc32c_combine(crc32c(text, 4), crc32c(text + 4, 5), 5), 0xE3069283u);
+  EXPECT_EQ(crc32c_combine(crc32c(text, 9), crc32c(text, 0), 0), 0xE3069283u);
   std::vector<unsigned char> big(1000);
   for (size_t i = 0; i < big.size(); ++i) big[i] = static_cast<unsigned char>(i * 7 + 1);
   uint32_t whole = crc32c(big.data(), big.size());
+  for (size_t cut : {size_t(0), size_t(1), size_t(8), size_t(333), size_t(999)})
+    EXPECT_EQ(crc32c_combine(crc32c(big.data(), cut), crc32c(big.data() + cut, big.size() - cut), big.size() - cut), whole);
   big[500] ^= 1;
   EXPECT_NE(crc32c(big.data(), big.size()), whole);
 }
