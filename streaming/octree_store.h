@@ -11,6 +11,26 @@
 // triangle (Lindstrom, eq. 4), with the plane normal the average of the
 // triangle's vertex normals where the file has normals, else the face normal.
 // Quadrics and sums are in double, relative to `origin` (the mesh centre).
+//
+// Details a reader of the store can rely on (octree_build.cpp has the why):
+//   - root_size is a power of two, so cell sizes are exact and cell_of() is
+//     an exact scaling; the root cube is centred on the mesh bounds.
+//   - Quadric weights: each corner adds its triangle's plane quadric times
+//     area / 3 (a triangle inside one cell adds its area once), with the plane
+//     through that corner; normal_sum adds area / 3 times the corner's vertex
+//     normal (the face normal if the file has none). Zero-area triangles add
+//     no plane but are counted in corner_count and vertex_sum.
+//   - quadric_depth is the deepest level <= max_depth whose node table fits the
+//     memory limit and whose parent level still merges vertices (cells there
+//     hold more than about two vertices on average).
+//   - A triangle lives in exactly one page: the page-level cell containing its
+//     centroid. Its vertices may lie in neighbouring cells; PageInfo::bounds
+//     are the tight bounds of the page's triangles and cover them. Within a
+//     page triangles keep their input order. Pages are sorted by code.
+//   - Page bytes: positions (9 float32 per triangle), then, if has_normals,
+//     normals (9 float32 per triangle); CRC-32C over both (crc32c below).
+//   - The store does not depend on the thread count (byte-identical files).
+// The file layout is in streaming/octree_format.h.
 #pragma once
 
 #include <cstdint>
