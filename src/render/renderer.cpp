@@ -72,7 +72,11 @@ Status write_pixels(const std::filesystem::path& path, const OIIO::ImageSpec& sp
   auto out = OIIO::ImageOutput::create(path.string());
   if (!out) return Status::error(path.string() + ": cannot write images of this type (" + OIIO::geterror() + ")");
   AtomicOutput atomic(path);
-  if (!out->open(atomic.temp_path().string(), spec))
+  // No timestamp in the file (an empty DateTime stops the EXR writer from
+  // adding one): the same render gives the same bytes.
+  OIIO::ImageSpec stamped = spec;
+  stamped.attribute("DateTime", "");
+  if (!out->open(atomic.temp_path().string(), stamped))
     return Status::error(path.string() + ": cannot open for writing: " + out->geterror());
   if (!out->write_image(type, data)) return Status::error(path.string() + ": write failed: " + out->geterror());
   if (!out->close()) return Status::error(path.string() + ": write failed: " + out->geterror());
