@@ -40,6 +40,39 @@ double draco_error_bound(const Cut& cut, const OctreeStore& store) {
   return store.header().root_size * 1e-5;
 }
 
+ProbeConfig make_probe_config(const Scene& scene, uint64_t rays, double footprint_scale, int threads,
+                              uint64_t memory_limit, bool progress) {
+  ProbeConfig probe;
+  probe.rays = rays;
+  probe.seed = scene.seed;
+  probe.footprint_scale = footprint_scale;
+  probe.threads = threads;
+  // The page cache takes an eighth of the memory limit, within [16 MiB, 512 MiB].
+  probe.cache_bytes = std::clamp<uint64_t>(memory_limit / 8, uint64_t(16) << 20, uint64_t(512) << 20);
+  probe.progress = progress;
+  return probe;
+}
+
+StatusOr<SimplifiedMesh> simplify_cut_to_draco(const OctreeStore& store, const Cut& cut, const fs::path& out,
+                                               uint64_t memory_limit, bool progress, double* seconds) {
+  auto t0 = std::chrono::steady_clock::now();
+  SimplifyConfig sc;
+  sc.memory_limit = memory_limit;
+  sc.progress = progress;
+  RAYLOD_ASSIGN_OR_RETURN(SimplifyResult simplified, simplify(store, cut, sc));
+  DracoOptions dopt;
+  dopt.max_position_error = draco_error_bound(cut, store);
+  RAYLOD_ASSIGN_OR_RETURN(DracoWriteReport written, write_draco(out, simplified.mesh, dopt));
+  SimplifiedMesh sm;
+  sm.drc = out;
+  sm.triangles = simplified.mesh.triangle_count();
+  sm.drc_bytes = written.bytes;
+  sm.position_bits = written.position_bits;
+  sm.max_position_error = written.max_position_error;
+  if (seconds) *seconds = seconds_since(t0);
+  return sm;
+}
+
 StatusOr<SceneStores> prepare_scene_stores(Scene& scene, const std::optional<fs::path>& mesh_override,
                                            const StoreOptions& store_options, const fs::path& cache_dir,
                                            const LogFn& log) {
@@ -97,13 +130,8 @@ StatusOr<RunResult> run_pipeline(Scene scene, const RunOptions& options, const L
 
   // B. Probe (A2-A4); if the simplified meshes would not fit the memory
   // limit, coarsen by doubling K until they do.
-  ProbeConfig probe;
-  probe.rays = options.rays;
-  probe.seed = scene.seed;
-  probe.footprint_scale = options.footprint_scale;
-  probe.threads = options.threads;
-  probe.cache_bytes = std::clamp<uint64_t>(memory_limit / 8, uint64_t(16) << 20, uint64_t(512) << 20);
-  probe.progress = options.progress;
+  ProbeConfig probe =
+      make_probe_config(scene, options.rays, options.footprint_scale, options.threads, memory_limit, options.progress);
   auto t_probe = std::chrono::steady_clock::now();
   for (;;) {
     RAYLOD_ASSIGN_OR_RETURN(result.probe, run_probe(scene, stores.probe_stores, stores.objects, probe));
@@ -167,20 +195,10 @@ StatusOr<RunResult> run_pipeline(Scene scene, const RunOptions& options, const L
     }
     if (!sm.cache_hit) {
       result.cache_hit = false;
-      SimplifyConfig sc;
-      sc.memory_limit = memory_limit;
-      sc.progress = options.progress;
-      RAYLOD_ASSIGN_OR_RETURN(SimplifyResult simplified, simplify(store, cut, sc));
-      DracoOptions dopt;
-      dopt.max_position_error = draco_error_bound(cut, store);
       AtomicOutput tmp(scratch / ("simplified-" + std::to_string(::getpid()) + "-" + std::to_string(i) + ".drc"));
       fs::path staged = tmp.temp_path();
       staged += ".drc";
-      RAYLOD_ASSIGN_OR_RETURN(DracoWriteReport written, write_draco(staged, simplified.mesh, dopt));
-      sm.triangles = simplified.mesh.triangle_count();
-      sm.position_bits = written.position_bits;
-      sm.max_position_error = written.max_position_error;
-      sm.drc = staged;
+      RAYLOD_ASSIGN_OR_RETURN(sm, simplify_cut_to_draco(store, cut, staged, memory_limit, options.progress));
       scratch_files.push_back(staged);
       sm.cache_note = "simplified (cache disabled)";
       if (cache) {

@@ -91,6 +91,15 @@ StatusOr<RunResult> run_pipeline(Scene scene, const RunOptions& options, const L
 // peak memory, cache hit, and the render's own statistics.
 std::string run_stats_json(const RunResult& result, const RunOptions& options);
 
+// The probe configuration run_pipeline and report use.
+ProbeConfig make_probe_config(const Scene& scene, uint64_t rays, double footprint_scale, int threads,
+                              uint64_t memory_limit, bool progress);
+
+// Simplifies the cut of a store and writes it Draco-compressed to `out`
+// (quantisation from draco_error_bound); fills triangles, bytes and bits.
+StatusOr<SimplifiedMesh> simplify_cut_to_draco(const OctreeStore& store, const Cut& cut, const std::filesystem::path& out,
+                                               uint64_t memory_limit, bool progress, double* seconds = nullptr);
+
 // The Draco error bound for a cut: well below the smallest footprint the
 // probe measured (an eighth), so quantisation never shows at the probed scale.
 double draco_error_bound(const Cut& cut, const OctreeStore& store);

@@ -1,0 +1,417 @@
+#include "pipeline/report.h"
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <map>
+#include <sstream>
+#include <thread>
+
+#include <nlohmann/json.hpp>
+
+#include "core/system.h"
+#include "gen/generate.h"
+#include "pipeline/baselines.h"
+#include "pipeline/plot.h"
+#include "render/camera.h"
+#include "render/embree_scene.h"
+#include "simplify/collapse.h"
+
+namespace raylod {
+namespace fs = std::filesystem;
+
+namespace {
+
+double seconds_since(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+std::string fmt(const char* f, double v) {
+  char buf[64];
+  std::snprintf(buf, sizeof buf, f, v);
+  return buf;
+}
+
+std::string slug(const std::string& s) {
+  std::string out;
+  for (char c : s) out += std::isalnum(static_cast<unsigned char>(c)) ? c : '-';
+  return out;
+}
+
+// Colour of a collapse level for the cut picture (Figure 4(c)): coarse cells
+// red, fine cells blue; cells not collapsed light grey.
+Vec3 level_colour(int level, int lo, int hi) {
+  static const Vec3 ramp[] = {{0.85f, 0.10f, 0.10f}, {0.95f, 0.55f, 0.10f}, {0.95f, 0.90f, 0.20f},
+                              {0.30f, 0.75f, 0.30f}, {0.20f, 0.60f, 0.90f}, {0.35f, 0.25f, 0.80f}};
+  double t = hi > lo ? double(level - lo) / double(hi - lo) : 0.0;
+  double f = t * 5.0;
+  int i = std::min(int(f), 4);
+  return glm::mix(ramp[i], ramp[i + 1], float(f - i));
+}
+
+// Figure 4(c): the simplified mesh seen from the camera, coloured by the
+// octree level of the collapsed cell each visible point lies in.
+StatusOr<Image> cut_picture(const Scene& scene, const fs::path& simplified, const OctreeStore& store, const Cut& cut,
+                            std::string* legend) {
+  const glm::dmat4 to_world = scene.objects[0].transform;
+  RAYLOD_ASSIGN_OR_RETURN(TriangleMesh mesh, load_triangle_mesh(simplified, to_world, 0));
+  std::vector<TriangleMesh> meshes;
+  meshes.push_back(std::move(mesh));
+  RAYLOD_ASSIGN_OR_RETURN(auto geometry, EmbreeScene::build(std::move(meshes)));
+  std::vector<CellKey> keys;
+  int lo = 64, hi = 0;
+  for (const auto& c : cut.cells) {
+    keys.push_back(c.key);
+    lo = std::min(lo, int(c.key.level));
+    hi = std::max(hi, int(c.key.level));
+  }
+  CutLookup lookup(store.header().root_lo, store.header().root_size, keys);
+  const glm::dmat4 to_object = glm::inverse(to_world);
+  PinholeCamera cam = make_pinhole_camera(scene.camera);
+  Image img(scene.camera.width, scene.camera.height, 3);
+  for (int y = 0; y < img.height; ++y)
+    for (int x = 0; x < img.width; ++x) {
+      Ray ray = cam.generate(x + 0.5, y + 0.5);
+      Hit hit;
+      Vec3 c(0.08f);
+      if (geometry->intersect(ray, 0, 1e30, hit)) {
+        Vec3d p = Vec3d(to_object * glm::dvec4(ray.at(hit.t), 1.0));
+        uint32_t cell = lookup.find(p);
+        c = cell == kKeepVertex ? Vec3(0.8f) : level_colour(int(keys[cell].level), lo, hi);
+        // A little shading so the shape reads.
+        const auto& m = geometry->mesh(hit.geom);
+        const uint32_t* t = &m.indices[size_t(hit.prim) * 3];
+        Vec3d n = face_normal(Vec3d(m.positions[t[0]]), Vec3d(m.positions[t[1]]), Vec3d(m.positions[t[2]]));
+        c *= float(0.45 + 0.55 * std::abs(glm::dot(n, ray.direction)));
+      }
+      float* px = img.at(x, y);
+      for (int k = 0; k < 3; ++k) px[k] = std::pow(c[k], 2.2f);  // write_image sRGB-encodes
+    }
+  if (legend) {
+    *legend = "levels " + std::to_string(lo) + " (red, coarsest) to " + std::to_string(hi) +
+              " (blue/violet, finest); grey: not collapsed";
+  }
+  return img;
+}
+
+struct SceneRun {
+  std::string label;
+  Scene scene;
+};
+
+std::string label_number(double v) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%g", v);
+  return buf;
+}
+
+std::string mib(uint64_t bytes) { return fmt("%.1f", double(bytes) / (1024.0 * 1024.0)); }
+
+nlohmann::json row_json(const ReportRow& r) {
+  return {{"scene", r.scene}, {"method", r.method}, {"footprint_scale", r.footprint_scale}, {"rays", r.rays},
+          {"triangles", r.triangles}, {"probe_seconds", r.probe_s}, {"simplify_seconds", r.simplify_s},
+          {"render_seconds", r.render_s}, {"total_seconds", r.total_s}, {"drc_bytes", r.drc_bytes},
+          {"memory_bytes", r.memory_bytes}, {"psnr", std::isfinite(r.error.psnr) ? r.error.psnr : 999.0},
+          {"ssim", r.error.ssim}, {"max_diff", r.error.max_diff}, {"image", r.image}, {"diff_image", r.diff_image}};
+}
+
+const ReportRow* find_row(const std::vector<ReportRow>& rows, const std::string& scene, const std::string& method,
+                          uint64_t triangles_near = 0) {
+  const ReportRow* best = nullptr;
+  for (const auto& r : rows) {
+    if (r.scene != scene || r.method != method) continue;
+    if (!best) best = &r;
+    else if (triangles_near &&
+             std::llabs(int64_t(r.triangles) - int64_t(triangles_near)) <
+                 std::llabs(int64_t(best->triangles) - int64_t(triangles_near)))
+      best = &r;
+  }
+  return best;
+}
+
+Status write_report_files(const ReportResult& result, const ReportConfig& cfg, const SceneStores& stores,
+                          double load_seconds, const std::map<std::string, std::string>& cut_legends) {
+  // Machine-readable data first.
+  nlohmann::json j;
+  j["mesh"] = stores.meshes[0].string();
+  j["triangles"] = stores.triangles;
+  j["default_footprint_scale"] = cfg.default_scale;
+  j["default_rays"] = cfg.default_rays;
+  j["baseline_load_seconds"] = load_seconds;
+  j["rows"] = nlohmann::json::array();
+  for (const auto& r : result.rows) j["rows"].push_back(row_json(r));
+  RAYLOD_RETURN_IF_ERROR(write_file_atomic(cfg.out_dir / "report.json", j.dump(2) + "\n"));
+
+  std::ostringstream md;
+  md << "# raylod accuracy report: what accuracy costs in time\n\n";
+  md << "Mesh `" << stores.meshes[0].filename().string() << "`, " << stores.triangles << " triangles. ";
+  md << "Error is measured against the render of the full-resolution mesh (PSNR and SSIM on the displayed, "
+        "sRGB-encoded image; largest absolute channel difference in [0, 1]). Times are wall-clock seconds on this "
+        "machine (" << std::thread::hardware_concurrency() << " hardware threads, "
+     << format_bytes(physical_memory_bytes()) << "). raylod's total is probe + simplify + render (render = load the "
+        ".drc + BVH build + trace); a baseline's total is loading the full mesh (" << fmt("%.2f s", load_seconds)
+     << ") + simplifying it in memory + BVH build + trace. Memory: for the full mesh and raylod, the mesh and BVH "
+        "the renderer holds; for the baselines, the loaded mesh plus the simplifier's peak allocations.\n\n";
+  md << "The default footprint scale is K = " << label_number(cfg.default_scale) << " with " << cfg.default_rays
+     << " test rays.\n\n";
+
+  std::vector<std::string> scenes;
+  for (const auto& r : result.rows)
+    if (std::find(scenes.begin(), scenes.end(), r.scene) == scenes.end()) scenes.push_back(r.scene);
+
+  for (const auto& scene : scenes) {
+    const std::string tag = slug(scene);
+    md << "## " << scene << " view\n\n";
+    md << "| method | K | test rays | triangles | probe s | simplify s | render s | total s | .drc MiB | memory MiB "
+          "| PSNR dB | SSIM | max diff |\n";
+    md << "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n";
+    for (const auto& r : result.rows) {
+      if (r.scene != scene) continue;
+      const bool ray = r.method == "raylod";
+      md << "| " << r.method << " | " << (ray ? label_number(r.footprint_scale) : "") << " | "
+         << (ray ? std::to_string(r.rays) : "") << " | " << r.triangles << " | " << (ray ? fmt("%.2f", r.probe_s) : "")
+         << " | " << (r.method == "full mesh" ? "" : fmt("%.2f", r.simplify_s)) << " | " << fmt("%.2f", r.render_s)
+         << " | " << fmt("%.2f", r.total_s) << " | " << (ray ? mib(r.drc_bytes) : "") << " | " << mib(r.memory_bytes)
+         << " | " << (std::isfinite(r.error.psnr) ? fmt("%.2f", r.error.psnr) : "reference") << " | "
+         << fmt("%.4f", r.error.ssim) << " | " << fmt("%.3f", r.error.max_diff) << " |\n";
+    }
+    md << "\n";
+
+    // The figures the method is judged by, at the default settings.
+    const ReportRow* full = find_row(result.rows, scene, "full mesh");
+    const ReportRow* def = nullptr;
+    for (const auto& r : result.rows)
+      if (r.scene == scene && r.method == "raylod" && r.footprint_scale == cfg.default_scale &&
+          r.rays == cfg.default_rays)
+        def = &r;
+    if (def && full) {
+      const ReportRow* vc = find_row(result.rows, scene, "vertex clustering", def->triangles);
+      const ReportRow* ec = find_row(result.rows, scene, "edge collapse", def->triangles);
+      md << "At the default settings: " << fmt("%.1f", double(full->triangles) / std::max<uint64_t>(def->triangles, 1))
+         << "x fewer triangles than the input, PSNR " << fmt("%.2f dB", def->error.psnr) << "; probe + simplify + "
+         << "render " << fmt("%.2f s", def->total_s) << " against " << fmt("%.2f s", full->total_s)
+         << " to render the full mesh (load and BVH included).";
+      if (vc)
+        md << " Uniform vertex clustering at " << vc->triangles << " triangles: PSNR " << fmt("%.2f dB", vc->error.psnr)
+           << " (raylod " << fmt("%+.2f dB", def->error.psnr - vc->error.psnr) << ").";
+      if (ec)
+        md << " Quadric edge collapse at " << ec->triangles << " triangles: PSNR " << fmt("%.2f dB", ec->error.psnr)
+           << " (raylod " << fmt("%+.2f dB", def->error.psnr - ec->error.psnr) << ").";
+      md << "\n\n";
+      md << "| reference (full mesh) | raylod (default) | difference x4 | cut: collapse level |\n|---|---|---|---|\n";
+      md << "| ![](" << full->image << ") | ![](" << def->image << ") | ![](" << def->diff_image << ") | ![]("
+         << tag << "-cut.png) |\n\n";
+      auto legend = cut_legends.find(scene);
+      if (legend != cut_legends.end()) md << "Cut picture: " << legend->second << ".\n\n";
+      md << "Wireframe of raylod's simplified mesh (triangle density): ![](" << tag << "-raylod-wireframe.png)\n\n";
+      if (vc && ec) {
+        md << "Baselines at the same triangle count (difference x4):\n\n| vertex clustering | edge collapse |\n"
+              "|---|---|\n| ![](" << vc->diff_image << ") | ![](" << ec->diff_image << ") |\n\n";
+      }
+    }
+
+    // Accuracy against time, one curve per method.
+    std::vector<PlotSeries> series;
+    PlotSeries k_sweep{"raylod, K sweep (" + std::to_string(cfg.default_rays) + " rays)", {0.85f, 0.15f, 0.1f}, {}};
+    PlotSeries ray_sweep{"raylod, test-ray sweep (K = " + label_number(cfg.default_scale) + ")", {0.95f, 0.6f, 0.1f}, {}};
+    PlotSeries vc{"vertex clustering (meshopt sloppy)", {0.2f, 0.45f, 0.85f}, {}};
+    PlotSeries ec{"quadric edge collapse (meshopt)", {0.2f, 0.65f, 0.3f}, {}};
+    for (const auto& r : result.rows) {
+      if (r.scene != scene || !std::isfinite(r.error.psnr)) continue;
+      std::pair<double, double> pt{r.total_s, r.error.psnr};
+      if (r.method == "raylod" && r.rays == cfg.default_rays) k_sweep.points.push_back(pt);
+      if (r.method == "raylod" && r.footprint_scale == cfg.default_scale) ray_sweep.points.push_back(pt);
+      if (r.method == "vertex clustering") vc.points.push_back(pt);
+      if (r.method == "edge collapse") ec.points.push_back(pt);
+    }
+    auto by_x = [](PlotSeries& s) { std::sort(s.points.begin(), s.points.end()); };
+    by_x(k_sweep); by_x(ray_sweep); by_x(vc); by_x(ec);
+    for (auto* s : {&k_sweep, &ray_sweep, &vc, &ec})
+      if (!s->points.empty()) series.push_back(*s);
+    if (!series.empty()) {
+      PlotConfig pc;
+      pc.title = scene + " view: image error against time (full mesh: " + fmt("%.1f s", full ? full->total_s : 0) + ")";
+      pc.x_label = "total time [s]";
+      pc.y_label = "PSNR [dB]";
+      const std::string plot = tag + "-accuracy-vs-time.png";
+      RAYLOD_RETURN_IF_ERROR(write_plot(cfg.out_dir / plot, series, pc));
+      md << "Accuracy against time (higher and further left is better):\n\n![](" << plot << ")\n\n";
+    }
+  }
+  md << "Data: `report.json`. Regenerate with the command in README.md (\"What accuracy costs\").\n";
+  RAYLOD_RETURN_IF_ERROR(write_file_atomic(cfg.out_dir / "REPORT.md", md.str()));
+  return {};
+}
+
+}  // namespace
+
+Scene closeup_scene(const Scene& scene) {
+  Scene s = scene;
+  s.camera.eye = s.camera.look_at + (s.camera.eye - s.camera.look_at) * 0.25;
+  s.camera.fov_y_deg = std::max(10.0, s.camera.fov_y_deg * 0.8);
+  return s;
+}
+
+StatusOr<ReportResult> run_report(const Scene& input_scene, const std::optional<fs::path>& mesh_override,
+                                  const ReportConfig& cfg, const LogFn& log) {
+  auto say = [&](const std::string& m) { if (log) log(m); };
+  std::error_code ec;
+  fs::create_directories(cfg.out_dir, ec);
+  if (ec) return Status::error(cfg.out_dir.string() + ": cannot create report directory: " + ec.message());
+  const fs::path cache_dir = cfg.cache_dir.empty() ? default_cache_dir() : cfg.cache_dir;
+  if (input_scene.objects.size() != 1)
+    return Status::error("the report compares simplifiers on one mesh; the scene has " +
+                         std::to_string(input_scene.objects.size()) + " objects");
+
+  Scene base = input_scene;
+  if (cfg.width > 0) base.camera.width = cfg.width;
+  if (cfg.height > 0) base.camera.height = cfg.height;
+  StoreOptions store_options;
+  store_options.memory_limit = cfg.memory_limit;
+  store_options.threads = cfg.threads;
+  const uint64_t memory_limit = resolved_memory_limit(store_options);
+  RAYLOD_ASSIGN_OR_RETURN(SceneStores stores, prepare_scene_stores(base, mesh_override, store_options, cache_dir, log));
+  const OctreeStore& store = *stores.stores[0];
+  const fs::path mesh_path = stores.meshes[0];
+
+  std::vector<SceneRun> runs{{"default", base}};
+  if (cfg.closeup) runs.push_back({"close-up", closeup_scene(base)});
+
+  RenderOptions ro;
+  ro.spp = cfg.spp;
+  ro.threads = cfg.threads;
+  ro.memory_limit = memory_limit;
+  ro.progress = cfg.progress;
+
+  // The baselines simplify the fully loaded mesh: load it once, in world space.
+  std::optional<TriangleMesh> loaded;
+  double load_seconds = 0;
+  if (cfg.baselines) {
+    auto t0 = std::chrono::steady_clock::now();
+    RAYLOD_ASSIGN_OR_RETURN(TriangleMesh m, load_triangle_mesh(mesh_path, base.objects[0].transform,
+                                                              base.objects[0].material));
+    load_seconds = seconds_since(t0);
+    loaded = std::move(m);
+    say("loaded " + std::to_string(loaded->triangle_count()) + " triangles for the baselines in " +
+        fmt("%.2f s", load_seconds));
+  }
+
+  ReportResult result;
+  std::map<std::string, std::string> cut_legends;
+  const fs::path scratch = cfg.out_dir / "meshes";
+  fs::create_directories(scratch, ec);
+
+  for (const auto& run : runs) {
+    const std::string tag = slug(run.label);
+    // Reference: the full-resolution mesh, rendered the same way.
+    RAYLOD_ASSIGN_OR_RETURN(RenderResult reference, render(run.scene, ro));
+    const RenderStats& rs = reference.stats;
+    ReportRow ref;
+    ref.scene = run.label;
+    ref.method = "full mesh";
+    ref.triangles = stores.triangles;
+    ref.render_s = rs.load_seconds + rs.bvh_seconds + rs.render_seconds;
+    ref.total_s = ref.render_s;
+    ref.memory_bytes = rs.mesh_bytes + rs.bvh_bytes;
+    ref.error.psnr = INFINITY;
+    ref.error.ssim = 1;
+    ref.image = tag + "-reference.png";
+    RAYLOD_RETURN_IF_ERROR(write_image(cfg.out_dir / ref.image, reference.color));
+    result.rows.push_back(ref);
+    say(run.label + ": reference render " + fmt("%.2f s", ref.render_s));
+
+    // raylod: the K sweep at the default ray count, then the ray sweep at the default K.
+    std::vector<std::pair<double, uint64_t>> variants;
+    for (double k : cfg.footprint_scales) variants.push_back({k, cfg.default_rays});
+    for (uint64_t n : cfg.ray_counts)
+      if (n != cfg.default_rays) variants.push_back({cfg.default_scale, n});
+    std::vector<uint64_t> targets;
+    for (auto [k, n] : variants) {
+      ReportRow row;
+      row.scene = run.label;
+      row.method = "raylod";
+      row.footprint_scale = k;
+      row.rays = n;
+      auto t0 = std::chrono::steady_clock::now();
+      ProbeConfig pc = make_probe_config(run.scene, n, k, cfg.threads, memory_limit, false);
+      RAYLOD_ASSIGN_OR_RETURN(ProbeResult probe, run_probe(run.scene, stores.probe_stores, stores.objects, pc));
+      row.probe_s = seconds_since(t0);
+      const std::string name = tag + "-raylod-K" + label_number(k) + "-rays" + std::to_string(n);
+      fs::path drc = scratch / (name + ".drc");
+      RAYLOD_ASSIGN_OR_RETURN(SimplifiedMesh sm,
+                              simplify_cut_to_draco(store, probe.cuts[0], drc, memory_limit, false, &row.simplify_s));
+      row.triangles = sm.triangles;
+      row.drc_bytes = sm.drc_bytes;
+      RenderOptions o = ro;
+      o.mesh_override = {drc};
+      RAYLOD_ASSIGN_OR_RETURN(RenderResult img, render(run.scene, o));
+      row.render_s = img.stats.load_seconds + img.stats.bvh_seconds + img.stats.render_seconds;
+      row.total_s = row.probe_s + row.simplify_s + row.render_s;
+      row.memory_bytes = img.stats.mesh_bytes + img.stats.bvh_bytes;
+      RAYLOD_ASSIGN_OR_RETURN(row.error, compare_images(img.color, reference.color));
+      const bool is_default = k == cfg.default_scale && n == cfg.default_rays;
+      if (is_default || n == cfg.default_rays) {
+        row.image = name + ".png";
+        row.diff_image = name + ".diff.png";
+        RAYLOD_RETURN_IF_ERROR(write_image(cfg.out_dir / row.image, img.color));
+        RAYLOD_RETURN_IF_ERROR(write_image(cfg.out_dir / row.diff_image, difference_image(img.color, reference.color)));
+      }
+      if (is_default) {
+        std::string legend;
+        RAYLOD_ASSIGN_OR_RETURN(Image cut_img, cut_picture(run.scene, drc, store, probe.cuts[0], &legend));
+        RAYLOD_RETURN_IF_ERROR(write_image(cfg.out_dir / (tag + "-cut.png"), cut_img));
+        cut_legends[run.label] = legend;
+        RenderOptions w = o;
+        w.wireframe = true;
+        RAYLOD_ASSIGN_OR_RETURN(RenderResult wire, render(run.scene, w));
+        RAYLOD_RETURN_IF_ERROR(write_image(cfg.out_dir / (tag + "-raylod-wireframe.png"), wire.color));
+      }
+      if (n == cfg.default_rays) targets.push_back(row.triangles);
+      say(run.label + ": raylod K=" + label_number(k) + " rays=" + std::to_string(n) + ": " +
+          std::to_string(row.triangles) + " triangles, PSNR " + fmt("%.2f dB", row.error.psnr) + ", total " +
+          fmt("%.2f s", row.total_s));
+      result.rows.push_back(row);
+    }
+
+    // Baselines at the same triangle counts as the K sweep.
+    if (loaded) {
+      for (Baseline method : {Baseline::VertexClustering, Baseline::EdgeCollapse}) {
+        for (uint64_t target : targets) {
+          BaselineResult b = run_baseline(method, *loaded, target);
+          ReportRow row;
+          row.scene = run.label;
+          row.method = method == Baseline::VertexClustering ? "vertex clustering" : "edge collapse";
+          row.triangles = b.mesh.triangle_count();
+          row.simplify_s = b.seconds;
+          row.memory_bytes = b.peak_bytes;
+          std::vector<TriangleMesh> meshes;
+          meshes.push_back(std::move(b.mesh));
+          if (run.scene.ground) meshes.push_back(make_ground_mesh(*run.scene.ground, run.scene.camera));
+          auto t0 = std::chrono::steady_clock::now();
+          RAYLOD_ASSIGN_OR_RETURN(auto geometry, EmbreeScene::build(std::move(meshes)));
+          RenderResult img = render_embree_scene(*geometry, run.scene, ro);
+          row.render_s = seconds_since(t0);
+          // Load of the full mesh + simplification + BVH and trace.
+          row.total_s = load_seconds + row.simplify_s + row.render_s;
+          RAYLOD_ASSIGN_OR_RETURN(row.error, compare_images(img.color, reference.color));
+          const std::string name = tag + "-" + slug(row.method) + "-" + std::to_string(row.triangles);
+          row.image = name + ".png";
+          row.diff_image = name + ".diff.png";
+          RAYLOD_RETURN_IF_ERROR(write_image(cfg.out_dir / row.image, img.color));
+          RAYLOD_RETURN_IF_ERROR(write_image(cfg.out_dir / row.diff_image, difference_image(img.color, reference.color)));
+          say(run.label + ": " + row.method + " " + std::to_string(row.triangles) + " triangles, PSNR " +
+              fmt("%.2f dB", row.error.psnr));
+          result.rows.push_back(row);
+        }
+      }
+    }
+  }
+
+  RAYLOD_RETURN_IF_ERROR(write_report_files(result, cfg, stores, load_seconds, cut_legends));
+  result.markdown = cfg.out_dir / "REPORT.md";
+  result.plot = cfg.out_dir / "default-accuracy-vs-time.png";
+  return result;
+}
+
+}  // namespace raylod
