@@ -3,6 +3,8 @@
 // vertices and write the simplified mesh.
 #include <algorithm>
 #include <cctype>
+#include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <string>
 
@@ -64,6 +66,9 @@ int run_simplify(int argc, char** argv) {
   if (!position_error) return fail("simplify", position_error.status());
   if (*position_error < 0) return fail("simplify", Status::error("--position-error must be positive"));
 
+  using Clock = std::chrono::steady_clock;
+  auto since = [](Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); };
+  const auto t_open = Clock::now();
   auto store = OctreeStore::open(store_path);
   if (!store) return fail("simplify", store.status());
   auto cut = read_cut(cut_path);
@@ -82,6 +87,7 @@ int run_simplify(int argc, char** argv) {
                                           "; nothing was written. Raise --memory-limit or probe with a larger "
                                           "--footprint-scale"));
 
+  const double open_seconds = since(t_open);
   SimplifyConfig config;
   config.memory_limit = *limit;
   config.progress = !args.has("--quiet");
@@ -91,6 +97,7 @@ int run_simplify(int argc, char** argv) {
   if (r.mesh.triangle_count() == 0)
     return fail("simplify", Status::error("the simplified mesh has no triangles; nothing was written"));
 
+  const auto t_write = Clock::now();
   uint64_t bytes = 0;
   std::string quantisation;
   if (ext == ".drc") {
@@ -119,6 +126,7 @@ int run_simplify(int argc, char** argv) {
     bytes = std::filesystem::file_size(out_path, ec);
   }
 
+  const double write_seconds = since(t_write);
   const CollapseStats& s = r.stats;
   std::printf("wrote %s\n", out_path.string().c_str());
   std::printf("  triangles  %llu of %llu (%.2f%%)\n", ull(s.output_triangles), ull(s.input_triangles),
@@ -132,9 +140,10 @@ int run_simplify(int argc, char** argv) {
   if (s.normal_fallbacks) std::printf("  normals    %llu fell back (merged normals cancelled)\n", ull(s.normal_fallbacks));
   std::printf("%s", quantisation.c_str());
   std::printf("  bytes      %llu (%s)\n", ull(bytes), format_bytes(bytes).c_str());
-  std::printf("  time       %.2f s (%llu pages), peak memory %s (mesh build %s, estimate %s)\n", r.seconds,
-              ull(r.pages_read), format_bytes(peak_rss_bytes()).c_str(), format_bytes(s.peak_bytes).c_str(),
-              format_bytes(estimate.bytes).c_str());
+  std::printf("  time       open %.2f s, collapse %.2f s (%llu pages), write %.2f s\n", open_seconds, r.seconds,
+              ull(r.pages_read), write_seconds);
+  std::printf("  memory     peak %s (mesh build %s, estimate %s)\n", format_bytes(peak_rss_bytes()).c_str(),
+              format_bytes(s.peak_bytes).c_str(), format_bytes(estimate.bytes).c_str());
   return 0;
 }
 
