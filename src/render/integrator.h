@@ -58,9 +58,11 @@ struct IntegratorConfig {
   // Darken camera hits within half a pixel footprint of a triangle edge:
   // shows the triangle density (the paper's wireframe figure).
   bool wireframe = false;
-  // Secondary rays start this far off the surface, relative to the largest
-  // coordinate of the hit point (float intersection error is ~1e-7 of it).
-  double offset_scale = 1e-5;
+  // Secondary rays start this far off the surface (along the face normal),
+  // relative to the largest coordinate of the hit point: about 16 float ulps,
+  // well past Embree's intersection error and the float rounding of the
+  // origin, and small enough not to bend the path through thin glass.
+  double offset_scale = 2e-6;
 };
 
 // What a camera sample saw, with its first hit for the AOVs.
@@ -130,6 +132,6 @@ struct ChainVertex {
   Vec3d direction_out{0};  // direction after the event (the ray's, for Escape)
 };
 std::vector<ChainVertex> trace_specular_chain(const EmbreeScene& geometry, const Scene& scene, Ray ray, int max_events,
-                                              double offset_scale = 1e-5);
+                                              double offset_scale = 2e-6);
 
 }  // namespace raylod

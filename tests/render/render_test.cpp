@@ -163,6 +163,34 @@ TEST(SpecularChain, SlabDisplacesTheRayByTheAnalyticOffset) {
   }
 }
 
+TEST(SpecularChain, NoSelfIntersectionFarFromTheOriginOrAtGrazingAngles) {
+  // CAD coordinates far from the origin: float vertices are 1e-3 apart at
+  // 1e4, so spawn offsets must scale with the coordinates or secondary rays
+  // re-hit the surface they leave (extra events in the chain).
+  const double h = 0.5, n = 1.5;
+  for (double far : {0.0, 1e4}) {
+    std::vector<TriangleMesh> meshes;
+    meshes.push_back(make_box({float(far - 50), -5, float(-h / 2)}, {float(far + 50), 5, float(h / 2)}, 0));
+    auto geometry = EmbreeScene::build(std::move(meshes));
+    ASSERT_TRUE(geometry.is_ok());
+    const Scene s = glass_scene();
+    for (double deg = 0; deg < 89.5; deg += 4.0 + (deg >= 84 ? -3.0 : 0.0)) {
+      const double th = glm::radians(deg);
+      const Vec3d dir(std::sin(th), 0, -std::cos(th));
+      const Ray ray{Vec3d(far, 0.1, h) - 10.0 * dir, dir};  // starts above the slab
+      const auto chain = trace_specular_chain(**geometry, s, ray, 8);
+      ASSERT_EQ(chain.size(), 3u) << "far " << far << ", " << deg << " degrees";
+      EXPECT_EQ(chain[0].event, ChainVertex::Event::Refract);
+      EXPECT_EQ(chain[1].event, ChainVertex::Event::Refract);
+      const double tt = std::asin(std::sin(th) / n);
+      const double expected = h * std::sin(th - tt) / std::cos(tt);
+      const double offset = glm::length(glm::cross(chain[1].position - ray.origin, ray.direction));
+      // Float vertices at 1e4 are ~1e-3 apart: the offset is that exact there.
+      EXPECT_NEAR(offset, expected, far > 0 ? 1e-2 : 1e-4) << "far " << far << ", " << deg << " degrees";
+    }
+  }
+}
+
 TEST(SpecularChain, PrismTurnsTheRayByTotalInternalReflection) {
   std::vector<TriangleMesh> meshes;
   meshes.push_back(make_prism(1, 1, 0));
