@@ -290,10 +290,13 @@ StatusOr<Scan> scan_pass(MeshReader& reader, size_t ntokens) {
   scan.has_normals = reader.header().has_normals;
   scan.vertex_hint = reader.header().format == MeshFormat::Stl ? 0 : reader.header().vertex_count;
   // Indexed readers keep a memory-mapped vertex table whose touched pages
-  // count as resident (12 bytes per position, 12 per normal, or the records
-  // of a binary PLY in place); STL streams whole triangles.
-  scan.reader_bytes = std::min(reader.header().file_bytes ? reader.header().file_bytes : UINT64_MAX,
-                               scan.vertex_hint * (scan.has_normals ? 24 : 12));
+  // count as resident (12 bytes per position, 12 per normal). The binary PLY
+  // reader drops its mapping after every 64 MiB of face data, so for it we
+  // assume at most 128 MiB (exceeded only by meshes whose faces jump around
+  // the vertex table). STL streams whole triangles.
+  scan.reader_bytes = scan.vertex_hint * (scan.has_normals ? 24 : 12);
+  if (reader.header().format == MeshFormat::Ply && reader.header().encoding.rfind("binary", 0) == 0)
+    scan.reader_bytes = std::min<uint64_t>(scan.reader_bytes, 128ull << 20);
   const std::string name = reader.path().string();
   Progress progress("bounds", reader.header().face_count, "triangles");
   Status s = run_pass<ScanToken>(
