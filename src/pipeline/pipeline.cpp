@@ -133,6 +133,7 @@ StatusOr<RunResult> run_pipeline(Scene scene, const RunOptions& options, const L
   ProbeConfig probe =
       make_probe_config(scene, options.rays, options.footprint_scale, options.threads, memory_limit, options.progress);
   auto t_probe = std::chrono::steady_clock::now();
+  uint64_t previous_estimate = UINT64_MAX;
   for (;;) {
     RAYLOD_ASSIGN_OR_RETURN(result.probe, run_probe(scene, stores.probe_stores, stores.objects, probe));
     uint64_t estimate = 0;
@@ -140,10 +141,13 @@ StatusOr<RunResult> run_pipeline(Scene scene, const RunOptions& options, const L
       estimate += estimate_simplify(*stores.stores[i], result.probe.cuts[i]).triangles;
     uint64_t need = estimate_render_memory(estimate + 2);
     if (need <= memory_limit) break;
-    if (result.coarsening_steps >= options.max_coarsening_steps)
+    // Stop once coarsening no longer helps (the estimate bottoms out at the
+    // renderer's fixed overhead) or after max_coarsening_steps doublings.
+    if (result.coarsening_steps >= options.max_coarsening_steps || estimate >= previous_estimate)
       return Status::error("even at footprint scale " + fmt("%g", probe.footprint_scale) + " the simplified mesh (" +
                            std::to_string(estimate) + " triangles, " + format_bytes(need) + ") does not fit in " +
                            format_bytes(memory_limit));
+    previous_estimate = estimate;
     ++result.coarsening_steps;
     say(log, "the simplified mesh would need " + format_bytes(need) + " (about " + std::to_string(estimate) +
                  " triangles), over the memory limit of " + format_bytes(memory_limit) +

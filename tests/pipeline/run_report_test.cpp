@@ -1,0 +1,181 @@
+// End to end through the raylod executable: run, the cache across views,
+// memory-limited runs, and report --quick.
+#include <gtest/gtest.h>
+
+#include <unistd.h>
+
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include <nlohmann/json.hpp>
+
+namespace {
+
+namespace fs = std::filesystem;
+
+fs::path work_dir() {
+  static fs::path d = [] {
+    fs::path p = fs::temp_directory_path() / ("raylod-run-test-" + std::to_string(::getpid()));
+    fs::remove_all(p);
+    fs::create_directories(p);
+    return p;
+  }();
+  return d;
+}
+
+std::string read(const fs::path& p) {
+  std::ifstream in(p);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+// Runs raylod with arguments; returns the exit code, output in *out.
+int raylod(const std::string& args, std::string* out = nullptr) {
+  fs::path log = work_dir() / "last.log";
+  std::string cmd = "RAYLOD_CACHE_DIR='" + (work_dir() / "cache").string() + "' '" RAYLOD_EXE "' " + args + " > '" +
+                    log.string() + "' 2>&1";
+  int rc = std::system(cmd.c_str());
+  if (out) *out = read(log);
+  return WIFEXITED(rc) ? WEXITSTATUS(rc) : -1;
+}
+
+// A small version of the default scene: a generated 20k-triangle teapot,
+// a thumbnail, one sample per pixel. eye_scale moves the eye along the view.
+fs::path write_scene(const std::string& name, double eye_scale) {
+  fs::path p = work_dir() / name;
+  double ex = 6.5 * eye_scale, ey = 1.3 + 3.5 * eye_scale, ez = 8.5 * eye_scale;
+  std::ofstream(p) << R"({"camera": {"eye": [)" << ex << ", " << ey << ", " << ez
+                   << R"(], "look_at": [0.2, 1.3, 0], "fov_y": 34, "width": 128, "height": 96},
+    "materials": {"p": {"type": "glossy", "color": [0.7, 0.1, 0.1], "specular": [0.4, 0.4, 0.4]},
+                  "floor": {"type": "diffuse", "color": [0.7, 0.7, 0.7]}},
+    "objects": [{"mesh": {"generate": "teapot", "triangles": 20000}, "material": "p"}],
+    "ground": {"height": 0, "size": 40, "material": "floor"},
+    "lights": [{"type": "point", "position": [6, 10, 6], "intensity": 150}],
+    "spp": 1, "max_depth": 3, "seed": 3})";
+  return p;
+}
+
+nlohmann::json stats(const fs::path& p) { return nlohmann::json::parse(read(p)); }
+
+TEST(Run, SecondRunOfTheSameViewHitsTheCache) {
+  fs::path scene = write_scene("view.json", 1.0);
+  fs::path cache = work_dir() / "cache-same";
+  std::string out;
+  const std::string common = "run '" + scene.string() + "' --rays 800 --footprint-scale 4 --cache '" + cache.string() + "' ";
+  ASSERT_EQ(raylod(common + "-o '" + (work_dir() / "a.png").string() + "' --stats-json '" +
+                   (work_dir() / "a.json").string() + "'", &out), 0) << out;
+  auto a = stats(work_dir() / "a.json");
+  EXPECT_FALSE(a["cache_hit"].get<bool>());
+  EXPECT_GT(a["triangles_in"].get<uint64_t>(), a["triangles_out"].get<uint64_t>());
+  for (const char* stage : {"build", "probe", "simplify", "render"}) EXPECT_GE(a["seconds"][stage].get<double>(), 0.0);
+  EXPECT_GT(a["peak_rss_bytes"].get<uint64_t>(), 0u);
+  EXPECT_TRUE(fs::exists(work_dir() / "a.png"));
+
+  ASSERT_EQ(raylod(common + "-o '" + (work_dir() / "b.png").string() + "' --stats-json '" +
+                   (work_dir() / "b.json").string() + "'", &out), 0) << out;
+  auto b = stats(work_dir() / "b.json");
+  EXPECT_TRUE(b["cache_hit"].get<bool>()) << out;
+  EXPECT_EQ(a["triangles_out"], b["triangles_out"]);
+  // Same inputs and seed: the same image.
+  EXPECT_EQ(read(work_dir() / "a.png"), read(work_dir() / "b.png"));
+}
+
+TEST(Run, OtherViewsReuseOrRebuildByTheRule) {
+  fs::path cache = work_dir() / "cache-views";
+  auto run = [&](const std::string& scene, const std::string& tag) {
+    std::string out;
+    EXPECT_EQ(raylod("run '" + write_scene(scene, tag == "near" ? 0.5 : tag == "far" ? 3.0 : 1.0).string() +
+                     "' --rays 800 --footprint-scale 4 --cache '" + cache.string() + "' -o '" +
+                     (work_dir() / (tag + ".png")).string() + "' --stats-json '" + (work_dir() / (tag + ".json")).string() +
+                     "'", &out), 0) << out;
+    return stats(work_dir() / (tag + ".json"));
+  };
+  auto mid = run("mid.json", "mid");
+  EXPECT_FALSE(mid["cache_hit"].get<bool>());
+  // Farther away every footprint grows, so the cached mesh is fine enough.
+  auto far = run("far.json", "far");
+  EXPECT_TRUE(far["cache_hit"].get<bool>()) << far.dump(2);
+  EXPECT_NE(far["meshes"][0]["cache_note"].get<std::string>().find("reusing"), std::string::npos);
+  EXPECT_EQ(far["triangles_out"], mid["triangles_out"]);
+  // Closer, the view needs finer cells than the cached mesh has: rebuilt.
+  auto near = run("near.json", "near");
+  EXPECT_FALSE(near["cache_hit"].get<bool>()) << near.dump(2);
+  EXPECT_GT(near["triangles_out"].get<uint64_t>(), mid["triangles_out"].get<uint64_t>());
+}
+
+TEST(Run, CorruptCacheEntryIsRebuiltNotRendered) {
+  fs::path scene = write_scene("corrupt.json", 1.0);
+  fs::path cache = work_dir() / "cache-corrupt";
+  const std::string common = "run '" + scene.string() + "' --rays 500 --footprint-scale 4 --cache '" + cache.string() +
+                             "' -o '" + (work_dir() / "c.png").string() + "' --stats-json '" +
+                             (work_dir() / "c.json").string() + "'";
+  std::string out;
+  ASSERT_EQ(raylod(common, &out), 0) << out;
+  std::string first = read(work_dir() / "c.png");
+  int corrupted = 0;
+  for (const auto& f : fs::directory_iterator(cache / "simplified"))
+    if (f.path().extension() == ".drc") {
+      std::fstream io(f.path(), std::ios::in | std::ios::out | std::ios::binary);
+      io.seekp(40);
+      io.put('\x5a');
+      ++corrupted;
+    }
+  ASSERT_EQ(corrupted, 1);
+  ASSERT_EQ(raylod(common, &out), 0) << out;
+  EXPECT_NE(out.find("corrupt"), std::string::npos) << out;
+  EXPECT_FALSE(stats(work_dir() / "c.json")["cache_hit"].get<bool>());
+  EXPECT_EQ(read(work_dir() / "c.png"), first);
+}
+
+TEST(Run, MemoryLimitBelowTheFullMeshCoarsensTheCut) {
+  fs::path scene = write_scene("tight.json", 1.0);
+  std::string out;
+  // The renderer refuses the full mesh under this limit (its estimate has a
+  // fixed overhead of about 16 MiB plus about 160 bytes per triangle)...
+  ASSERT_NE(raylod("render '" + scene.string() + "' -o '" + (work_dir() / "t-full.png").string() +
+                   "' --memory-limit 17M", &out), 0);
+  EXPECT_NE(out.find("raylod run"), std::string::npos) << out;
+  // ...and run still produces an image by coarsening the cut.
+  ASSERT_EQ(raylod("run '" + scene.string() + "' --no-cache --memory-limit 17M --rays 500 -o '" +
+                   (work_dir() / "t.png").string() + "' --stats-json '" + (work_dir() / "t.json").string() + "'", &out), 0)
+      << out;
+  auto t = stats(work_dir() / "t.json");
+  EXPECT_GT(t["coarsening_steps"].get<int>(), 0) << out;
+  EXPECT_NE(out.find("coarsening the cut"), std::string::npos) << out;
+  EXPECT_TRUE(fs::exists(work_dir() / "t.png"));
+}
+
+TEST(Run, BadSceneIsAClearError) {
+  fs::path bad = work_dir() / "bad.json";
+  std::ofstream(bad) << "{\"camera\": 3}";
+  std::string out;
+  EXPECT_EQ(raylod("run '" + bad.string() + "' -o '" + (work_dir() / "x.png").string() + "'", &out), 1);
+  EXPECT_NE(out.find("bad.json"), std::string::npos) << out;
+  EXPECT_FALSE(fs::exists(work_dir() / "x.png"));
+}
+
+TEST(Report, QuickWritesMarkdownPlotAndPictures) {
+  fs::path dir = work_dir() / "report";
+  std::string out;
+  ASSERT_EQ(raylod("report --quick -q -o '" + dir.string() + "'", &out), 0) << out;
+  std::string md = read(dir / "REPORT.md");
+  EXPECT_NE(md.find("| raylod |"), std::string::npos);
+  EXPECT_NE(md.find("| vertex clustering |"), std::string::npos);
+  EXPECT_NE(md.find("| edge collapse |"), std::string::npos);
+  EXPECT_NE(md.find("close-up view"), std::string::npos);
+  for (const char* f : {"default-accuracy-vs-time.png", "close-up-accuracy-vs-time.png", "default-cut.png",
+                        "default-reference.png", "report.json"})
+    EXPECT_TRUE(fs::exists(dir / f)) << f;
+  auto j = nlohmann::json::parse(read(dir / "report.json"));
+  // Every non-reference row has a measured, finite error.
+  for (const auto& row : j["rows"])
+    if (row["method"] != "full mesh") {
+      EXPECT_GT(row["psnr"].get<double>(), 10.0) << row.dump();
+      EXPECT_GT(row["triangles"].get<uint64_t>(), 0u) << row.dump();
+    }
+}
+
+}  // namespace

@@ -1,0 +1,154 @@
+// The simplified-mesh cache: the reuse rule on tiny cuts, verification of
+// entries, eviction, and what a killed run can leave behind.
+#include <gtest/gtest.h>
+
+#include <unistd.h>
+
+#include <filesystem>
+#include <fstream>
+
+#include "pipeline/simplified_cache.h"
+
+namespace raylod {
+namespace {
+
+namespace fs = std::filesystem;
+
+fs::path fresh_dir(const std::string& name) {
+  fs::path d = fs::temp_directory_path() / ("raylod-cache-test-" + std::to_string(::getpid())) / name;
+  fs::remove_all(d);
+  fs::create_directories(d);
+  return d;
+}
+
+Cut make_cut(uint64_t store_hash, std::vector<CellKey> cells) {
+  Cut cut;
+  cut.store_hash = store_hash;
+  for (auto k : cells) cut.cells.push_back(CollapsedCell{k, 0.01f, 1});
+  std::sort(cut.cells.begin(), cut.cells.end(), [](const auto& a, const auto& b) { return a.key < b.key; });
+  return cut;
+}
+
+fs::path write_file(const fs::path& p, size_t bytes, char fill) {
+  std::ofstream(p, std::ios::binary) << std::string(bytes, fill);
+  return p;
+}
+
+TEST(ReuseRule, SameCutIsFineEnough) {
+  Cut a = make_cut(7, {{3, 5}, {4, 100}});
+  EXPECT_TRUE(cut_is_at_least_as_fine(a, a));
+}
+
+TEST(ReuseRule, FinerCachedCellsAreFineEnough) {
+  // Cached collapsed a child of the cell the new view collapses: finer. OK.
+  Cut cached = make_cut(7, {{4, (5u << 3) | 2}});
+  Cut wanted = make_cut(7, {{3, 5}});
+  EXPECT_TRUE(cut_is_at_least_as_fine(cached, wanted));
+}
+
+TEST(ReuseRule, CoarserCachedCellIsRejectedWithReason) {
+  Cut cached = make_cut(7, {{3, 5}});
+  Cut wanted = make_cut(7, {{4, (5u << 3) | 2}});
+  std::string why;
+  EXPECT_FALSE(cut_is_at_least_as_fine(cached, wanted, &why));
+  EXPECT_NE(why.find("level 3"), std::string::npos) << why;
+}
+
+TEST(ReuseRule, CellTheNewViewKeepsIsRejected) {
+  Cut cached = make_cut(7, {{3, 5}, {3, 6}});
+  Cut wanted = make_cut(7, {{3, 5}});
+  EXPECT_FALSE(cut_is_at_least_as_fine(cached, wanted));
+  // An uncollapsed cached mesh (empty cut) is fine for any view.
+  EXPECT_TRUE(cut_is_at_least_as_fine(make_cut(7, {}), wanted));
+}
+
+TEST(ReuseRule, OtherStoreIsRejected) {
+  EXPECT_FALSE(cut_is_at_least_as_fine(make_cut(7, {}), make_cut(8, {})));
+}
+
+TEST(SimplifiedCache, InsertThenExactHit) {
+  fs::path dir = fresh_dir("exact");
+  auto cache = SimplifiedCache::open(dir, 1 << 20);
+  ASSERT_TRUE(cache.is_ok()) << cache.status().message();
+  Cut cut = make_cut(42, {{2, 1}});
+  fs::path drc = write_file(dir / "staged.drc", 1000, 'a');
+  auto entry = cache->insert(cut, drc, 123);
+  ASSERT_TRUE(entry.is_ok()) << entry.status().message();
+  auto hit = cache->find_exact(SimplifiedCache::key_for(cut));
+  ASSERT_TRUE(hit.has_value());
+  EXPECT_EQ(hit->triangles, 123u);
+  EXPECT_TRUE(fs::exists(hit->mesh));
+}
+
+TEST(SimplifiedCache, CorruptEntryIsRemovedNotReturned) {
+  fs::path dir = fresh_dir("corrupt");
+  auto cache = SimplifiedCache::open(dir, 1 << 20);
+  ASSERT_TRUE(cache.is_ok());
+  Cut cut = make_cut(42, {{2, 1}});
+  auto entry = cache->insert(cut, write_file(dir / "staged.drc", 1000, 'a'), 5);
+  ASSERT_TRUE(entry.is_ok());
+  write_file(entry->mesh, 1000, 'b');  // same size, other content
+  std::string note;
+  EXPECT_FALSE(cache->find_exact(entry->key, &note).has_value());
+  EXPECT_NE(note.find("corrupt"), std::string::npos) << note;
+  EXPECT_FALSE(fs::exists(entry->mesh));
+  EXPECT_FALSE(cache->find_reusable(cut).has_value());
+}
+
+TEST(SimplifiedCache, ReusesTheCoarsestFineEnoughEntry) {
+  fs::path dir = fresh_dir("reuse");
+  auto cache = SimplifiedCache::open(dir, 1 << 20);
+  ASSERT_TRUE(cache.is_ok());
+  Cut fine = make_cut(9, {{4, 40}});
+  Cut finer = make_cut(9, {});
+  Cut coarse = make_cut(9, {{2, 0}});
+  ASSERT_TRUE(cache->insert(fine, write_file(dir / "a.drc", 100, 'a'), 500).is_ok());
+  ASSERT_TRUE(cache->insert(finer, write_file(dir / "b.drc", 100, 'b'), 900).is_ok());
+  ASSERT_TRUE(cache->insert(coarse, write_file(dir / "c.drc", 100, 'c'), 100).is_ok());
+  // The new view collapses level-3 cell 5 (which contains level-4 cell 40):
+  // "fine" and "finer" qualify, "coarse" (level 2, cell 0) is too coarse.
+  Cut wanted = make_cut(9, {{3, 5}});
+  std::string why;
+  auto got = cache->find_reusable(wanted, &why);
+  ASSERT_TRUE(got.has_value());
+  EXPECT_EQ(got->triangles, 500u) << why;
+  EXPECT_FALSE(why.empty());
+}
+
+TEST(SimplifiedCache, EvictsLeastRecentlyUsed) {
+  fs::path dir = fresh_dir("evict");
+  auto cache = SimplifiedCache::open(dir, 5000);
+  ASSERT_TRUE(cache.is_ok());
+  Cut a = make_cut(1, {{1, 1}}), b = make_cut(1, {{1, 2}}), c = make_cut(1, {{1, 3}});
+  ASSERT_TRUE(cache->insert(a, write_file(dir / "a.drc", 2000, 'a'), 1).is_ok());
+  ASSERT_TRUE(cache->insert(b, write_file(dir / "b.drc", 2000, 'b'), 1).is_ok());
+  auto ea = cache->find_exact(SimplifiedCache::key_for(a));
+  ASSERT_TRUE(ea.has_value());
+  cache->touch(*ea);  // a is now more recent than b
+  ASSERT_TRUE(cache->insert(c, write_file(dir / "c.drc", 2000, 'c'), 1).is_ok());
+  EXPECT_TRUE(cache->find_exact(SimplifiedCache::key_for(a)).has_value());
+  EXPECT_FALSE(cache->find_exact(SimplifiedCache::key_for(b)).has_value());
+  EXPECT_TRUE(cache->find_exact(SimplifiedCache::key_for(c)).has_value());
+}
+
+TEST(SimplifiedCache, LeftoversOfAKilledRunAreIgnored) {
+  fs::path dir = fresh_dir("killed");
+  auto cache = SimplifiedCache::open(dir, 1 << 20);
+  ASSERT_TRUE(cache.is_ok());
+  Cut cut = make_cut(3, {{2, 2}});
+  const std::string key = SimplifiedCache::key_for(cut);
+  // A run killed after writing the mesh and cut but before the metadata,
+  // and a temporary file it never renamed.
+  write_file(dir / "simplified" / (key + ".drc"), 100, 'x');
+  write_file(dir / "simplified" / (key + ".drc.tmp-123-0-1"), 50, 'y');
+  EXPECT_FALSE(cache->find_exact(key).has_value());
+  EXPECT_TRUE(cache->entries().empty());
+  // A later run inserts the same key cleanly.
+  ASSERT_TRUE(cache->insert(cut, write_file(dir / "new.drc", 100, 'z'), 7).is_ok());
+  auto hit = cache->find_exact(key);
+  ASSERT_TRUE(hit.has_value());
+  EXPECT_EQ(hit->triangles, 7u);
+}
+
+}  // namespace
+}  // namespace raylod
