@@ -15,6 +15,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstring>
+#include <limits>
 #include <numeric>
 #include <optional>
 
@@ -70,6 +71,20 @@ std::array<uint32_t, 3> rotate_min_first(const std::array<uint32_t, 3>& t) {
   return t;
 }
 
+// The float nearest v that lies in [lo, hi] if one within an ulp does: the
+// output mesh is float, and rounding must not push a vertex out of its cell.
+float float_inside(double v, double lo, double hi) {
+  float f = float(v);
+  if (double(f) < lo) {
+    const float g = std::nextafter(f, std::numeric_limits<float>::infinity());
+    if (double(g) <= hi) f = g;
+  } else if (double(f) > hi) {
+    const float g = std::nextafter(f, -std::numeric_limits<float>::infinity());
+    if (double(g) >= lo) f = g;
+  }
+  return f;
+}
+
 }  // namespace
 
 Representative make_representative(const NodeRecord& node, const Bbox& cell_bounds_world, const Vec3d& origin,
@@ -78,7 +93,8 @@ Representative make_representative(const NodeRecord& node, const Bbox& cell_boun
   const Bbox cell{cell_bounds_world.lo - origin, cell_bounds_world.hi - origin};
   const Vec3d mean = node.corner_count ? node.vertex_sum / double(node.corner_count) : cell.center();
   const QemSolution s = solve_representative_vertex(node.quadric, mean, cell, config);
-  r.position = origin + s.position;
+  const Vec3d world = origin + s.position;
+  for (int a = 0; a < 3; ++a) r.position[a] = float_inside(world[a], cell_bounds_world.lo[a], cell_bounds_world.hi[a]);
   r.rank = s.rank;
   r.clamped = s.clamped;
   r.fallback_normal = dominant_normal(node.quadric);

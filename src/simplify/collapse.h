@@ -46,7 +46,7 @@ inline constexpr uint32_t kKeepVertex = 0xffffffffu;
 
 // The output vertex of one collapsed cell.
 struct Representative {
-  Vec3d position{0};         // world coordinates, inside the cell
+  Vec3d position{0};         // world coordinates, float-representable, inside the cell
   Vec3d fallback_normal{0, 1, 0};  // unit; used when the merged normals cancel
   int rank = 0;              // rank of the QEM solve (qem_solve.h)
   bool clamped = false;
