@@ -117,7 +117,9 @@ int cmd_probe(int argc, char** argv) {
     return cli::fail("probe", Status::error("--memory-limit " + format_bytes(memory_limit) +
                                             " is below what the stores' node tables already take (" +
                                             format_bytes(rss) + " resident)"));
-  config.cache_bytes = (memory_limit - rss - reserve) * 3 / 4;
+  // Half of what is left: malloc fragmentation from evicted pages and the
+  // pages in flight (one per thread) must fit in the rest.
+  config.cache_bytes = (memory_limit - rss - reserve) / 2;
 
   auto result = run_probe(scene, stores, objects, config);
   if (!result) return cli::fail("probe", result.status());

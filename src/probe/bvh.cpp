@@ -6,48 +6,76 @@
 
 namespace raylod {
 
+namespace {
+
+// 10 bits per axis, interleaved (30-bit Morton code).
+uint32_t spread_bits(uint32_t v) {
+  v &= 0x3ff;
+  v = (v | (v << 16)) & 0x030000ff;
+  v = (v | (v << 8)) & 0x0300f00f;
+  v = (v | (v << 4)) & 0x030c30c3;
+  v = (v | (v << 2)) & 0x09249249;
+  return v;
+}
+
+}  // namespace
+
+// Items are sorted once along a Morton curve of their centres and the tree
+// halves index ranges of that order (a linear BVH): one O(n log n) sort and
+// O(n) work after it, so that building a page's BVH costs little next to
+// reading the page. Boxes are then computed bottom-up.
 Bvh build_bvh(std::span<const Bbox> boxes, uint32_t leaf_size) {
   Bvh bvh;
   if (boxes.empty()) return bvh;
   leaf_size = std::max<uint32_t>(1, leaf_size);
-  bvh.order.resize(boxes.size());
-  std::iota(bvh.order.begin(), bvh.order.end(), 0u);
-  bvh.nodes.reserve(2 * boxes.size() / leaf_size + 1);
+  const size_t n = boxes.size();
+  Bbox centres;
+  for (const Bbox& b : boxes) centres.expand(b.center());
+  const Vec3d lo = centres.lo, ext = centres.extent();
+  const double scale = 1023.0 / std::max({ext.x, ext.y, ext.z, 1e-300});
+  std::vector<std::pair<uint32_t, uint32_t>> keyed(n);  // (Morton code, index): ties by index
+  for (size_t i = 0; i < n; ++i) {
+    const Vec3d q = (boxes[i].center() - lo) * scale;
+    keyed[i] = {spread_bits(uint32_t(q.x)) | (spread_bits(uint32_t(q.y)) << 1) | (spread_bits(uint32_t(q.z)) << 2),
+                uint32_t(i)};
+  }
+  std::sort(keyed.begin(), keyed.end());
+  bvh.order.resize(n);
+  for (size_t i = 0; i < n; ++i) bvh.order[i] = keyed[i].second;
+
+  // Top-down: split ranges in halves; children are created after parents.
+  struct Range { uint32_t begin, end; };
+  std::vector<Range> ranges;
+  bvh.nodes.reserve(2 * n / leaf_size + 1);
   bvh.nodes.push_back({});
-  struct Task { uint32_t node, begin, end; };
-  std::vector<Task> stack{{0, 0, uint32_t(boxes.size())}};
-  while (!stack.empty()) {
-    const Task task = stack.back();
-    stack.pop_back();
-    Bbox box, centroids;
-    for (uint32_t i = task.begin; i < task.end; ++i) {
-      box.expand(boxes[bvh.order[i]]);
-      centroids.expand(boxes[bvh.order[i]].center());
-    }
-    bvh.nodes[task.node].box = box;
-    const uint32_t n = task.end - task.begin;
-    const Vec3d ext = centroids.extent();
-    if (n <= leaf_size || std::max({ext.x, ext.y, ext.z}) <= 0) {
-      bvh.nodes[task.node].first = task.begin;
-      bvh.nodes[task.node].count = n;
+  ranges.push_back({0, uint32_t(n)});
+  for (size_t i = 0; i < bvh.nodes.size(); ++i) {
+    const Range r = ranges[i];
+    const uint32_t count = r.end - r.begin;
+    if (count <= leaf_size) {
+      bvh.nodes[i].first = r.begin;
+      bvh.nodes[i].count = count;
       continue;
     }
-    const int axis = ext.x >= ext.y && ext.x >= ext.z ? 0 : (ext.y >= ext.z ? 1 : 2);
-    const uint32_t mid = task.begin + n / 2;
-    // Ties broken by index so that the tree does not depend on the sort's internals.
-    std::nth_element(bvh.order.begin() + task.begin, bvh.order.begin() + mid, bvh.order.begin() + task.end,
-                     [&](uint32_t a, uint32_t b) {
-                       const double ca = boxes[a].lo[axis] + boxes[a].hi[axis];
-                       const double cb = boxes[b].lo[axis] + boxes[b].hi[axis];
-                       return ca != cb ? ca < cb : a < b;
-                     });
-    const uint32_t left = uint32_t(bvh.nodes.size());
+    const uint32_t mid = r.begin + count / 2;
+    bvh.nodes[i].first = uint32_t(bvh.nodes.size());
+    bvh.nodes[i].count = 0;
     bvh.nodes.push_back({});
     bvh.nodes.push_back({});
-    bvh.nodes[task.node].first = left;
-    bvh.nodes[task.node].count = 0;
-    stack.push_back({left + 1, mid, task.end});
-    stack.push_back({left, task.begin, mid});
+    ranges.push_back({r.begin, mid});
+    ranges.push_back({mid, r.end});
+  }
+  // Bottom-up boxes: every child has a larger index than its parent.
+  for (size_t i = bvh.nodes.size(); i-- > 0;) {
+    BvhNode& node = bvh.nodes[i];
+    Bbox box;
+    if (node.leaf()) {
+      for (uint32_t k = 0; k < node.count; ++k) box.expand(boxes[bvh.order[node.first + k]]);
+    } else {
+      box = bvh.nodes[node.first].box;
+      box.expand(bvh.nodes[node.first + 1].box);
+    }
+    node.box = box;
   }
   return bvh;
 }

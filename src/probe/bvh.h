@@ -25,8 +25,8 @@ struct Bvh {
   size_t bytes() const { return nodes.capacity() * sizeof(BvhNode) + order.capacity() * sizeof(uint32_t); }
 };
 
-// Median split along the longest axis of the centroids, down to leaf_size
-// items per leaf. Deterministic for a given input.
+// A linear BVH: items sorted along a Morton curve of their centres, ranges
+// halved down to leaf_size items per leaf. Deterministic for a given input.
 Bvh build_bvh(std::span<const Bbox> boxes, uint32_t leaf_size = 4);
 
 // Per-ray constants for the slab test.

@@ -6,19 +6,40 @@
 namespace raylod {
 
 size_t Page::bytes() const {
-  return sizeof(Page) + positions.capacity() * sizeof(Vec3) + normals.capacity() * sizeof(Vec3) + bvh.bytes();
+  return sizeof(Page) + positions.capacity() * sizeof(Vec3) + normals.capacity() * sizeof(Vec3) +
+         nodes.capacity() * sizeof(PageNode);
 }
 
 Page make_page(TriangleBatch&& batch) {
   Page page;
-  page.positions = std::move(batch.positions);
-  page.normals = std::move(batch.normals);
-  if (page.normals.size() != page.positions.size()) page.normals.clear();
-  const size_t n = page.triangle_count();
+  const bool normals = batch.normals.size() == batch.positions.size();
+  const size_t n = batch.size();
   std::vector<Bbox> boxes(n);
   for (size_t i = 0; i < n; ++i)
-    for (int k = 0; k < 3; ++k) boxes[i].expand(page.positions[3 * i + k]);
-  page.bvh = build_bvh(boxes, 4);
+    for (int k = 0; k < 3; ++k) boxes[i].expand(batch.positions[3 * i + k]);
+  const Bvh bvh = build_bvh(boxes, 8);
+  // Triangles in leaf order, so that leaves index them directly.
+  page.positions.resize(3 * n);
+  if (normals) page.normals.resize(3 * n);
+  for (size_t i = 0; i < n; ++i) {
+    const size_t src = bvh.order[i];
+    for (int k = 0; k < 3; ++k) {
+      page.positions[3 * i + k] = batch.positions[3 * src + k];
+      if (normals) page.normals[3 * i + k] = batch.normals[3 * src + k];
+    }
+  }
+  page.nodes.resize(bvh.nodes.size());
+  for (size_t i = 0; i < bvh.nodes.size(); ++i) {
+    const BvhNode& b = bvh.nodes[i];
+    PageNode& p = page.nodes[i];
+    for (int k = 0; k < 3; ++k) {
+      // Exact: the bounds are of float corners.
+      p.lo[k] = float(b.box.lo[k]);
+      p.hi[k] = float(b.box.hi[k]);
+    }
+    p.first = b.first;
+    p.count = b.count;
+  }
   return page;
 }
 

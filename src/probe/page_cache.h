@@ -20,12 +20,22 @@
 
 namespace raylod {
 
+// A node of a page's triangle BVH, compact: float boxes are exact here
+// because the corners are floats. Leaf: triangles [first, first + count).
+struct PageNode {
+  float lo[3], hi[3];
+  uint32_t first = 0;  // leaf: first triangle; inner: left child (right = first + 1)
+  uint32_t count = 0;  // 0 for an inner node
+  bool leaf() const { return count > 0; }
+  Bbox box() const { return Bbox{Vec3d(lo[0], lo[1], lo[2]), Vec3d(hi[0], hi[1], hi[2])}; }
+};
+
 // One loaded page: triangle corners (3 per triangle, object space), optional
-// vertex normals, and a BVH over the triangles.
+// vertex normals, both in BVH leaf order, and the BVH over the triangles.
 struct Page {
   std::vector<Vec3> positions;
   std::vector<Vec3> normals;  // empty if the store has no normals
-  Bvh bvh;
+  std::vector<PageNode> nodes;
   size_t triangle_count() const { return positions.size() / 3; }
   size_t bytes() const;
 };

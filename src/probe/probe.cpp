@@ -131,15 +131,23 @@ class ProbeTracer {
   const PinholeCamera& camera() const { return camera_; }
   const std::vector<ObjectXf>& transforms() const { return xf_; }
 
-  RayOutcome trace_test_ray(uint64_t index) const {
-    RayOutcome out;
+  // Test ray `index`: a random position inside a random pixel, from the
+  // ray's own seed (so it does not depend on which thread traces it).
+  Vec2 pixel_of(uint64_t index, double& px, double& py) const {
     uint64_t state = config_.seed * 0x2545f4914f6cdd1dull ^ (index + 1) * 0x9e3779b97f4a7c15ull;
     splitmix64(state);
     const PinholeCamera& cam = camera_;
-    // A random position inside a random pixel.
     const double ix = std::floor(uniform01(state) * cam.width), iy = std::floor(uniform01(state) * cam.height);
-    const double px = std::min(ix, double(cam.width - 1)) + uniform01(state);
-    const double py = std::min(iy, double(cam.height - 1)) + uniform01(state);
+    px = std::min(ix, double(cam.width - 1)) + uniform01(state);
+    py = std::min(iy, double(cam.height - 1)) + uniform01(state);
+    return Vec2(float(ix), float(iy));
+  }
+
+  RayOutcome trace_test_ray(uint64_t index) const {
+    RayOutcome out;
+    const PinholeCamera& cam = camera_;
+    double px, py;
+    pixel_of(index, px, py);
     PathRay first;
     first.rd = camera_ray_differential(cam, px, py);
     // The ray's own pixel angle: its beam widens by this per unit of path.
@@ -387,13 +395,23 @@ StatusOr<ProbeResult> run_probe(const Scene& scene, std::span<const ProbeStore> 
   // A2/A3: trace the test rays. Each ray has its own seed and its own result
   // slot, so the outcome does not depend on the number of threads.
   std::vector<RayOutcome> outcomes(config.rays);
+  // Trace in the Morton order of the rays' pixels, so that neighbouring rays
+  // (which mostly need the same pages) run close together in time and the
+  // page cache serves them; results stay in their own slots, by ray index.
+  std::vector<std::pair<uint64_t, uint64_t>> order(config.rays);
+  for (uint64_t i = 0; i < config.rays; ++i) {
+    double px, py;
+    const Vec2 pixel = tracer.pixel_of(i, px, py);
+    order[i] = {morton_encode(uint32_t(pixel.x), uint32_t(pixel.y), 0), i};
+  }
+  std::sort(order.begin(), order.end());
   {
     std::optional<Progress> progress;
     if (config.progress) progress.emplace("probe", config.rays, "rays");
     tbb::task_arena arena(config.threads > 0 ? config.threads : tbb::task_arena::automatic);
     arena.execute([&] {
       tbb::parallel_for(tbb::blocked_range<uint64_t>(0, config.rays, 16), [&](const tbb::blocked_range<uint64_t>& r) {
-        for (uint64_t i = r.begin(); i != r.end(); ++i) outcomes[i] = tracer.trace_test_ray(i);
+        for (uint64_t i = r.begin(); i != r.end(); ++i) outcomes[order[i].second] = tracer.trace_test_ray(order[i].second);
         if (progress) progress->advance(r.size());
       });
     });

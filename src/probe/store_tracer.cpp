@@ -123,22 +123,22 @@ Status StoreTracer::intersect(const Vec3d& origin, const Vec3d& direction, doubl
       if (!loaded) return loaded.status();
       std::shared_ptr<const Page> page = std::move(loaded.value());
       if (counters) ++counters->page_visits;
-      if (page->bvh.empty()) continue;
+      if (page->nodes.empty()) continue;
       bool improved = false;
       stack.clear();
       stack.push_back(0);
       while (!stack.empty()) {
-        const BvhNode& tn = page->bvh.nodes[stack.back()];
+        const PageNode& tn = page->nodes[stack.back()];
         stack.pop_back();
         double tb;
-        if (!intersect_box(tn.box, rb, tmin, best, tb)) continue;
+        if (!intersect_box(tn.box(), rb, tmin, best, tb)) continue;
         if (!tn.leaf()) {
           stack.push_back(tn.first + 1);
           stack.push_back(tn.first);
           continue;
         }
         for (uint32_t i = 0; i < tn.count; ++i) {
-          const uint32_t tri = page->bvh.order[tn.first + i];
+          const uint32_t tri = tn.first + i;
           if (skip.page == page_index && skip.triangle == tri) continue;
           if (counters) ++counters->triangle_tests;
           const Vec3* v = &page->positions[3 * size_t(tri)];
