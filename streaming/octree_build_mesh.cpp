@@ -62,9 +62,12 @@ bool store_is_current(const std::filesystem::path& mesh, const std::filesystem::
   };
   std::error_code ec;
   if (!std::filesystem::exists(store, ec)) return say("no store yet");
-  auto opened = OctreeStore::open(store);
-  if (!opened.is_ok()) return say("the existing store is unusable (" + opened.status().message() + ")");
-  const StoreHeader& h = (*opened)->header();
+  StoreHeader h;
+  {  // Full open: header and table checksums; the tables are freed right away.
+    auto opened = OctreeStore::open(store);
+    if (!opened.is_ok()) return say("the existing store is unusable (" + opened.status().message() + ")");
+    h = (*opened)->header();
+  }
   auto fp = fingerprint_file(mesh, false);
   if (!fp.is_ok()) return say(fp.status().message());
   if (h.source_path != fp->path) return say("the store was built from another mesh (" + h.source_path + ")");
