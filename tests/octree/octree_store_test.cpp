@@ -255,6 +255,38 @@ TEST(OctreeStore, RebuildIsANoOpUntilTheMeshChanges) {
   EXPECT_NE(why.find("unusable"), std::string::npos) << why;
 }
 
+TEST(OctreeStore, BuildsFromStlAndRefusesABrokenMesh) {
+  Progress::set_enabled(false);
+  auto dir = testing::scratch_dir("formats");
+  const auto stl = dir / "two.stl";
+  std::ofstream(stl) << "solid two\n"
+                        "facet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 0\nvertex 0 1 0\nendloop\nendfacet\n"
+                        "facet normal 0 0 1\nouter loop\nvertex 1 0 0\nvertex 1 1 0\nvertex 0 1 0\nendloop\nendfacet\n"
+                        "endsolid two\n";
+  auto built = build_store(stl, default_store_path(stl), {});
+  ASSERT_TRUE(built.is_ok()) << built.status().message();
+  auto store = OctreeStore::open(default_store_path(stl));
+  ASSERT_TRUE(store.is_ok());
+  EXPECT_EQ((*store)->header().triangle_count, 2u);
+  EXPECT_FALSE((*store)->header().has_normals);
+  EXPECT_DOUBLE_EQ((*store)->level(0)[0].quadric.a22, 1.0);  // total area 1, plane z = 0
+
+  // A binary PLY cut short: a clear error naming the mesh, and no store.
+  const auto ply = dir / "cut.ply";
+  write_ply(ply, testing::sphere(10, 10));
+  std::filesystem::resize_file(ply, std::filesystem::file_size(ply) - 20);
+  auto broken = build_store(ply, default_store_path(ply), {});
+  ASSERT_FALSE(broken.is_ok());
+  EXPECT_NE(broken.status().message().find("cut.ply"), std::string::npos) << broken.status().message();
+  EXPECT_FALSE(std::filesystem::exists(default_store_path(ply)));
+  size_t files = 0;
+  for (auto& e : std::filesystem::directory_iterator(dir)) {
+    (void)e;
+    ++files;
+  }
+  EXPECT_EQ(files, 3u) << "only two.stl, its store and cut.ply may remain";
+}
+
 TEST(OctreeStore, InfoPrintsLevelsPagesAndOptions) {
   auto dir = testing::scratch_dir("info");
   StoreOptions opt;
