@@ -41,7 +41,7 @@ Status run_report_cmd(int argc, char** argv) {
              {"--mesh", "", "mesh to use in place of the scene's first object's mesh", true, "FILE"},
              {"--scales", "", "footprint scales K to sweep (default 1,2,4,8,16)", true, "LIST"},
              {"--rays", "", "test-ray counts to sweep (default 500,5000,50000)", true, "LIST"},
-             {"--default-scale", "", "K of the ray sweep and the headline figures (default 8)", true, "K"},
+             {"--default-scale", "", "K of the ray sweep and the headline figures (default 10)", true, "K"},
              {"--default-rays", "", "test rays of the K sweep (default 5000)", true, "N"},
              {"--no-closeup", "", "skip the close-up view", false, ""},
              {"--no-baselines", "", "skip the meshoptimizer baselines", false, ""},

@@ -13,10 +13,6 @@
 namespace raylod::cli {
 namespace {
 
-// Chosen from the footprint-scale sweep of `raylod report` (README, "What
-// accuracy costs"): the largest K that kept the default scene's PSNR at or
-// above 38 dB against the full-resolution render.
-constexpr double kDefaultFootprintScale = 1.0;
 
 Status run_run(int argc, char** argv, bool& help) {
   Args args("run", "[SCENE] -o IMAGE [options]",
@@ -30,7 +26,7 @@ Status run_run(int argc, char** argv, bool& help) {
              {"--memory-limit", "", "memory cap (default: a quarter of physical memory); the cut is\n"
                                     "                              coarsened until the simplified mesh fits", true, "SIZE"},
              {"--rays", "", "test rays (default 5000)", true, "N"},
-             {"--footprint-scale", "", "K: collapse cells whose diagonal < K x footprint (default 1)", true, "K"},
+             {"--footprint-scale", "", "K: collapse cells whose diagonal < K x footprint (default 10)", true, "K"},
              {"--spp", "", "samples per pixel (default: the scene's)", true, "N"},
              {"--threads", "", "worker threads (default: all cores)", true, "T"},
              {"--cache", "", "cache directory (default $XDG_CACHE_HOME/raylod or ~/.cache/raylod)", true, "DIR"},
@@ -52,7 +48,7 @@ Status run_run(int argc, char** argv, bool& help) {
   RunOptions opts;
   RAYLOD_ASSIGN_OR_RETURN(opts.memory_limit, args.get_size("--memory-limit", 0));
   RAYLOD_ASSIGN_OR_RETURN(int64_t rays, args.get_int("--rays", 5000, 1, 100000000));
-  RAYLOD_ASSIGN_OR_RETURN(opts.footprint_scale, args.get_double("--footprint-scale", kDefaultFootprintScale));
+  RAYLOD_ASSIGN_OR_RETURN(opts.footprint_scale, args.get_double("--footprint-scale", RunOptions{}.footprint_scale));
   if (!(opts.footprint_scale > 0)) return Status::error("--footprint-scale must be > 0");
   RAYLOD_ASSIGN_OR_RETURN(int64_t spp, args.get_int("--spp", 0, 1, 4096));
   RAYLOD_ASSIGN_OR_RETURN(int64_t threads, args.get_int("--threads", 0, 1, 4096));

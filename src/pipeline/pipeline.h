@@ -47,7 +47,7 @@ struct RunOptions {
   std::optional<std::filesystem::path> mesh_override;
   uint64_t memory_limit = 0;          // 0 = a quarter of physical memory
   uint64_t rays = 5000;
-  double footprint_scale = 1.0;       // K (see README: why this default)
+  double footprint_scale = 10.0;      // K (see README, "What accuracy costs": why this default)
   int threads = 0;
   std::filesystem::path cache_dir;    // empty = default_cache_dir()
   uint64_t cache_limit = uint64_t(4) << 30;

@@ -22,7 +22,7 @@ struct ReportConfig {
   std::vector<double> footprint_scales{1, 2, 4, 8, 16};  // swept at default_rays
   std::vector<uint64_t> ray_counts{500, 5000, 50000};    // swept at default_scale
   uint64_t default_rays = 5000;
-  double default_scale = 8;
+  double default_scale = 10;
   bool baselines = true;
   bool closeup = true;         // add a close-up view of the same mesh
   int spp = 0;                 // 0 = the scene's
