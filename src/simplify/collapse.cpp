@@ -114,8 +114,7 @@ CutLookup::CutLookup(const Vec3d& root_lo, double root_size, std::span<const Cel
   for (int l = deepest_; l >= 0; --l) if (!by_level_[l].empty()) levels_.push_back(l);
 }
 
-uint32_t CutLookup::find(const Vec3d& p) const {
-  if (levels_.empty()) return kKeepVertex;
+uint64_t CutLookup::code_of(const Vec3d& p) const {
   // Cell coordinates at the deepest cut level, binned exactly as the store
   // build bins corners (floor((p - lo) * (2^L / size))); an ancestor at level
   // L is the code shifted right by 3 (deepest - L): the factors differ by a
@@ -127,7 +126,10 @@ uint32_t CutLookup::find(const Vec3d& p) const {
     const double t = std::floor((p[a] - root_lo_[a]) * inv_cell);
     c[a] = t <= 0 ? 0u : (t >= double(max_coord) ? max_coord : uint32_t(t));
   }
-  const uint64_t code = morton_encode(c[0], c[1], c[2]);
+  return morton_encode(c[0], c[1], c[2]);
+}
+
+uint32_t CutLookup::find_code(uint64_t code) const {
   for (int level : levels_) {
     const auto& m = by_level_[level];
     auto it = m.find(code >> (3 * (deepest_ - level)));
@@ -145,6 +147,24 @@ CollapseBuilder::CollapseBuilder(std::span<const Representative> reps, bool inpu
   rep_normal_sum_.assign(reps.size(), Vec3d(0));
   rep_weight_sum_.assign(reps.size(), 0.0);
   table_.assign(1024, kKeepVertex);
+}
+
+void CollapseBuilder::reserve(uint64_t vertices, uint64_t triangles) {
+  size_t slots = table_.size();
+  while (slots < 2 * vertices) slots *= 2;
+  if (slots > table_.size()) {
+    table_.assign(slots, kKeepVertex);
+    const size_t mask = slots - 1;
+    for (uint32_t id = 0; id < kept_pos_.size(); ++id) {
+      size_t i = hash_vertex(kept_pos_[id], has_normals_ ? kept_normal_[id] : Vec3(0), has_normals_) & mask;
+      while (table_[i] != kKeepVertex) i = (i + 1) & mask;
+      table_[i] = id;
+    }
+  }
+  kept_pos_.reserve(vertices);
+  if (has_normals_) kept_normal_.reserve(vertices);
+  else kept_normal_sum_.reserve(vertices);
+  tris_.reserve(triangles);
 }
 
 void CollapseBuilder::grow_table() {
@@ -336,6 +356,16 @@ StatusOr<SimplifyResult> simplify(const OctreeStore& store, const Cut& cut, cons
   }
   const CutLookup lookup(h.root_lo, h.root_size, keys);
   CollapseBuilder builder(reps, h.has_normals);
+  {
+    const SimplifyEstimate e = estimate_simplify(store, cut);
+    builder.reserve(e.vertices + e.vertices / 4, e.triangles);
+  }
+  // Consecutive corners in a page are close, and each vertex is shared by
+  // about six triangles: a small direct-mapped cache of code -> cut cell
+  // saves most of the hash lookups (one per level of the cut).
+  constexpr size_t kCache = 1 << 12;
+  std::vector<uint64_t> cache_code(kCache, ~uint64_t(0));
+  std::vector<uint32_t> cache_cell(kCache, kKeepVertex);
 
   const auto pages = store.pages();
   std::optional<Progress> progress;
@@ -346,7 +376,15 @@ StatusOr<SimplifyResult> simplify(const OctreeStore& store, const Cut& cut, cons
     RAYLOD_RETURN_IF_ERROR(store.read_page(i, batch));
     ++result.pages_read;
     cells.resize(batch.positions.size());
-    for (size_t k = 0; k < batch.positions.size(); ++k) cells[k] = lookup.find(Vec3d(batch.positions[k]));
+    for (size_t k = 0; k < batch.positions.size(); ++k) {
+      const uint64_t code = lookup.code_of(Vec3d(batch.positions[k]));
+      const size_t slot = (code ^ (code >> 17)) & (kCache - 1);
+      if (cache_code[slot] != code) {
+        cache_code[slot] = code;
+        cache_cell[slot] = lookup.find_code(code);
+      }
+      cells[k] = cache_cell[slot];
+    }
     builder.add(batch, cells);
     if (config.memory_limit && builder.memory_bytes() > config.memory_limit)
       return Status::error("the simplified mesh outgrew the memory limit of " + format_bytes(config.memory_limit) +

@@ -66,7 +66,11 @@ class CutLookup {
  public:
   CutLookup(const Vec3d& root_lo, double root_size, std::span<const CellKey> cells);
   // Index into `cells` of the cut cell containing p, or kKeepVertex.
-  uint32_t find(const Vec3d& p) const;
+  uint32_t find(const Vec3d& p) const { return find_code(code_of(p)); }
+  // The two halves of find: p's Morton code at deepest_level(), then the cut
+  // cell among that code's ancestors (callers may cache the second).
+  uint64_t code_of(const Vec3d& p) const;
+  uint32_t find_code(uint64_t deepest_code) const;
   int deepest_level() const { return deepest_; }
 
  private:
@@ -100,6 +104,8 @@ class CollapseBuilder {
   // cell[k] is the representative index of batch vertex k (3 per triangle),
   // or kKeepVertex. Batch positions must be finite.
   void add(const TriangleBatch& batch, std::span<const uint32_t> cell);
+  // Pre-sizes the buffers (avoids rehashing the vertex table while streaming).
+  void reserve(uint64_t vertices, uint64_t triangles);
   // Drops duplicates, compacts and returns the mesh (normals always filled).
   IndexedMesh finish(CollapseStats* stats = nullptr);
   // Bytes held by the mesh under construction (capacity of its buffers).

@@ -91,6 +91,24 @@ TEST(CollapseBuilder, DropsCollapsedZeroAreaAndDuplicateTrianglesButKeepsReverse
   }
 }
 
+TEST(CollapseBuilder, ReserveMidStreamKeepsTheVerticesFoundSoFar) {
+  const TriangleBatch sphere = test::uv_sphere({0, 0, 0}, 1.0f, 12, 16);
+  TriangleBatch first, second;
+  const size_t half = 3 * (sphere.size() / 2);
+  first.positions.assign(sphere.positions.begin(), sphere.positions.begin() + long(half));
+  first.normals.assign(sphere.normals.begin(), sphere.normals.begin() + long(half));
+  second.positions.assign(sphere.positions.begin() + long(half), sphere.positions.end());
+  second.normals.assign(sphere.normals.begin() + long(half), sphere.normals.end());
+  CollapseBuilder a({}, true), b({}, true);
+  a.add(sphere, std::vector<uint32_t>(sphere.positions.size(), kKeepVertex));
+  b.add(first, std::vector<uint32_t>(first.positions.size(), kKeepVertex));
+  b.reserve(100000, 1000);
+  b.add(second, std::vector<uint32_t>(second.positions.size(), kKeepVertex));
+  const IndexedMesh ma = a.finish(), mb = b.finish();
+  EXPECT_EQ(ma.positions, mb.positions);
+  EXPECT_EQ(ma.indices, mb.indices);
+}
+
 TEST(CollapseBuilder, ZeroAreaAndRepeatedVertexInputNeverGiveNaN) {
   // A cluster whose only triangles are degenerate: quadric A = 0, no normal
   // weight. The representative is the mean, its normal the +Y fallback.
