@@ -83,7 +83,9 @@ class NodeTable {
  public:
   std::vector<NodeRecord> nodes;
 
-  NodeRecord& upsert(uint64_t code) {
+  NodeRecord& upsert(uint64_t code) { return nodes[index(code)]; }
+  // Index of the node with this code in `nodes`, inserted if new (stable).
+  size_t index(uint64_t code) {
     if (2 * (nodes.size() + 1) > slots_.size()) grow();
     size_t i = slot_of(code);
     for (;;) {
@@ -92,9 +94,9 @@ class NodeTable {
         slots_[i] = uint32_t(nodes.size() + 1);
         nodes.push_back(NodeRecord{});
         nodes.back().code = code;
-        return nodes.back();
+        return nodes.size() - 1;
       }
-      if (nodes[s - 1].code == code) return nodes[s - 1];
+      if (nodes[s - 1].code == code) return s - 1;
       i = (i + 1) & mask_;
     }
   }
@@ -585,6 +587,8 @@ void bin_batch(BinToken& t, const Plan& plan, int depth, bool has_normals) {
   const size_t n = t.batch.size();
   t.local.clear();
   t.page_codes.resize(n);
+  uint64_t last_code = UINT64_MAX;
+  size_t last = 0;
   for (size_t i = 0; i < n; ++i) {
     const Vec3d p[3] = {Vec3d(t.batch.positions[3 * i]), Vec3d(t.batch.positions[3 * i + 1]),
                         Vec3d(t.batch.positions[3 * i + 2])};
@@ -598,10 +602,25 @@ void bin_batch(BinToken& t, const Plan& plan, int depth, bool has_normals) {
       if (len > 1e-12) normal = sum / len;  // opposing normals: keep the face normal
     }
     const double weight = twice_area / 6.0;  // area / 3 per corner
+    // quadric_from_plane(normal, x, weight) for the three corners, sharing A.
+    const Vec3d wn = weight * normal;
+    const double a00 = wn.x * normal.x, a01 = wn.x * normal.y, a02 = wn.x * normal.z;
+    const double a11 = wn.y * normal.y, a12 = wn.y * normal.z, a22 = wn.z * normal.z;
     for (int k = 0; k < 3; ++k) {
       const Vec3d x = p[k] - plan.origin;
-      NodeRecord& node = t.local.upsert(cells.code(p[k]));
-      if (weight > 0) add_quadric(node.quadric, quadric_from_plane(normal, x, weight));
+      const uint64_t code = cells.code(p[k]);
+      if (code != last_code) {  // corners of a triangle often share a cell
+        last_code = code;
+        last = t.local.index(code);
+      }
+      NodeRecord& node = t.local.nodes[last];
+      if (weight > 0) {
+        const double nx = glm::dot(normal, x);
+        Quadric& q = node.quadric;
+        q.a00 += a00; q.a01 += a01; q.a02 += a02; q.a11 += a11; q.a12 += a12; q.a22 += a22;
+        q.b0 += wn.x * nx; q.b1 += wn.y * nx; q.b2 += wn.z * nx;
+        q.c += weight * nx * nx;
+      }
       node.vertex_sum += x;
       node.normal_sum += weight * (has_normals ? Vec3d(t.batch.normals[3 * i + k]) : normal);
       ++node.corner_count;
