@@ -172,12 +172,12 @@ TEST(SimplifyStore, MemoryLimitRefusesBeforeWork) {
   auto result = simplify(*b.store, uniform_cut(*b.store, 6), cfg);
   ASSERT_FALSE(result.is_ok());
   EXPECT_NE(result.status().message().find("memory limit"), std::string::npos) << result.status().message();
-  // The estimate is an upper bound in practice: the real peak fits in it.
+  // The estimate is close to the real output (here within 25% on a coarse cut).
   const Cut cut = uniform_cut(*b.store, 3);
   const SimplifyEstimate e = estimate_simplify(*b.store, cut);
   auto ok = simplify(*b.store, cut);
   ASSERT_TRUE(ok.is_ok());
-  EXPECT_GE(e.triangles, ok->stats.output_triangles);
+  EXPECT_NEAR(double(e.triangles), double(ok->stats.output_triangles), 0.25 * double(ok->stats.output_triangles));
 }
 
 }  // namespace
