@@ -4,7 +4,9 @@
 // length -- never a crash, a hang or garbage.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <cstdlib>
 #include <random>
 
 #include "reader_test_util.h"
@@ -57,9 +59,12 @@ std::vector<std::pair<std::string, std::string>> seeds() {
 TEST(ReaderFuzz, MutatedFilesFailCleanlyOrReadSanely) {
   std::mt19937 rng(20240611);
   const std::string interesting = "0123456789 \n-+.eE/#\\naninfx\0\xff";
+  // RAYLOD_FUZZ_ITERATIONS raises the count for a long run (e.g. under ASan).
+  const char* env = std::getenv("RAYLOD_FUZZ_ITERATIONS");
+  const int iterations = env && *env ? std::max(1, std::atoi(env)) : 400;
   int ok = 0, failed = 0;
   for (const auto& [name, original] : seeds()) {
-    for (int iter = 0; iter < 400; ++iter) {
+    for (int iter = 0; iter < iterations; ++iter) {
       std::string m = original;
       const int edits = 1 + int(rng() % 4);
       for (int e = 0; e < edits && !m.empty(); ++e) {
