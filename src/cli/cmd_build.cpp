@@ -15,8 +15,11 @@ int run_build(int argc, char** argv) {
             "disk-backed octree store: triangles in checksummed pages on disk, and per-node\n"
             "quadrics (Lindstrom, eq. 4 of the method) for levels 0..quadric_depth in a node\n"
             "table. quadric_depth is the deepest level <= --max-depth whose node table fits\n"
-            "in about a third of --memory-limit. Building again for an unchanged mesh (size,\n"
-            "modification time, content hash) with the same options does nothing.",
+            "in half of what --memory-limit leaves after the reader and the batches in flight,\n"
+            "stopping where cells hold about two vertices. Pages are the cells of one level\n"
+            "chosen to hold about --page-triangles triangles each. Building again for an\n"
+            "unchanged mesh (size, modification time, content hash) with the same options\n"
+            "does nothing; a changed mesh is rebuilt. The store is written atomically.",
             {{"--output", "-o", "store to write (default MESH.raylod beside the mesh)", true, "STORE"},
              {"--memory-limit", "", "memory bound for the build, e.g. 1G (default: a quarter of RAM)", true, "SIZE"},
              {"--max-depth", "", "deepest octree level that may keep quadrics, 0..21 (default 12)", true, "N"},
