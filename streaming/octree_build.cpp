@@ -230,9 +230,13 @@ Status run_pass(MeshReader& reader, size_t ntokens, Work work, Consume consume) 
       tbb::make_filter<void, Token*>(tbb::filter_mode::serial_in_order,
                                      [&](tbb::flow_control& fc) -> Token* {
                                        Token* t = nullptr;
-                                       if (failed || at_end || !free_tokens.try_pop(t)) {
+                                       if (failed || at_end) {
                                          fc.stop();
                                          return nullptr;
+                                       }
+                                       if (!free_tokens.try_pop(t)) {  // not expected: ntokens bound the flight
+                                         pool.push_back(std::make_unique<Token>());
+                                         t = pool.back().get();
                                        }
                                        auto more = reader.next(t->batch);
                                        if (!more.is_ok() || !*more) {
