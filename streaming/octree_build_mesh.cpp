@@ -87,8 +87,13 @@ bool store_is_current(const std::filesystem::path& mesh, const std::filesystem::
 
 StatusOr<BuildReport> build_store(const std::filesystem::path& mesh, const std::filesystem::path& store,
                                   const StoreOptions& options) {
-  std::string reason;
-  if (store_is_current(mesh, store, options, &reason)) {
+  return build_store(mesh, store, options, false);
+}
+
+StatusOr<BuildReport> build_store(const std::filesystem::path& mesh, const std::filesystem::path& store,
+                                  const StoreOptions& options, bool force) {
+  std::string reason = "--force";
+  if (!force && store_is_current(mesh, store, options, &reason)) {
     BuildReport report;
     report.reused = true;
     report.reason = reason;

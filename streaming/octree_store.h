@@ -163,6 +163,9 @@ struct BuildReport {
 // Builds (or reuses, if up to date for the same mesh and options) the store.
 StatusOr<BuildReport> build_store(const std::filesystem::path& mesh, const std::filesystem::path& store,
                                   const StoreOptions& options);
+// Same; with force, rebuilds even an up-to-date store (replacing it atomically).
+StatusOr<BuildReport> build_store(const std::filesystem::path& mesh, const std::filesystem::path& store,
+                                  const StoreOptions& options, bool force);
 // True if `store` exists, opens, and matches the mesh's size, mtime and hash.
 bool store_is_current(const std::filesystem::path& mesh, const std::filesystem::path& store,
                       const StoreOptions& options, std::string* reason = nullptr);

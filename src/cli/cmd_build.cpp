@@ -50,17 +50,8 @@ int run_build(int argc, char** argv) {
   if (!page) return fail("build", page.status());
   options.page_triangles = uint32_t(*page);
   if (args.has("--quiet")) Progress::set_enabled(false);
-  StatusOr<BuildReport> built = Status::error("not built");
-  if (args.has("--force")) {
-    // Replaces the old store atomically; it stays in place if the build fails.
-    auto source = fingerprint_file(mesh, true);
-    if (!source) return fail("build", source.status());
-    auto opener = [&]() -> StatusOr<std::unique_ptr<MeshReader>> { return open_mesh(mesh); };
-    built = build_store_from_stream(opener, *source, store, options);
-    if (built) built->reason = "--force";
-  } else {
-    built = build_store(mesh, store, options);
-  }
+  // --force replaces the old store atomically; it stays in place if the build fails.
+  auto built = build_store(mesh, store, options, args.has("--force"));
   if (!built) return fail("build", built.status());
   const BuildReport& r = *built;
   if (r.reused) {

@@ -216,6 +216,10 @@ TEST(OctreeStore, RebuildIsANoOpUntilTheMeshChanges) {
   ASSERT_TRUE(again.is_ok());
   EXPECT_TRUE(again->reused);
   EXPECT_NE(again->reason.find("up to date"), std::string::npos) << again->reason;
+  auto forced = build_store(mesh, store, opt, /*force=*/true);
+  ASSERT_TRUE(forced.is_ok());
+  EXPECT_FALSE(forced->reused);
+  EXPECT_TRUE(store_is_current(mesh, store, opt, &why)) << why;
 
   // Other options: stale.
   StoreOptions deeper = opt;
