@@ -139,7 +139,7 @@ TEST(Run, MemoryLimitBelowTheFullMeshCoarsensTheCut) {
                    "' --memory-limit 17M", &out), 0);
   EXPECT_NE(out.find("raylod run"), std::string::npos) << out;
   // ...and run still produces an image by coarsening the cut.
-  ASSERT_EQ(raylod("run '" + scene.string() + "' --no-cache --memory-limit 17M --rays 500 -o '" +
+  ASSERT_EQ(raylod("run '" + scene.string() + "' --no-cache --memory-limit 17M --footprint-scale 1 --rays 500 -o '" +
                    (work_dir() / "t.png").string() + "' --stats-json '" + (work_dir() / "t.json").string() + "'", &out), 0)
       << out;
   auto t = stats(work_dir() / "t.json");
