@@ -11,7 +11,7 @@ build_dir="${RAYLOD_BUILD_DIR:-build}"
 packages=(cmake g++ make pkg-config time
           libopenmesh-dev libdraco-dev libglm-dev libopenimageio-dev openimageio-tools
           libtbb-dev libembree-dev libgtest-dev libgmock-dev libbenchmark-dev
-          nlohmann-json3-dev libmeshoptimizer-dev)
+          nlohmann-json3-dev libmeshoptimizer-dev fonts-dejavu-core)
 
 missing=()
 for p in "${packages[@]}"; do

@@ -2,6 +2,8 @@
 // decision by size, bad input, and the npm stl-models broken/misc set in data/.
 #include <gtest/gtest.h>
 
+#include <cctype>
+
 #include <limits>
 
 #include "reader_test_util.h"
@@ -216,7 +218,13 @@ INSTANTIATE_TEST_SUITE_P(
         SharedCase{"misc/multiWordName.ascii.stl", 4, ""},
         // Its bytes were mangled into UTF-8 replacement characters (333 bytes for 4 triangles).
         SharedCase{"misc/multiWordName.bin.stl", -1, "it declares 4 triangles"},
-        SharedCase{"misc/namelessSolid.ascii.stl", 4, ""}));
+        SharedCase{"misc/namelessSolid.ascii.stl", 4, ""}),
+    [](const ::testing::TestParamInfo<SharedCase>& info) {
+      std::string name = info.param.file;
+      for (char& c : name)
+        if (!std::isalnum(static_cast<unsigned char>(c))) c = '_';
+      return name;
+    });
 
 TEST(StlReader, AbcCadPartFromData) {
   const std::filesystem::path path = std::filesystem::path(RAYLOD_DATA_DIR) / "abc" / "abc5.stl";
