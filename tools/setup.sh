@@ -32,7 +32,7 @@ case "$mode" in
   build) ;;
   run)
     mkdir -p raylod-out
-    "$build_dir/raylod" run -o raylod-out/default.png --stats-json raylod-out/default.json
+    "$build_dir/raylod" run --compare -o raylod-out/default.png --stats-json raylod-out/default.json
     echo "setup: wrote raylod-out/default.png"
     ;;
   test)
