@@ -111,6 +111,12 @@ bool register_command(const Command& c) {
 }
 const std::vector<Command>& commands() { return registry(); }
 
+StatusOr<Scene> scene_from_args(const Args& args) {
+  if (args.positionals().size() > 1) return Status::error("expected at most one SCENE argument");
+  if (args.positionals().empty()) return default_scene();
+  return load_scene(args.positionals()[0]);
+}
+
 int fail(const char* command, const Status& status) {
   std::fprintf(stderr, "raylod %s: error: %s\n", command, status.message().c_str());
   return 1;

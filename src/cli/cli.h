@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "core/status.h"
+#include "scene/scene.h"
 
 namespace raylod::cli {
 
@@ -55,6 +56,10 @@ struct Command {
 
 bool register_command(const Command& command);
 const std::vector<Command>& commands();
+
+// The scene named by the single positional argument, or the embedded default
+// scene when there is none; more than one positional is an error.
+StatusOr<Scene> scene_from_args(const Args& args);
 
 // Prints "raylod <cmd>: <message>" to stderr and returns the exit code 1.
 int fail(const char* command, const Status& status);

@@ -1,6 +1,5 @@
 // raylod render: ray trace a scene (or the embedded default scene) to an image.
 #include <cstdio>
-#include <fstream>
 #include <sstream>
 
 #include "cli/cli.h"
@@ -12,17 +11,6 @@
 
 namespace raylod::cli {
 namespace {
-
-Status write_text_atomic(const std::filesystem::path& path, const std::string& text) {
-  AtomicOutput out(path);
-  {
-    std::ofstream f(out.temp_path(), std::ios::binary);
-    if (!f) return Status::error(path.string() + ": cannot open for writing");
-    f << text << "\n";
-    if (!f.flush()) return Status::error(path.string() + ": write failed");
-  }
-  return out.commit();
-}
 
 Status run_render(int argc, char** argv, bool& help) {
   Args args("render", "[SCENE] -o IMAGE [options]",
@@ -47,7 +35,6 @@ Status run_render(int argc, char** argv, bool& help) {
     help = true;
     return {};
   }
-  if (args.positionals().size() > 1) return Status::error("expected at most one SCENE argument");
   if (!args.has("--output")) return Status::error("missing -o IMAGE (see raylod render --help)");
   const std::filesystem::path output = args.get("--output");
   RAYLOD_RETURN_IF_ERROR(check_output_image(output));
@@ -75,12 +62,7 @@ Status run_render(int argc, char** argv, bool& help) {
     }
   }
 
-  Scene scene;
-  if (args.positionals().empty()) {
-    RAYLOD_ASSIGN_OR_RETURN(scene, default_scene());
-  } else {
-    RAYLOD_ASSIGN_OR_RETURN(scene, load_scene(args.positionals()[0]));
-  }
+  RAYLOD_ASSIGN_OR_RETURN(Scene scene, scene_from_args(args));
   RAYLOD_ASSIGN_OR_RETURN(int64_t width, args.get_int("--width", scene.camera.width, 1, 32768));
   RAYLOD_ASSIGN_OR_RETURN(int64_t height, args.get_int("--height", scene.camera.height, 1, 32768));
   scene.camera.width = int(width);
@@ -111,7 +93,7 @@ Status run_render(int argc, char** argv, bool& help) {
                s.rays_per_second() * 1e-6, s.load_seconds, s.bvh_seconds, format_bytes(s.bvh_bytes).c_str(),
                format_bytes(s.peak_rss).c_str());
   for (const auto& p : aovs) std::fprintf(stderr, "raylod render: wrote %s\n", p.string().c_str());
-  if (args.has("--stats-json")) RAYLOD_RETURN_IF_ERROR(write_text_atomic(args.get("--stats-json"), render_stats_json(s)));
+  if (args.has("--stats-json")) RAYLOD_RETURN_IF_ERROR(write_file_atomic(args.get("--stats-json"), render_stats_json(s) + "\n"));
   return {};
 }
 

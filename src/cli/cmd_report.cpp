@@ -57,13 +57,7 @@ Status run_report_cmd(int argc, char** argv) {
     std::fputs(args.help_text().c_str(), stdout);
     return {};
   }
-  if (args.positionals().size() > 1) return Status::error("expected at most one SCENE argument");
-  Scene scene;
-  if (args.positionals().empty()) {
-    RAYLOD_ASSIGN_OR_RETURN(scene, default_scene());
-  } else {
-    RAYLOD_ASSIGN_OR_RETURN(scene, load_scene(args.positionals()[0]));
-  }
+  RAYLOD_ASSIGN_OR_RETURN(Scene scene, scene_from_args(args));
 
   ReportConfig cfg;
   if (args.has("--quick")) {

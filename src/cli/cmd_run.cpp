@@ -41,7 +41,6 @@ Status run_run(int argc, char** argv, bool& help) {
     help = true;
     return {};
   }
-  if (args.positionals().size() > 1) return Status::error("expected at most one SCENE argument");
   const std::filesystem::path output = args.get("--output", "raylod-run.png");
   RAYLOD_RETURN_IF_ERROR(check_output_image(output));
 
@@ -65,12 +64,7 @@ Status run_run(int argc, char** argv, bool& help) {
   LogFn log;
   if (!quiet) log = [](const std::string& m) { std::fprintf(stderr, "raylod run: %s\n", m.c_str()); };
 
-  Scene scene;
-  if (args.positionals().empty()) {
-    RAYLOD_ASSIGN_OR_RETURN(scene, default_scene());
-  } else {
-    RAYLOD_ASSIGN_OR_RETURN(scene, load_scene(args.positionals()[0]));
-  }
+  RAYLOD_ASSIGN_OR_RETURN(Scene scene, scene_from_args(args));
 
   RAYLOD_ASSIGN_OR_RETURN(RunResult r, run_pipeline(scene, opts, log));
   RAYLOD_RETURN_IF_ERROR(write_image(output, r.render.color));
