@@ -17,6 +17,7 @@
 
 #include "core/math.h"
 #include "gen/grid_mesh.h"
+#include "test_tmp.h"
 
 namespace raylod::test {
 
@@ -28,9 +29,7 @@ struct IndexedMesh {
 };
 
 inline std::filesystem::path test_tmp_dir(const std::string& name) {
-  const char* env = std::getenv("RAYLOD_TEST_TMP");
-  std::filesystem::path dir = env && *env ? std::filesystem::path(env) : std::filesystem::temp_directory_path();
-  dir /= "gen-" + name;
+  std::filesystem::path dir = test::scratch_dir("gen-" + name);
   std::filesystem::remove_all(dir);
   std::filesystem::create_directories(dir);
   return dir;

@@ -7,6 +7,7 @@
 #include <filesystem>
 #include <fstream>
 #include <string>
+#include "test_tmp.h"
 
 namespace {
 
@@ -29,10 +30,7 @@ CommandResult run(const std::string& args) {
 }
 
 std::filesystem::path scratch() {
-  const char* env = std::getenv("RAYLOD_TEST_TMP");
-  auto dir = std::filesystem::path(env && *env ? env : ::testing::TempDir()) / "info-test";
-  std::filesystem::create_directories(dir);
-  return dir;
+  return raylod::test::scratch_dir("info-test");
 }
 
 TEST(Info, DescribesABinaryStl) {

@@ -13,6 +13,7 @@
 #include <gtest/gtest.h>
 
 #include "streaming/octree_store.h"
+#include "test_tmp.h"
 
 namespace raylod::testing {
 
@@ -66,9 +67,7 @@ inline MeshStreamOpener opener(std::shared_ptr<const SoupMesh> mesh, size_t batc
 }
 
 inline std::filesystem::path scratch_dir(const std::string& name) {
-  const char* base = std::getenv("RAYLOD_TEST_TMP");
-  std::filesystem::path dir = std::filesystem::path(base && *base ? base : std::filesystem::temp_directory_path().string()) /
-                              ("octree-" + name);
+  std::filesystem::path dir = test::scratch_dir("octree-" + name);
   std::filesystem::remove_all(dir);
   std::filesystem::create_directories(dir);
   return dir;

@@ -9,16 +9,13 @@
 #include "simplify/collapse.h"
 #include "streaming/draco_io.h"
 #include "test_meshes.h"
+#include "test_tmp.h"
 
 namespace raylod {
 namespace {
 
 std::filesystem::path tmp_dir() {
-  const char* env = std::getenv("RAYLOD_TEST_TMP");
-  std::filesystem::path d = env ? env : std::filesystem::temp_directory_path();
-  d /= "simplify";
-  std::filesystem::create_directories(d);
-  return d;
+  return test::scratch_dir("simplify");
 }
 
 IndexedMesh indexed(const TriangleBatch& soup) {
