@@ -88,6 +88,9 @@ struct BadCase {
   const char* expected;  // substring of the error
 };
 
+// Short names in test listings (ctest shows the parameter).
+void PrintTo(const BadCase& c, std::ostream* os) { *os << c.name; }
+
 class BadScene : public ::testing::TestWithParam<BadCase> {};
 
 TEST_P(BadScene, FailsWithClearMessage) {

@@ -175,6 +175,9 @@ struct SharedCase {
   const char* error;    // otherwise: a substring of the error
 };
 
+// Short names in test listings (ctest shows the parameter).
+void PrintTo(const SharedCase& c, std::ostream* os) { *os << c.file; }
+
 class StlModelsSet : public ::testing::TestWithParam<SharedCase> {};
 
 TEST_P(StlModelsSet, ReadsOrFailsAsDecided) {
