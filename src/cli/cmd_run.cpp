@@ -1,6 +1,9 @@
 // raylod run: the whole pipeline (build, probe, simplify, render) for one
 // view, with simplified meshes cached across views.
+#include <cmath>
 #include <cstdio>
+
+#include <nlohmann/json.hpp>
 
 #include "cli/cli.h"
 #include "core/progress.h"
@@ -91,30 +94,27 @@ Status run_run(int argc, char** argv, bool& help) {
     ro.memory_limit = opts.memory_limit;
     ro.progress = opts.progress;
     if (opts.mesh_override) ro.mesh_override = {*opts.mesh_override};
-    auto full = render(scene, ro);
-    if (!full.is_ok()) {
-      std::printf("  full-resolution render skipped: %s\n", full.status().message().c_str());
-    } else {
-      RAYLOD_ASSIGN_OR_RETURN(ImageError e, compare_images(r.render.color, full->color));
-      const RenderStats& fs = full->stats;
-      double full_seconds = fs.load_seconds + fs.bvh_seconds + fs.render_seconds;
-      std::printf("  full mesh  %7.2f s  (load %.2f s, BVH %.2f s, trace %.2f s)\n", full_seconds, fs.load_seconds,
-                  fs.bvh_seconds, fs.render_seconds);
-      std::printf("  error      PSNR %.2f dB, SSIM %.4f, largest pixel difference %.3f\n", e.psnr, e.ssim, e.max_diff);
-      std::filesystem::path ref = output;
-      ref.replace_extension(".full" + output.extension().string());
-      RAYLOD_RETURN_IF_ERROR(write_image(ref, full->color));
-      std::filesystem::path diff = output;
-      diff.replace_extension(".diff" + output.extension().string());
-      RAYLOD_RETURN_IF_ERROR(write_image(diff, difference_image(r.render.color, full->color)));
-      std::printf("  wrote      %s (full mesh), %s (difference x4)\n", ref.string().c_str(), diff.string().c_str());
-      stats.pop_back();  // trailing newline
-      stats.pop_back();  // closing brace
-      char extra[256];
-      std::snprintf(extra, sizeof extra, ",\n  \"full_render_seconds\": %.6f,\n  \"psnr\": %.4f,\n  \"ssim\": %.6f,\n  \"max_diff\": %.6f\n}\n",
-                    full_seconds, e.psnr, e.ssim, e.max_diff);
-      stats += extra;
-    }
+    RAYLOD_ASSIGN_OR_RETURN(RenderResult full, render(scene, ro));
+    RAYLOD_ASSIGN_OR_RETURN(ImageError e, compare_images(r.render.color, full.color));
+    const RenderStats& fs = full.stats;
+    double full_seconds = fs.load_seconds + fs.bvh_seconds + fs.render_seconds;
+    std::printf("  full mesh  %7.2f s  (load %.2f s, BVH %.2f s, trace %.2f s)\n", full_seconds, fs.load_seconds,
+                fs.bvh_seconds, fs.render_seconds);
+    std::printf("  error      PSNR %.2f dB, SSIM %.4f, largest pixel difference %.3f\n", e.psnr, e.ssim, e.max_diff);
+    std::filesystem::path ref = output;
+    ref.replace_extension(".full" + output.extension().string());
+    RAYLOD_RETURN_IF_ERROR(write_image(ref, full.color));
+    std::filesystem::path diff = output;
+    diff.replace_extension(".diff" + output.extension().string());
+    RAYLOD_RETURN_IF_ERROR(write_image(diff, difference_image(r.render.color, full.color)));
+    std::printf("  wrote      %s (full mesh), %s (difference x4)\n", ref.string().c_str(), diff.string().c_str());
+    auto j = nlohmann::json::parse(stats);
+    j["full_render_seconds"] = full_seconds;
+    // Identical images have infinite PSNR, which JSON cannot hold: null.
+    j["psnr"] = std::isfinite(e.psnr) ? nlohmann::json(e.psnr) : nlohmann::json(nullptr);
+    j["ssim"] = e.ssim;
+    j["max_diff"] = e.max_diff;
+    stats = j.dump(2) + "\n";
   }
   std::printf("  wrote      %s\n", output.string().c_str());
   if (args.has("--stats-json")) RAYLOD_RETURN_IF_ERROR(write_file_atomic(args.get("--stats-json"), stats));

@@ -186,12 +186,17 @@ StatusOr<RunResult> run_pipeline(Scene scene, const RunOptions& options, const L
       } else {
         if (!note.empty()) say(log, note);
         std::string why;
-        entry = cache->find_reusable(cut, &why);
+        entry = cache->find_reusable(cut, draco_error_bound(cut, store), &why);
         if (entry) note = "reusing " + entry->key + ": " + why;
       }
       if (entry) {
         cache->touch(*entry);
-        sm.drc = entry->mesh;
+        // Render from a link of our own: another run's eviction cannot pull it away.
+        AtomicOutput tmp(scratch / ("cached-" + std::to_string(::getpid()) + "-" + std::to_string(i) + ".drc"));
+        sm.drc = tmp.temp_path();
+        sm.drc += ".drc";
+        RAYLOD_RETURN_IF_ERROR(cache->checkout(*entry, sm.drc));
+        scratch_files.push_back(sm.drc);
         sm.triangles = entry->triangles;
         sm.cache_hit = true;
         sm.cache_note = note;
@@ -203,17 +208,14 @@ StatusOr<RunResult> run_pipeline(Scene scene, const RunOptions& options, const L
       fs::path staged = tmp.temp_path();
       staged += ".drc";
       RAYLOD_ASSIGN_OR_RETURN(sm, simplify_cut_to_draco(store, cut, staged, memory_limit, options.progress));
+      // Rendered from the staged file, which lives until after rendering.
       scratch_files.push_back(staged);
       sm.cache_note = "simplified (cache disabled)";
       if (cache) {
-        RAYLOD_ASSIGN_OR_RETURN(CacheEntry entry, cache->insert(cut, staged, sm.triangles));
+        RAYLOD_ASSIGN_OR_RETURN(CacheEntry entry, cache->insert(cut, staged, sm.triangles, sm.max_position_error));
         std::error_code ec;
-        if (fs::is_regular_file(entry.mesh, ec)) {
-          sm.drc = entry.mesh;
-          sm.cache_note = "simplified and cached as " + entry.key;
-        } else {
-          sm.cache_note = "simplified; not cached (larger than the cache limit)";
-        }
+        sm.cache_note = fs::is_regular_file(entry.mesh, ec) ? "simplified and cached as " + entry.key
+                                                            : "simplified; not cached (larger than the cache limit)";
       }
     }
     std::error_code ec;
@@ -255,7 +257,7 @@ std::string run_stats_json(const RunResult& r, const RunOptions& options) {
   j["rays"] = options.rays;
   nlohmann::json meshes = nlohmann::json::array();
   for (const auto& m : r.meshes)
-    meshes.push_back({{"drc", m.drc.string()}, {"triangles", m.triangles}, {"drc_bytes", m.drc_bytes},
+    meshes.push_back({{"triangles", m.triangles}, {"drc_bytes", m.drc_bytes},
                       {"position_bits", m.position_bits}, {"max_position_error", m.max_position_error},
                       {"cache_hit", m.cache_hit}, {"cache_note", m.cache_note}});
   j["meshes"] = meshes;

@@ -40,8 +40,12 @@ Status write_plot(const std::filesystem::path& path, const std::vector<PlotSerie
       y0 = std::min(y0, y); y1 = std::max(y1, y);
     }
   if (x0 > x1) return Status::error(path.string() + ": nothing to plot");
-  double xs = tick_step(std::max(x1 - x0, 1e-9) * 1.1, 8), ys = tick_step(std::max(y1 - y0, 1e-9) * 1.1, 6);
-  x0 = std::floor(std::min(x0, 0.0) / xs) * xs; x1 = std::ceil(x1 / xs + 0.25) * xs;
+  // Time axes start at zero; a single point or a flat series still gets a
+  // range proportional to its magnitude, so the tick count stays small.
+  x0 = std::min(x0, 0.0);
+  double xs = tick_step(std::max(x1 - x0, 1e-3 * std::max(std::abs(x1), 1.0)) * 1.1, 8);
+  double ys = tick_step(std::max(y1 - y0, 1e-3 * std::max(std::abs(y1), 1.0)) * 1.1, 6);
+  x0 = std::floor(x0 / xs) * xs; x1 = std::ceil(x1 / xs + 0.25) * xs;
   y0 = std::floor(y0 / ys - 0.25) * ys; y1 = std::ceil(y1 / ys + 0.25) * ys;
 
   const int W = cfg.width, H = cfg.height, left = 90, right = 30, top = 50, bottom = 70;

@@ -9,6 +9,7 @@
 #include <thread>
 
 #include <nlohmann/json.hpp>
+#include <tbb/global_control.h>
 
 #include "core/system.h"
 #include "gen/generate.h"
@@ -256,6 +257,9 @@ Scene closeup_scene(const Scene& scene) {
 StatusOr<ReportResult> run_report(const Scene& input_scene, const std::optional<fs::path>& mesh_override,
                                   const ReportConfig& cfg, const LogFn& log) {
   auto say = [&](const std::string& m) { if (log) log(m); };
+  // One thread limit for every row, the baselines' BVH builds and traces included.
+  std::optional<tbb::global_control> threads;
+  if (cfg.threads > 0) threads.emplace(tbb::global_control::max_allowed_parallelism, size_t(cfg.threads));
   std::error_code ec;
   fs::create_directories(cfg.out_dir, ec);
   if (ec) return Status::error(cfg.out_dir.string() + ": cannot create report directory: " + ec.message());

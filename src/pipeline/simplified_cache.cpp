@@ -59,6 +59,7 @@ std::optional<CacheEntry> read_meta(const fs::path& json_path) {
     e.content_hash = std::stoull(j.at("content_hash").get<std::string>(), nullptr, 16);
     e.triangles = j.at("triangles").get<uint64_t>();
     e.footprint_scale = j.at("footprint_scale").get<double>();
+    e.max_position_error = j.at("max_position_error").get<double>();
     e.last_used_ns = j.at("last_used_ns").get<int64_t>();
     fs::path dir = json_path.parent_path();
     e.mesh = dir / (e.key + ".drc");
@@ -80,6 +81,7 @@ Status write_meta(const fs::path& dir, const CacheEntry& e) {
   j["content_hash"] = hex64(e.content_hash);
   j["triangles"] = e.triangles;
   j["footprint_scale"] = e.footprint_scale;
+  j["max_position_error"] = e.max_position_error;
   j["last_used_ns"] = e.last_used_ns;
   return write_file_atomic(dir / (e.key + ".json"), j.dump(2) + "\n");
 }
@@ -184,32 +186,46 @@ std::optional<CacheEntry> SimplifiedCache::find_exact(const std::string& key, st
   return e;
 }
 
-std::optional<CacheEntry> SimplifiedCache::find_reusable(const Cut& wanted, std::string* why) {
+std::optional<CacheEntry> SimplifiedCache::find_reusable(const Cut& wanted, double max_position_error,
+                                                         std::string* why) {
   CacheLock lock(dir_);
-  std::optional<CacheEntry> best;
-  std::string best_reason;
+  // Candidates by the cheap checks first (metadata and cut); only the chosen
+  // one is hashed, and a corrupt one is removed and the next tried.
+  std::vector<std::pair<CacheEntry, size_t>> fine;
   for (const auto& e : entries()) {
-    if (e.store_hash != wanted.store_hash) continue;
+    if (e.store_hash != wanted.store_hash || e.max_position_error > max_position_error * (1 + 1e-9)) continue;
     auto cut = read_cut(e.cut);
-    if (!cut.is_ok()) continue;
-    if (!cut_is_at_least_as_fine(*cut, wanted)) continue;
-    std::string bad;
-    if (!verify(e, &bad)) {
+    if (!cut.is_ok() || !cut_is_at_least_as_fine(*cut, wanted)) continue;
+    fine.push_back({e, cut->cells.size()});
+  }
+  std::sort(fine.begin(), fine.end(), [](const auto& a, const auto& b) { return a.first.triangles < b.first.triangles; });
+  for (const auto& [e, cells] : fine) {
+    if (!verify(e, nullptr)) {
       remove_entry_files(dir_ / "simplified", e.key);
       continue;
     }
-    if (!best || e.triangles < best->triangles) {
-      best = e;
-      best_reason = "every cell it collapsed is also collapsed by the new view's cut (" +
-                    std::to_string(cut->cells.size()) + " cells checked); " + std::to_string(e.triangles) +
-                    " triangles, the coarsest such entry";
+    if (why) {
+      *why = "every cell it collapsed is also collapsed by the new view's cut (" + std::to_string(cells) +
+             " cells checked) and its quantisation is fine enough; " + std::to_string(e.triangles) +
+             " triangles, the coarsest such entry";
     }
+    return e;
   }
-  if (best && why) *why = best_reason;
-  return best;
+  return std::nullopt;
 }
 
-StatusOr<CacheEntry> SimplifiedCache::insert(const Cut& cut, const fs::path& drc_file, uint64_t triangles) {
+Status SimplifiedCache::checkout(const CacheEntry& entry, const fs::path& dest) {
+  CacheLock lock(dir_);
+  std::error_code ec;
+  fs::remove(dest, ec);
+  fs::create_hard_link(entry.mesh, dest, ec);
+  if (ec) fs::copy_file(entry.mesh, dest, fs::copy_options::overwrite_existing, ec);
+  if (ec) return Status::error(entry.mesh.string() + ": cannot use cached mesh: " + ec.message());
+  return {};
+}
+
+StatusOr<CacheEntry> SimplifiedCache::insert(const Cut& cut, const fs::path& drc_file, uint64_t triangles,
+                                             double max_position_error) {
   CacheEntry e;
   e.key = key_for(cut);
   fs::path dir = dir_ / "simplified";
@@ -218,6 +234,7 @@ StatusOr<CacheEntry> SimplifiedCache::insert(const Cut& cut, const fs::path& drc
   e.store_hash = cut.store_hash;
   e.triangles = triangles;
   e.footprint_scale = cut.footprint_scale;
+  e.max_position_error = max_position_error;
   e.last_used_ns = now_ns();
   RAYLOD_ASSIGN_OR_RETURN(e.content_hash, hash_file(drc_file));
   {
@@ -256,12 +273,16 @@ void SimplifiedCache::evict() {
     remove_entry_files(dir_ / "simplified", all[i].key);
     total -= all[i].bytes;
   }
-  // Leftovers of killed runs: temporary files older than an hour.
+  // Leftovers of killed runs, older than an hour: temporary files, and a mesh
+  // or cut whose metadata was never written (an entry exists only with it).
   std::error_code ec;
   auto cutoff = fs::file_time_type::clock::now() - std::chrono::hours(1);
   for (const auto& f : fs::directory_iterator(dir_ / "simplified", ec)) {
-    if (f.path().filename().string().find(".tmp-") != std::string::npos && f.last_write_time(ec) < cutoff)
-      fs::remove(f.path(), ec);
+    const fs::path& p = f.path();
+    const bool temporary = p.filename().string().find(".tmp-") != std::string::npos;
+    const bool orphan = (p.extension() == ".drc" || p.extension() == ".cut") &&
+                        !fs::exists(fs::path(p).replace_extension(".json"));
+    if ((temporary || orphan) && f.last_write_time(ec) < cutoff) fs::remove(p, ec);
   }
 }
 

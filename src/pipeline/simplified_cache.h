@@ -33,6 +33,7 @@ struct CacheEntry {
   uint64_t bytes = 0;           // .drc + .cut + .json
   uint64_t content_hash = 0;    // of the .drc
   double footprint_scale = 1;
+  double max_position_error = 0;  // Draco quantisation bound of the mesh (world units)
   int64_t last_used_ns = 0;
 };
 
@@ -58,11 +59,16 @@ class SimplifiedCache {
   // removed and reported through `note`.
   std::optional<CacheEntry> find_exact(const std::string& key, std::string* note = nullptr);
   // The coarsest verified entry for the same store whose cut is at least as
-  // fine as `wanted` needs; `why` says which and why.
-  std::optional<CacheEntry> find_reusable(const Cut& wanted, std::string* why = nullptr);
-  // Moves a finished .drc (written elsewhere, e.g. a temporary file) into the
+  // fine as `wanted` needs and whose quantisation error is at most
+  // `max_position_error`; `why` says which and why.
+  std::optional<CacheEntry> find_reusable(const Cut& wanted, double max_position_error, std::string* why = nullptr);
+  // Copies a finished .drc (written elsewhere, e.g. a temporary file) into the
   // cache with its cut, then evicts least-recently-used entries over the limit.
-  StatusOr<CacheEntry> insert(const Cut& cut, const std::filesystem::path& drc_file, uint64_t triangles);
+  StatusOr<CacheEntry> insert(const Cut& cut, const std::filesystem::path& drc_file, uint64_t triangles,
+                              double max_position_error);
+  // Links (or copies) an entry's mesh to `dest` under the cache lock, so that
+  // a concurrent eviction cannot remove the file this run is about to render.
+  Status checkout(const CacheEntry& entry, const std::filesystem::path& dest);
   // Marks an entry used now (LRU order).
   void touch(const CacheEntry& entry);
   std::vector<CacheEntry> entries() const;

@@ -326,6 +326,11 @@ SurfacePoint surface_point(const EmbreeScene& scene, const Hit& hit, bool with_e
     const Vec3d n = w * Vec3d(m.normals[tri[0]]) + u * Vec3d(m.normals[tri[1]]) + v * Vec3d(m.normals[tri[2]]);
     const double len = glm::length(n);
     if (len > 1e-12) sp.shading = n / len;
+    // The vertex normals say which side is outside; the winding may disagree
+    // (CAD exports, and the reverse-wound twins a collapse keeps), so orient
+    // the face normal by them, as the probe does: inside/outside for glass
+    // then follows the normals, not whichever twin Embree reports.
+    if (glm::dot(sp.geometric, sp.shading) < 0) sp.geometric = -sp.geometric;
   }
   if (!with_edge_distance) return sp;
   // Distance to edge i = barycentric_i * height over that edge = b_i * 2A / |edge_i|.

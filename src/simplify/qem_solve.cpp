@@ -125,7 +125,9 @@ QemSolution solve_representative_vertex(const Quadric& q, const Vec3d& mean, con
       return out;
     }
   }
-  return out;  // rank 0: the (clamped) mean
+  // Every solution of rank >= 1 left the cell: fall back to the (clamped) mean.
+  if (rank > 0) out.clamped = true;
+  return out;
 }
 
 Vec3d dominant_normal(const Quadric& q) {

@@ -27,12 +27,12 @@ SymmetricEigen3 symmetric_eigen(const Quadric& q);
 
 struct QemSolveConfig {
   // Eigenvalues of A below relative_threshold * (largest eigenvalue) are
-  // treated as zero (truncated pseudo-inverse). A plane pair whose normals
-  // differ by angle t adds an eigenvalue of about t^2 relative to the largest,
-  // so 1e-3 treats normals within about 1.8 degrees as one plane: the
-  // intersection of nearly parallel planes is far away and numerically
-  // meaningless, and minimising along that direction would pull the vertex
-  // out of the cell. Lindstrom (2000) uses the same relative 1e-3.
+  // treated as zero (truncated pseudo-inverse). Two unit-weight planes whose
+  // normals differ by angle t give eigenvalues 1 + cos t and 1 - cos t, a
+  // ratio of about t^2 / 4, so 1e-3 treats normals within about 3.6 degrees
+  // as one plane: the intersection of nearly parallel planes is far away and
+  // numerically meaningless, and minimising along that direction would pull
+  // the vertex out of the cell. Lindstrom (2000) uses the same relative 1e-3.
   double relative_threshold = 1e-3;
 };
 

@@ -72,7 +72,7 @@ TEST(SimplifiedCache, InsertThenExactHit) {
   ASSERT_TRUE(cache.is_ok()) << cache.status().message();
   Cut cut = make_cut(42, {{2, 1}});
   fs::path drc = write_file(dir / "staged.drc", 1000, 'a');
-  auto entry = cache->insert(cut, drc, 123);
+  auto entry = cache->insert(cut, drc, 123, 0.001);
   ASSERT_TRUE(entry.is_ok()) << entry.status().message();
   auto hit = cache->find_exact(SimplifiedCache::key_for(cut));
   ASSERT_TRUE(hit.has_value());
@@ -85,14 +85,14 @@ TEST(SimplifiedCache, CorruptEntryIsRemovedNotReturned) {
   auto cache = SimplifiedCache::open(dir, 1 << 20);
   ASSERT_TRUE(cache.is_ok());
   Cut cut = make_cut(42, {{2, 1}});
-  auto entry = cache->insert(cut, write_file(dir / "staged.drc", 1000, 'a'), 5);
+  auto entry = cache->insert(cut, write_file(dir / "staged.drc", 1000, 'a'), 5, 0.001);
   ASSERT_TRUE(entry.is_ok());
   write_file(entry->mesh, 1000, 'b');  // same size, other content
   std::string note;
   EXPECT_FALSE(cache->find_exact(entry->key, &note).has_value());
   EXPECT_NE(note.find("corrupt"), std::string::npos) << note;
   EXPECT_FALSE(fs::exists(entry->mesh));
-  EXPECT_FALSE(cache->find_reusable(cut).has_value());
+  EXPECT_FALSE(cache->find_reusable(cut, 1.0).has_value());
 }
 
 TEST(SimplifiedCache, ReusesTheCoarsestFineEnoughEntry) {
@@ -102,17 +102,40 @@ TEST(SimplifiedCache, ReusesTheCoarsestFineEnoughEntry) {
   Cut fine = make_cut(9, {{4, 40}});
   Cut finer = make_cut(9, {});
   Cut coarse = make_cut(9, {{2, 0}});
-  ASSERT_TRUE(cache->insert(fine, write_file(dir / "a.drc", 100, 'a'), 500).is_ok());
-  ASSERT_TRUE(cache->insert(finer, write_file(dir / "b.drc", 100, 'b'), 900).is_ok());
-  ASSERT_TRUE(cache->insert(coarse, write_file(dir / "c.drc", 100, 'c'), 100).is_ok());
+  ASSERT_TRUE(cache->insert(fine, write_file(dir / "a.drc", 100, 'a'), 500, 0.001).is_ok());
+  ASSERT_TRUE(cache->insert(finer, write_file(dir / "b.drc", 100, 'b'), 900, 0.001).is_ok());
+  ASSERT_TRUE(cache->insert(coarse, write_file(dir / "c.drc", 100, 'c'), 100, 0.001).is_ok());
   // The new view collapses level-3 cell 5 (which contains level-4 cell 40):
   // "fine" and "finer" qualify, "coarse" (level 2, cell 0) is too coarse.
   Cut wanted = make_cut(9, {{3, 5}});
   std::string why;
-  auto got = cache->find_reusable(wanted, &why);
+  auto got = cache->find_reusable(wanted, 1.0, &why);
   ASSERT_TRUE(got.has_value());
   EXPECT_EQ(got->triangles, 500u) << why;
   EXPECT_FALSE(why.empty());
+}
+
+TEST(SimplifiedCache, CoarserQuantisationIsNotReused) {
+  fs::path dir = fresh_dir("quantisation");
+  auto cache = SimplifiedCache::open(dir, 1 << 20);
+  ASSERT_TRUE(cache.is_ok());
+  Cut cut = make_cut(9, {{3, 5}});
+  ASSERT_TRUE(cache->insert(cut, write_file(dir / "a.drc", 100, 'a'), 50, 0.01).is_ok());
+  EXPECT_TRUE(cache->find_reusable(cut, 0.01).has_value());
+  EXPECT_FALSE(cache->find_reusable(cut, 0.001).has_value());
+}
+
+TEST(SimplifiedCache, CheckoutSurvivesEviction) {
+  fs::path dir = fresh_dir("checkout");
+  auto cache = SimplifiedCache::open(dir, 1500);
+  ASSERT_TRUE(cache.is_ok());
+  Cut a = make_cut(1, {{1, 1}}), b = make_cut(1, {{1, 2}});
+  auto ea = cache->insert(a, write_file(dir / "a.drc", 1000, 'a'), 1, 0.001);
+  ASSERT_TRUE(ea.is_ok());
+  ASSERT_TRUE(cache->checkout(*ea, dir / "mine.drc").is_ok());
+  ASSERT_TRUE(cache->insert(b, write_file(dir / "b.drc", 1000, 'b'), 1, 0.001).is_ok());  // evicts a
+  EXPECT_FALSE(fs::exists(ea->mesh));
+  EXPECT_EQ(fs::file_size(dir / "mine.drc"), 1000u);
 }
 
 TEST(SimplifiedCache, EvictsLeastRecentlyUsed) {
@@ -120,12 +143,12 @@ TEST(SimplifiedCache, EvictsLeastRecentlyUsed) {
   auto cache = SimplifiedCache::open(dir, 5000);
   ASSERT_TRUE(cache.is_ok());
   Cut a = make_cut(1, {{1, 1}}), b = make_cut(1, {{1, 2}}), c = make_cut(1, {{1, 3}});
-  ASSERT_TRUE(cache->insert(a, write_file(dir / "a.drc", 2000, 'a'), 1).is_ok());
-  ASSERT_TRUE(cache->insert(b, write_file(dir / "b.drc", 2000, 'b'), 1).is_ok());
+  ASSERT_TRUE(cache->insert(a, write_file(dir / "a.drc", 2000, 'a'), 1, 0.001).is_ok());
+  ASSERT_TRUE(cache->insert(b, write_file(dir / "b.drc", 2000, 'b'), 1, 0.001).is_ok());
   auto ea = cache->find_exact(SimplifiedCache::key_for(a));
   ASSERT_TRUE(ea.has_value());
   cache->touch(*ea);  // a is now more recent than b
-  ASSERT_TRUE(cache->insert(c, write_file(dir / "c.drc", 2000, 'c'), 1).is_ok());
+  ASSERT_TRUE(cache->insert(c, write_file(dir / "c.drc", 2000, 'c'), 1, 0.001).is_ok());
   EXPECT_TRUE(cache->find_exact(SimplifiedCache::key_for(a)).has_value());
   EXPECT_FALSE(cache->find_exact(SimplifiedCache::key_for(b)).has_value());
   EXPECT_TRUE(cache->find_exact(SimplifiedCache::key_for(c)).has_value());
@@ -144,7 +167,7 @@ TEST(SimplifiedCache, LeftoversOfAKilledRunAreIgnored) {
   EXPECT_FALSE(cache->find_exact(key).has_value());
   EXPECT_TRUE(cache->entries().empty());
   // A later run inserts the same key cleanly.
-  ASSERT_TRUE(cache->insert(cut, write_file(dir / "new.drc", 100, 'z'), 7).is_ok());
+  ASSERT_TRUE(cache->insert(cut, write_file(dir / "new.drc", 100, 'z'), 7, 0.001).is_ok());
   auto hit = cache->find_exact(key);
   ASSERT_TRUE(hit.has_value());
   EXPECT_EQ(hit->triangles, 7u);
