@@ -9,6 +9,8 @@
 #include <random>
 #include <set>
 
+#include <unistd.h>
+
 #include <glm/gtc/matrix_transform.hpp>
 
 #include "core/system.h"
@@ -25,11 +27,21 @@ namespace {
 
 namespace fs = std::filesystem;
 
+// Removes the scratch directory when the test process exits.
+struct ScratchDir {
+  fs::path path;
+  ~ScratchDir() {
+    std::error_code ec;
+    fs::remove_all(path, ec);
+  }
+};
+
 fs::path tmp_dir() {
-  const char* env = std::getenv("RAYLOD_TEST_TMP");
-  fs::path d = fs::path(env ? env : "/tmp") / "probe";
-  fs::create_directories(d);
-  return d;
+  // Per process: ctest runs the cases in parallel processes.
+  static const ScratchDir dir{fs::path(std::getenv("RAYLOD_TEST_TMP") ? std::getenv("RAYLOD_TEST_TMP") : "/tmp") /
+                              ("probe-" + std::to_string(::getpid()))};
+  fs::create_directories(dir.path);
+  return dir.path;
 }
 
 fs::path write_ply(const test::TestMesh& m, const std::string& name) {
