@@ -44,8 +44,6 @@
 #include <tbb/concurrent_queue.h>
 #include <tbb/global_control.h>
 #include <tbb/info.h>
-#include <tbb/blocked_range.h>
-#include <tbb/parallel_for.h>
 #include <tbb/parallel_pipeline.h>
 
 #include "core/progress.h"
@@ -750,7 +748,6 @@ Status copy_range(int in_fd, uint64_t in_off, int out_fd, uint64_t out_off, uint
 
 // Pages in code order, each the concatenation of its run segments
 // (positions, then normals); checksums and bounds combine the segments'.
-// Page offsets are known up front, so pages are copied in parallel.
 Status write_pages(int fd, const std::filesystem::path& out_path, RunFile& runs, const Binned& binned,
                    bool has_normals, uint64_t data_offset, std::vector<PageInfo>& pages) {
   const size_t num_pages = binned.pages.codes.size();
@@ -758,54 +755,40 @@ Status write_pages(int fd, const std::filesystem::path& out_path, RunFile& runs,
   for (size_t i = 0; i < num_pages; ++i) order[i] = uint32_t(i);
   std::sort(order.begin(), order.end(),
             [&](uint32_t a, uint32_t b) { return binned.pages.codes[a] < binned.pages.codes[b]; });
-  pages.assign(num_pages, PageInfo{});
+  std::vector<char> buffer(4 << 20);
   uint64_t offset = data_offset;
-  for (size_t i = 0; i < num_pages; ++i) {
-    const uint32_t id = order[i];
+  Progress progress("pages", binned.triangles, "triangles");
+  pages.clear();
+  pages.reserve(num_pages);
+  for (uint32_t id : order) {
+    PageInfo info;
+    info.code = binned.pages.codes[id];
+    info.offset = offset;
     if (binned.page_counts[id] > UINT32_MAX)
       return Status::error(out_path.string() + ": a page would hold more than 2^32 triangles");
-    pages[i].code = binned.pages.codes[id];
-    pages[i].offset = offset;
-    pages[i].triangle_count = uint32_t(binned.page_counts[id]);
-    offset += binned.page_counts[id] * triangle_bytes(has_normals);
-  }
-  Progress progress("pages", binned.triangles, "triangles");
-  std::mutex error_mutex;
-  Status error;
-  std::atomic<bool> failed{false};
-  tbb::parallel_for(tbb::blocked_range<size_t>(0, num_pages, 16), [&](const tbb::blocked_range<size_t>& range) {
-    std::vector<char> buffer;  // only for file systems without copy_file_range
-    buffer.resize(1 << 20);
-    for (size_t i = range.begin(); i != range.end() && !failed; ++i) {
-      PageInfo& info = pages[i];
-      uint64_t out = info.offset;
-      uint32_t crc = 0;
-      Vec3 lo(std::numeric_limits<float>::infinity()), hi(-std::numeric_limits<float>::infinity());
-      for (int sweep = 0; sweep < (has_normals ? 2 : 1); ++sweep) {
-        for (const auto& seg : runs.segments()[order[i]]) {
-          const uint64_t bytes = 36ull * seg.count;
-          Status st = copy_range(runs.fd(), seg.offset + (sweep ? bytes : 0), fd, out, bytes, runs.path(), out_path, buffer);
-          if (!st.is_ok()) {
-            std::lock_guard lock(error_mutex);
-            if (error.is_ok()) error = st;
-            failed = true;
-            return;
-          }
-          crc = crc32c_combine(crc, sweep ? seg.crc_normals : seg.crc_positions, bytes);
-          out += bytes;
-          if (sweep == 0) {
-            lo = glm::min(lo, seg.lo);
-            hi = glm::max(hi, seg.hi);
-            progress.advance(seg.count);
-          }
+    info.triangle_count = uint32_t(binned.page_counts[id]);
+    uint32_t crc = 0;
+    Vec3 lo(std::numeric_limits<float>::infinity()), hi(-std::numeric_limits<float>::infinity());
+    for (int sweep = 0; sweep < (has_normals ? 2 : 1); ++sweep) {
+      for (const auto& seg : runs.segments()[id]) {
+        const uint64_t bytes = 36ull * seg.count;
+        RAYLOD_RETURN_IF_ERROR(
+            copy_range(runs.fd(), seg.offset + (sweep ? bytes : 0), fd, offset, bytes, runs.path(), out_path, buffer));
+        crc = crc32c_combine(crc, sweep ? seg.crc_normals : seg.crc_positions, bytes);
+        offset += bytes;
+        if (sweep == 0) {
+          lo = glm::min(lo, seg.lo);
+          hi = glm::max(hi, seg.hi);
+          progress.advance(seg.count);
         }
       }
-      info.checksum = crc;
-      info.bounds = Bbox{Vec3d(lo), Vec3d(hi)};
     }
-  });
+    info.checksum = crc;
+    info.bounds = Bbox{Vec3d(lo), Vec3d(hi)};
+    pages.push_back(info);
+  }
   progress.finish();
-  return error;
+  return {};
 }
 
 }  // namespace
