@@ -7,7 +7,10 @@
 // deterministic sample of triangles. From the sample the plan estimates the
 // occupied cells per level and picks
 //   - quadric_depth: the deepest level (<= --max-depth) whose node table fits
-//     in 35% of --memory-limit (the rest is for runs, reader and batches), and
+//     in half of what --memory-limit leaves after the reader's vertex table
+//     and the batches in flight (a quarter goes to the run buffer), and whose
+//     parent level still has fewer nodes than half the vertices (deeper
+//     levels hold single vertices and cluster nothing), and
 //   - page_level: the deepest level whose occupied cells still hold about
 //     page_triangles (default 4096) triangles on average, so a page is a
 //     few hundred KiB: large enough for sequential reads, small enough that a
