@@ -28,11 +28,21 @@ namespace {
 
 constexpr int kMaxDracoBits = 30;
 
+}  // namespace
+
 double normal_error_bound(int bits) {
   if (bits <= 1) return M_PI;
   const double step = 2.0 / double((uint64_t(1) << bits) - 2);
   return std::min(M_PI, std::sqrt(3.0) * std::sqrt(2.0) * step);  // generous: half-diagonal x 2
 }
+
+int choose_normal_bits(double max_error) {
+  for (int bits = 2; bits < kMaxDracoBits; ++bits)
+    if (normal_error_bound(bits) <= max_error) return bits;
+  return kMaxDracoBits;
+}
+
+namespace {
 
 Status check_mesh(const std::filesystem::path& path, const IndexedMesh& mesh) {
   const std::string where = path.string() + ": ";
@@ -100,10 +110,16 @@ StatusOr<DracoWriteReport> write_draco(const std::filesystem::path& path, const 
   }
   report.max_position_error = position_error_bound(extent, max_abs, report.position_bits);
   if (normals) {
-    if (options.normal_bits < 2 || options.normal_bits > kMaxDracoBits)
-      return Status::error(path.string() + ": normal_bits must be between 2 and 30");
-    report.normal_bits = options.normal_bits;
-    report.max_normal_error = normal_error_bound(options.normal_bits);
+    if (options.normal_bits == 0) {
+      if (!(options.max_normal_error > 0))
+        return Status::error(path.string() + ": normal_bits 0 needs a positive max_normal_error");
+      report.normal_bits = choose_normal_bits(options.max_normal_error);
+    } else {
+      if (options.normal_bits < 2 || options.normal_bits > kMaxDracoBits)
+        return Status::error(path.string() + ": normal_bits must be between 2 and 30");
+      report.normal_bits = options.normal_bits;
+    }
+    report.max_normal_error = normal_error_bound(report.normal_bits);
   }
 
   draco::Mesh dm;

@@ -18,8 +18,9 @@ struct IndexedMesh {
 
 struct DracoOptions {
   int position_bits = 0;  // 0 = choose from the data and max_position_error
-  int normal_bits = 10;
+  int normal_bits = 10;   // 0 = choose from max_normal_error
   double max_position_error = 0;  // world units; used when position_bits == 0
+  double max_normal_error = 0;    // radians; used when normal_bits == 0
   int speed = 5;                   // Draco encoder speed 0 (best) .. 10 (fastest)
 };
 
@@ -36,6 +37,12 @@ struct DracoWriteReport {
 int choose_position_bits(double extent, double max_abs, double max_error);
 // The bound for those bits: sqrt(3) * (extent / (2^bits - 1) / 2 + float rounding).
 double position_error_bound(double extent, double max_abs, int bits);
+
+// Smallest normal_bits (2..30) whose octahedral quantisation error bound is
+// at most max_error radians (30 if none is).
+int choose_normal_bits(double max_error);
+// The bound for those bits (radians).
+double normal_error_bound(int bits);
 
 // Encodes the mesh (degenerate triangles must be removed by the caller) and
 // writes it atomically.

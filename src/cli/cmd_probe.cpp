@@ -4,14 +4,11 @@
 #include <chrono>
 #include <cstdio>
 #include <map>
-
-#if defined(__GLIBC__)
-#include <malloc.h>
-#endif
+#include <optional>
 
 #include "cli/cli.h"
 #include "core/system.h"
-#include "gen/generate.h"
+#include "pipeline/pipeline.h"
 #include "probe/probe.h"
 #include "scene/scene.h"
 #include "streaming/cut_file.h"
@@ -40,20 +37,10 @@ int cmd_probe(int argc, char** argv) {
     std::printf("%s", args.help_text().c_str());
     return 0;
   }
-  if (args.positionals().size() > 1) return cli::fail("probe", Status::error("expected at most one SCENE argument"));
-
-  auto scene_or = args.positionals().empty() ? default_scene() : load_scene(args.positionals()[0]);
+  auto scene_or = cli::scene_from_args(args);
   if (!scene_or) return cli::fail("probe", scene_or.status());
   Scene scene = std::move(scene_or.value());
 
-#if defined(__GLIBC__)
-  // Evicted pages are large, short-lived buffers: a fixed mmap threshold
-  // returns them to the OS instead of leaving a fragmented heap behind (glibc
-  // otherwise raises the threshold after the first large free), which keeps
-  // the resident size within --memory-limit.
-  mallopt(M_MMAP_THRESHOLD, 256 * 1024);
-#endif
-  ProbeConfig config;
   auto rays = args.get_int("--rays", 5000, 1, 100'000'000);
   auto seed = args.get_int("--seed", int64_t(scene.seed), 0, INT64_MAX);
   auto k = args.get_double("--footprint-scale", 1.0);
@@ -62,75 +49,29 @@ int cmd_probe(int argc, char** argv) {
   for (const Status& s : {rays.status(), seed.status(), k.status(), threads.status(), limit.status()})
     if (!s) return cli::fail("probe", s);
   if (!(*k > 0)) return cli::fail("probe", Status::error("--footprint-scale must be > 0"));
-  config.rays = uint64_t(*rays);
-  config.seed = uint64_t(*seed);
-  config.footprint_scale = *k;
-  config.threads = int(*threads);
-  config.progress = true;
-  const uint64_t memory_limit = *limit ? *limit : physical_memory_bytes() / 4;
 
-  if (args.has("--mesh")) {
-    const std::filesystem::path mesh = args.get("--mesh");
-    std::error_code ec;
-    if (!std::filesystem::is_regular_file(mesh, ec))
-      return cli::fail("probe", Status::error(mesh.string() + ": mesh file not found"));
-    for (SceneObject& o : scene.objects) {
-      o.mesh = mesh;
-      o.generate.reset();
-    }
-  } else if (Status s = resolve_generated_meshes(scene, default_cache_dir()); !s) {
-    return cli::fail("probe", s);
-  }
-
-  // One store per distinct mesh; build it if missing or stale.
-  std::vector<std::filesystem::path> meshes;
-  std::vector<ProbeObject> objects;
-  for (const SceneObject& o : scene.objects) {
-    auto it = std::find(meshes.begin(), meshes.end(), o.mesh);
-    size_t index = size_t(it - meshes.begin());
-    if (it == meshes.end()) meshes.push_back(o.mesh);
-    objects.push_back({index, o.transform, o.material});
-  }
+  // One store per distinct mesh, built first if missing or stale (saying so).
+  StoreOptions store_options;
+  store_options.memory_limit = *limit;
+  store_options.threads = int(*threads);
+  std::optional<std::filesystem::path> mesh_override;
+  if (args.has("--mesh")) mesh_override = std::filesystem::path(args.get("--mesh"));
+  auto prepared = prepare_scene_stores(scene, mesh_override, store_options, default_cache_dir(),
+                                       [](const std::string& m) { std::fprintf(stderr, "raylod probe: %s\n", m.c_str()); });
+  if (!prepared) return cli::fail("probe", prepared.status());
+  const SceneStores& ss = *prepared;
+  const std::vector<std::filesystem::path>& meshes = ss.meshes;
+  const std::vector<ProbeStore>& stores = ss.probe_stores;
+  const std::vector<ProbeObject>& objects = ss.objects;
   if (args.has("--output") && meshes.size() > 1)
     return cli::fail("probe", Status::error("-o names one cut, but the scene has " + std::to_string(meshes.size()) +
                                             " meshes; omit -o to write one cut beside each store"));
-  std::vector<std::unique_ptr<OctreeStore>> opened;
-  std::vector<ProbeStore> stores;
-  for (const auto& mesh : meshes) {
-    const std::filesystem::path store_path = default_store_path(mesh);
-    // An existing store is judged by the options it was built with: the probe
-    // needs it current for the mesh, not rebuilt for another memory limit.
-    StoreOptions options;
-    options.memory_limit = memory_limit;
-    if (auto existing = OctreeStore::open(store_path); existing) options = (*existing)->header().options;
-    std::string reason;
-    if (!store_is_current(mesh, store_path, options, &reason)) {
-      std::fprintf(stderr, "raylod probe: building the store %s (%s)\n", store_path.string().c_str(), reason.c_str());
-      StoreOptions build;
-      build.memory_limit = memory_limit;
-      build.threads = config.threads;
-      auto report = build_store(mesh, store_path, build);
-      if (!report) return cli::fail("probe", report.status().with_context("building " + store_path.string()));
-      std::fprintf(stderr, "raylod probe: built %s: %llu triangles in %.1f s\n", store_path.string().c_str(),
-                   static_cast<unsigned long long>(report->triangles), report->seconds);
-    }
-    auto store = OctreeStore::open(store_path);
-    if (!store) return cli::fail("probe", store.status());
-    stores.push_back({store.value().get(), store_path});
-    opened.push_back(std::move(store.value()));
-  }
 
-  // The page cache gets what the limit leaves after the node tables (already
-  // resident) and a reserve for the test rays' hit records.
-  const uint64_t rss = current_rss_bytes();
-  const uint64_t reserve = config.rays * 64 * uint64_t(std::max(1, scene.max_depth + 1)) + (uint64_t(32) << 20);
-  if (memory_limit <= rss + reserve)
-    return cli::fail("probe", Status::error("--memory-limit " + format_bytes(memory_limit) +
-                                            " is below what the stores' node tables already take (" +
-                                            format_bytes(rss) + " resident)"));
-  // Half of what is left: malloc fragmentation from evicted pages and the
-  // pages in flight (one per thread) must fit in the rest.
-  config.cache_bytes = (memory_limit - rss - reserve) / 2;
+  auto config_or = make_probe_config(scene, uint64_t(*rays), *k, int(*threads), resolved_memory_limit(store_options),
+                                     true);
+  if (!config_or) return cli::fail("probe", config_or.status());
+  ProbeConfig config = *config_or;
+  config.seed = uint64_t(*seed);
 
   auto result = run_probe(scene, stores, objects, config);
   if (!result) return cli::fail("probe", result.status());

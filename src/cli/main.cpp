@@ -6,6 +6,10 @@
 #include <exception>
 #include <string>
 
+#if defined(__GLIBC__)
+#include <malloc.h>
+#endif
+
 #include "cli/cli.h"
 
 namespace {
@@ -31,6 +35,14 @@ void print_help() {
 }  // namespace
 
 int main(int argc, char** argv) {
+#if defined(__GLIBC__)
+  // Stages allocate and free large short-lived buffers (store pages in the
+  // probe's cache, batches): a fixed mmap threshold returns them to the OS
+  // instead of letting glibc raise the threshold after the first large free
+  // and keep a fragmented heap, which keeps resident memory within
+  // --memory-limit.
+  mallopt(M_MMAP_THRESHOLD, 256 * 1024);
+#endif
   if (argc < 2 || !std::strcmp(argv[1], "--help") || !std::strcmp(argv[1], "-h") || !std::strcmp(argv[1], "help")) {
     print_help();
     return argc < 2 ? 2 : 0;

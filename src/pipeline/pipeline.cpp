@@ -40,21 +40,42 @@ double draco_error_bound(const Cut& cut, const OctreeStore& store) {
   return store.header().root_size * 1e-5;
 }
 
-ProbeConfig make_probe_config(const Scene& scene, uint64_t rays, double footprint_scale, int threads,
-                              uint64_t memory_limit, bool progress) {
+StatusOr<ProbeConfig> make_probe_config(const Scene& scene, uint64_t rays, double footprint_scale, int threads,
+                                        uint64_t memory_limit, bool progress) {
   ProbeConfig probe;
   probe.rays = rays;
   probe.seed = scene.seed;
   probe.footprint_scale = footprint_scale;
   probe.threads = threads;
-  // The page cache takes an eighth of the memory limit, within [16 MiB, 512 MiB].
-  probe.cache_bytes = std::clamp<uint64_t>(memory_limit / 8, uint64_t(16) << 20, uint64_t(512) << 20);
   probe.progress = progress;
+  // The page cache gets what the limit leaves after what is already resident
+  // (the stores' node tables) and a reserve for the test rays' hit records;
+  // half of that, since malloc fragmentation from evicted pages and the pages
+  // in flight (one per thread) must fit in the rest.
+  const uint64_t rss = current_rss_bytes();
+  const uint64_t reserve = rays * 64 * uint64_t(std::max(1, scene.max_depth + 1)) + (uint64_t(32) << 20);
+  if (memory_limit <= rss + reserve)
+    return Status::error("the memory limit of " + format_bytes(memory_limit) +
+                         " is below what the stores' node tables already take (" + format_bytes(rss) + " resident)");
+  probe.cache_bytes = (memory_limit - rss - reserve) / 2;
   return probe;
 }
 
+double shading_normal_tolerance(const Scene& scene) {
+  double tolerance = 1.0 / (2.0 * 255.0);
+  for (const auto& m : scene.materials) {
+    if (m.type == MaterialType::Glossy) tolerance = std::min(tolerance, 1.0 / (2.0 * 255.0 * std::max(1.0f, m.shininess)));
+    if (m.reflects()) {
+      const double pixel = 2.0 * std::tan(glm::radians(scene.camera.fov_y_deg) / 2) / scene.camera.height;
+      tolerance = std::min(tolerance, pixel / 16.0);
+    }
+  }
+  return tolerance;
+}
+
 StatusOr<SimplifiedMesh> simplify_cut_to_draco(const OctreeStore& store, const Cut& cut, const fs::path& out,
-                                               uint64_t memory_limit, bool progress, double* seconds) {
+                                               uint64_t memory_limit, double max_normal_error, bool progress,
+                                               double* seconds) {
   auto t0 = std::chrono::steady_clock::now();
   SimplifyConfig sc;
   sc.memory_limit = memory_limit;
@@ -62,6 +83,8 @@ StatusOr<SimplifiedMesh> simplify_cut_to_draco(const OctreeStore& store, const C
   RAYLOD_ASSIGN_OR_RETURN(SimplifyResult simplified, simplify(store, cut, sc));
   DracoOptions dopt;
   dopt.max_position_error = draco_error_bound(cut, store);
+  dopt.normal_bits = 0;
+  dopt.max_normal_error = max_normal_error;
   RAYLOD_ASSIGN_OR_RETURN(DracoWriteReport written, write_draco(out, simplified.mesh, dopt));
   SimplifiedMesh sm;
   sm.drc = out;
@@ -78,6 +101,7 @@ StatusOr<SceneStores> prepare_scene_stores(Scene& scene, const std::optional<fs:
                                            const LogFn& log) {
   auto t0 = std::chrono::steady_clock::now();
   if (mesh_override) {
+    // As in `raylod render`: the first object's mesh is replaced.
     std::error_code ec;
     if (!fs::is_regular_file(*mesh_override, ec)) return Status::error(mesh_override->string() + ": mesh file not found");
     scene.objects[0].mesh = *mesh_override;
@@ -93,12 +117,21 @@ StatusOr<SceneStores> prepare_scene_stores(Scene& scene, const std::optional<fs:
     if (fresh) out.meshes.push_back(mesh);
     out.objects.push_back(ProbeObject{it->second, obj.transform, obj.material});
   }
+  const uint64_t limit = resolved_memory_limit(store_options);
   for (const auto& mesh : out.meshes) {
     fs::path store_path = default_store_path(mesh);
+    // An existing store built under a memory limit no larger than this one
+    // (same depth cap) is judged by its own options: it still fits, and a
+    // different --memory-limit alone is no reason to rebuild.
+    StoreOptions options = store_options;
+    if (auto existing = OctreeStore::open(store_path); existing.is_ok()) {
+      const StoreOptions& built = (*existing)->header().options;
+      if (built.memory_limit <= limit && built.max_depth == store_options.max_depth) options = built;
+    }
     std::string reason;
-    if (!store_is_current(mesh, store_path, store_options, &reason))
+    if (!store_is_current(mesh, store_path, options, &reason))
       say(log, "building store " + store_path.string() + " (" + reason + ")");
-    auto report = build_store(mesh, store_path, store_options);
+    auto report = build_store(mesh, store_path, options);
     if (!report.is_ok()) return report.status();
     auto store = OctreeStore::open(store_path);
     if (!store.is_ok()) return store.status();
@@ -130,8 +163,8 @@ StatusOr<RunResult> run_pipeline(Scene scene, const RunOptions& options, const L
 
   // B. Probe (A2-A4); if the simplified meshes would not fit the memory
   // limit, coarsen by doubling K until they do.
-  ProbeConfig probe =
-      make_probe_config(scene, options.rays, options.footprint_scale, options.threads, memory_limit, options.progress);
+  RAYLOD_ASSIGN_OR_RETURN(ProbeConfig probe, make_probe_config(scene, options.rays, options.footprint_scale,
+                                                              options.threads, memory_limit, options.progress));
   auto t_probe = std::chrono::steady_clock::now();
   uint64_t previous_estimate = UINT64_MAX;
   for (;;) {
@@ -207,7 +240,8 @@ StatusOr<RunResult> run_pipeline(Scene scene, const RunOptions& options, const L
       AtomicOutput tmp(scratch / ("simplified-" + std::to_string(::getpid()) + "-" + std::to_string(i) + ".drc"));
       fs::path staged = tmp.temp_path();
       staged += ".drc";
-      RAYLOD_ASSIGN_OR_RETURN(sm, simplify_cut_to_draco(store, cut, staged, memory_limit, options.progress));
+      RAYLOD_ASSIGN_OR_RETURN(sm, simplify_cut_to_draco(store, cut, staged, memory_limit,
+                                                              shading_normal_tolerance(scene), options.progress));
       // Rendered from the staged file, which lives until after rendering.
       scratch_files.push_back(staged);
       sm.cache_note = "simplified (cache disabled)";

@@ -91,14 +91,25 @@ StatusOr<RunResult> run_pipeline(Scene scene, const RunOptions& options, const L
 // peak memory, cache hit, and the render's own statistics.
 std::string run_stats_json(const RunResult& result, const RunOptions& options);
 
-// The probe configuration run_pipeline and report use.
-ProbeConfig make_probe_config(const Scene& scene, uint64_t rays, double footprint_scale, int threads,
-                              uint64_t memory_limit, bool progress);
+// The probe configuration for a memory limit: the page cache gets half of
+// what the limit leaves after the resident node tables and the rays' hit
+// records; an error if nothing is left. Call after the stores are open.
+StatusOr<ProbeConfig> make_probe_config(const Scene& scene, uint64_t rays, double footprint_scale, int threads,
+                                        uint64_t memory_limit, bool progress);
 
 // Simplifies the cut of a store and writes it Draco-compressed to `out`
-// (quantisation from draco_error_bound); fills triangles, bytes and bits.
+// (position quantisation from draco_error_bound, normal quantisation from
+// max_normal_error); fills triangles, bytes and bits.
 StatusOr<SimplifiedMesh> simplify_cut_to_draco(const OctreeStore& store, const Cut& cut, const std::filesystem::path& out,
-                                               uint64_t memory_limit, bool progress, double* seconds = nullptr);
+                                               uint64_t memory_limit, double max_normal_error, bool progress,
+                                               double* seconds = nullptr);
+
+// The largest normal error (radians) the scene's shading cannot show: a
+// rotation d of a shading normal changes a Lambert term by up to d and a
+// Phong lobe cos^n by about n d, so d < 1 / (2 * 255 * max(1, n)) keeps the
+// change under half an 8-bit level; mirrors and glass turn d into a
+// direction error of 2 d, kept under an eighth of a pixel's angle.
+double shading_normal_tolerance(const Scene& scene);
 
 // The Draco error bound for a cut: well below the smallest footprint the
 // probe measured (an eighth), so quantisation never shows at the probed scale.

@@ -338,13 +338,14 @@ StatusOr<ReportResult> run_report(const Scene& input_scene, const std::optional<
       row.footprint_scale = k;
       row.rays = n;
       auto t0 = std::chrono::steady_clock::now();
-      ProbeConfig pc = make_probe_config(run.scene, n, k, cfg.threads, memory_limit, false);
+      RAYLOD_ASSIGN_OR_RETURN(ProbeConfig pc, make_probe_config(run.scene, n, k, cfg.threads, memory_limit, false));
       RAYLOD_ASSIGN_OR_RETURN(ProbeResult probe, run_probe(run.scene, stores.probe_stores, stores.objects, pc));
       row.probe_s = seconds_since(t0);
       const std::string name = tag + "-raylod-K" + label_number(k) + "-rays" + std::to_string(n);
       fs::path drc = scratch / (name + ".drc");
       RAYLOD_ASSIGN_OR_RETURN(SimplifiedMesh sm,
-                              simplify_cut_to_draco(store, probe.cuts[0], drc, memory_limit, false, &row.simplify_s));
+                              simplify_cut_to_draco(store, probe.cuts[0], drc, memory_limit,
+                                                    shading_normal_tolerance(run.scene), false, &row.simplify_s));
       row.triangles = sm.triangles;
       row.drc_bytes = sm.drc_bytes;
       RenderOptions o = ro;

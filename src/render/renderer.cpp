@@ -17,6 +17,7 @@
 #include <tbb/parallel_for.h>
 
 #include "core/progress.h"
+#include "core/random.h"
 #include "core/system.h"
 
 namespace raylod {
@@ -27,13 +28,6 @@ double seconds_since(std::chrono::steady_clock::time_point t) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
 }
 
-uint64_t splitmix64(uint64_t& state) {
-  uint64_t z = (state += 0x9e3779b97f4a7c15ull);
-  z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
-  z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
-  return z ^ (z >> 31);
-}
-double uniform01(uint64_t& state) { return double(splitmix64(state) >> 11) * 0x1.0p-53; }
 
 // The per-pixel generator's start state: a hash of the scene seed and the pixel.
 uint64_t pixel_state(uint64_t seed, int x, int y) {
