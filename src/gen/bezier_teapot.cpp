@@ -122,8 +122,10 @@ BezierTeapot::BezierTeapot(const TeapotPlan& plan) : plan_(plan) {
   for (uint32_t b = 0; b <= plan.col_segments; ++b) col_basis_.push_back(bernstein(b, plan.col_segments));
 }
 
-BezierTeapot::Basis BezierTeapot::bernstein(uint32_t i, uint32_t n) {
-  const double t = double(i) / double(n), u = double(n - i) / double(n);
+// Cubic Bernstein weights and derivatives at t, with u = 1 - t passed in so
+// that callers can compute it exactly: (n - i) / n is exact where 1 - i / n
+// is not, and that keeps patch seams bitwise identical from both sides.
+BezierTeapot::Basis BezierTeapot::bernstein_tu(double t, double u) {
   const double m = t * u;
   Basis r;
   r.b[0] = u * u * u;
@@ -137,19 +139,11 @@ BezierTeapot::Basis BezierTeapot::bernstein(uint32_t i, uint32_t n) {
   return r;
 }
 
-BezierTeapot::Basis BezierTeapot::bernstein(double t) {
-  const double u = 1.0 - t, m = t * u;
-  Basis r;
-  r.b[0] = u * u * u;
-  r.b[1] = 3.0 * m * u;
-  r.b[2] = 3.0 * m * t;
-  r.b[3] = t * t * t;
-  r.d[0] = -3.0 * u * u;
-  r.d[1] = 3.0 * u * (u - 2.0 * t);
-  r.d[2] = 3.0 * t * (2.0 * u - t);
-  r.d[3] = 3.0 * t * t;
-  return r;
+BezierTeapot::Basis BezierTeapot::bernstein(uint32_t i, uint32_t n) {
+  return bernstein_tu(double(i) / double(n), double(n - i) / double(n));
 }
+
+BezierTeapot::Basis BezierTeapot::bernstein(double t) { return bernstein_tu(t, 1.0 - t); }
 
 namespace {
 

@@ -59,6 +59,7 @@ class BezierTeapot final : public GridSurface {
   };
   static Basis bernstein(uint32_t i, uint32_t n);
   static Basis bernstein(double t);
+  static Basis bernstein_tu(double t, double u);  // u = 1 - t, computed by the caller
 
   TeapotPlan plan_;
   std::vector<GridPiece> pieces_;
