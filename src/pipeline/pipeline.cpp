@@ -154,6 +154,7 @@ StatusOr<RunResult> run_pipeline(Scene scene, const RunOptions& options, const L
   const uint64_t memory_limit = resolved_memory_limit(store_options);
 
   // A. Stores (method step A1), reused when current.
+  say(log, "[1/4] build: octree stores");
   RAYLOD_ASSIGN_OR_RETURN(SceneStores stores,
                           prepare_scene_stores(scene, options.mesh_override, store_options, cache_dir, log));
   result.seconds.build = stores.seconds;
@@ -163,6 +164,7 @@ StatusOr<RunResult> run_pipeline(Scene scene, const RunOptions& options, const L
 
   // B. Probe (A2-A4); if the simplified meshes would not fit the memory
   // limit, coarsen by doubling K until they do.
+  say(log, "[2/4] probe: " + std::to_string(options.rays) + " test rays");
   RAYLOD_ASSIGN_OR_RETURN(ProbeConfig probe, make_probe_config(scene, options.rays, options.footprint_scale,
                                                               options.threads, memory_limit, options.progress));
   auto t_probe = std::chrono::steady_clock::now();
@@ -193,6 +195,7 @@ StatusOr<RunResult> run_pipeline(Scene scene, const RunOptions& options, const L
   result.seconds.probe = seconds_since(t_probe);
 
   // C. Simplify (A5), or reuse a cached simplified mesh that is fine enough.
+  say(log, "[3/4] simplify");
   auto t_simplify = std::chrono::steady_clock::now();
   std::optional<SimplifiedCache> cache;
   if (options.use_cache) {
@@ -262,6 +265,7 @@ StatusOr<RunResult> run_pipeline(Scene scene, const RunOptions& options, const L
   result.seconds.simplify = seconds_since(t_simplify);
 
   // D. Render the simplified meshes.
+  say(log, "[4/4] render");
   RenderOptions ro;
   ro.spp = options.spp;
   ro.threads = options.threads;
