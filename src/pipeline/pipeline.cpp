@@ -1,6 +1,8 @@
 #include "pipeline/pipeline.h"
 
+#include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <map>
 #include <sstream>
@@ -33,11 +35,44 @@ std::string fmt(const char* f, double v) {
 
 }  // namespace
 
+double mean_input_edge(const OctreeStore& store) {
+  // Each corner adds area / 3 times n n^T with |n| = 1 to its cell's quadric,
+  // so trace(A) of the root is the total area of the input.
+  const auto root = store.level(0);
+  const uint64_t triangles = store.header().triangle_count;
+  if (root.empty() || triangles == 0) return 0;
+  const Quadric& q = root[0].quadric;
+  const double area = q.a00 + q.a11 + q.a22;
+  if (!(area > 0) || !std::isfinite(area)) return 0;
+  // Edge of the equilateral triangle of the mean area: A = (sqrt(3) / 4) l^2.
+  return std::sqrt(4.0 * (area / double(triangles)) / std::sqrt(3.0));
+}
+
+double geometric_normal_position_bound(const OctreeStore& store) {
+  // Moving the corners of a triangle with edge l (altitude sqrt(3)/2 l) by up
+  // to e each tilts its face normal by up to about 2 e / (sqrt(3)/2 l); keep
+  // that under kGeometricNormalTolerance.
+  const double edge = mean_input_edge(store);
+  if (!(edge > 0)) return 0;
+  return kGeometricNormalTolerance * (std::sqrt(3.0) / 4.0) * edge;
+}
+
 double draco_error_bound(const Cut& cut, const OctreeStore& store) {
   // An eighth of the finest footprint keeps quantisation far below what any
-  // probed ray resolves; without measured hits, 1e-5 of the model size.
-  if (cut.min_footprint > 0) return double(cut.min_footprint) / 8.0;
-  return store.header().root_size * 1e-5;
+  // probed ray resolves; without measured hits, 1e-5 of the model size. That
+  // alone is not enough: the cut keeps input triangles (at small K, most of
+  // them) that can be several times smaller than the footprint, and Draco
+  // moves every vertex, kept ones included. A shift that no camera ray
+  // resolves still tilts those triangles' face normals (by tens of degrees at
+  // footprint / 8 on a 10M-triangle teapot), and the renderer's face normals
+  // decide which side of the shadow terminator a point is on and where
+  // shadow rays start: the result is dark speckles along terminators and
+  // silhouettes. So the bound is also kept below what tilts a face of the
+  // input's mean size by more than kGeometricNormalTolerance.
+  double bound = cut.min_footprint > 0 ? double(cut.min_footprint) / 8.0 : store.header().root_size * 1e-5;
+  const double geometric = geometric_normal_position_bound(store);
+  if (geometric > 0) bound = std::min(bound, geometric);
+  return bound;
 }
 
 StatusOr<ProbeConfig> make_probe_config(const Scene& scene, uint64_t rays, double footprint_scale, int threads,

@@ -111,8 +111,25 @@ StatusOr<SimplifiedMesh> simplify_cut_to_draco(const OctreeStore& store, const C
 // direction error of 2 d, kept under an eighth of a pixel's angle.
 double shading_normal_tolerance(const Scene& scene);
 
+// The largest tilt (radians) of a face normal that the renderer's use of
+// face normals cannot show: they decide which side of the shadow terminator a
+// point is on (and where shadow rays start), and a tilt d only changes that
+// where the Lambert term is below d, so d < 1 / (2 * 255) keeps the change
+// under half an 8-bit level.
+inline constexpr double kGeometricNormalTolerance = 1.0 / (2.0 * 255.0);
+
+// Edge length of the equilateral triangle of the store's mean input triangle
+// area (total area from the root quadric's trace); 0 if the store is empty.
+double mean_input_edge(const OctreeStore& store);
+
+// The largest position error that tilts a face of mean_input_edge(store) by
+// no more than kGeometricNormalTolerance; 0 if the store is empty.
+double geometric_normal_position_bound(const OctreeStore& store);
+
 // The Draco error bound for a cut: well below the smallest footprint the
-// probe measured (an eighth), so quantisation never shows at the probed scale.
+// probe measured (an eighth), so quantisation never shows at the probed scale,
+// and at most geometric_normal_position_bound(store), so that quantising the
+// kept input triangles does not tilt their face normals visibly.
 double draco_error_bound(const Cut& cut, const OctreeStore& store);
 
 }  // namespace raylod
