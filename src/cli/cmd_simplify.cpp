@@ -10,6 +10,7 @@
 
 #include "cli/cli.h"
 #include "core/system.h"
+#include "pipeline/pipeline.h"
 #include "probe/probe.h"
 #include "simplify/collapse.h"
 #include "simplify/indexed_mesh_writer.h"
@@ -34,10 +35,11 @@ int run_simplify(int argc, char** argv) {
             "(minimum of the cell's quadric, kept inside the cell), keeps all other vertices exactly,\n"
             "drops triangles that become degenerate or duplicated, and writes the simplified mesh\n"
             "with vertex normals. Draco positions are quantised so that the error stays below 1/8\n"
-            "of the smallest footprint the probe measured (override with --position-error).",
+            "of the smallest footprint the probe measured and below what tilts a face of the\n"
+            "input's mean size by 1/510 rad (override with --position-error).",
             {{"--output", "-o", "output mesh: .drc (Draco), .ply (binary) or .obj (required)", true, "FILE"},
              {"--memory-limit", "", "memory the simplified mesh may use (default: a quarter of RAM)", true, "SIZE"},
-             {"--position-error", "", "Draco: largest position error in world units (default: footprint / 8)",
+             {"--position-error", "", "Draco: largest position error in world units (default: as the pipeline's)",
               true, "E"},
              {"--normal-bits", "", "Draco: octahedral normal quantisation bits, 2..30 (default 10)", true, "N"},
              {"--speed", "", "Draco: encoder speed 0 (smallest) .. 10 (fastest) (default 5)", true, "S"},
@@ -109,7 +111,12 @@ int run_simplify(int argc, char** argv) {
     float footprint = cut->min_footprint;
     if (!(footprint > 0))
       for (const auto& c : cut->cells) if (c.min_footprint > 0 && (!(footprint > 0) || c.min_footprint < footprint)) footprint = c.min_footprint;
-    opt.max_position_error = *position_error > 0 ? *position_error : (footprint > 0 ? footprint / 8.0 : 0.0);
+    // Also small against the input triangles the cut keeps, whose face
+    // normals quantisation would otherwise tilt (pipeline.h).
+    double bound = footprint > 0 ? footprint / 8.0 : 0.0;
+    if (const double geometric = geometric_normal_position_bound(**store); geometric > 0)
+      bound = bound > 0 ? std::min(bound, geometric) : geometric;
+    opt.max_position_error = *position_error > 0 ? *position_error : bound;
     auto report = write_draco(out_path, r.mesh, opt);
     if (!report) return fail("simplify", report.status());
     bytes = report->bytes;
