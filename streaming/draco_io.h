@@ -33,7 +33,8 @@ struct DracoWriteReport {
 };
 // Smallest position_bits (1..30) whose quantisation error bound for a mesh
 // whose bounding box's largest side is `extent` and largest coordinate
-// magnitude is `max_abs` is at most max_error (30 if none is).
+// magnitude is `max_abs` is at most max_error; if none is (float rounding
+// dominates), the fewest bits within 10% of the best achievable bound.
 int choose_position_bits(double extent, double max_abs, double max_error);
 // The bound for those bits: sqrt(3) * (extent / (2^bits - 1) / 2 + float rounding).
 double position_error_bound(double extent, double max_abs, int bits);

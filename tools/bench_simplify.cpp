@@ -36,6 +36,7 @@
 #include "streaming/draco_io.h"
 #include "streaming/mesh_reader.h"
 #include "streaming/octree_store.h"
+#include "pipeline/pipeline.h"
 
 using namespace raylod;
 using json = nlohmann::json;
@@ -68,7 +69,7 @@ StatusOr<json> run_raylod(const Options& o, int run) {
   r["mesh_build_bytes"] = s.stats.peak_bytes;
   r["collapse_triangles_per_second"] = double(s.stats.input_triangles) / r["collapse_seconds"].get<double>();
   DracoOptions d;
-  d.max_position_error = cut.min_footprint > 0 ? cut.min_footprint / 8.0 : 0.0;
+  d.max_position_error = draco_error_bound(cut, *store);  // the bound raylod run uses
   t = Clock::now();
   const auto drc = o.out_dir / ("simplified-" + std::to_string(run) + ".drc");
   RAYLOD_ASSIGN_OR_RETURN(DracoWriteReport w, write_draco(drc, s.mesh, d));
