@@ -83,6 +83,14 @@ Status check_batch(const std::string& name, const TriangleBatch& batch) {
   return Status::ok();
 }
 
+// The checks both writers make when finishing: once only, and never an empty mesh.
+Status start_finish(const std::string& name, bool& finished, uint64_t triangles) {
+  if (finished) return Status::error(name + ": finish called twice");
+  finished = true;
+  if (triangles == 0) return Status::error(name + ": no triangles to write (an empty mesh is not a valid file)");
+  return Status::ok();
+}
+
 class PlyWriter final : public MeshWriter {
  public:
   static constexpr size_t kHeaderSlot = 512;
@@ -117,9 +125,7 @@ class PlyWriter final : public MeshWriter {
   }
   Status finish() override {
     const std::string name = out_.destination().string();
-    if (finished_) return Status::error(name + ": finish called twice");
-    finished_ = true;
-    if (triangles_ == 0) return Status::error(name + ": no triangles to write (an empty mesh is not a valid file)");
+    RAYLOD_RETURN_IF_ERROR(start_finish(name, finished_, triangles_));
     for (uint64_t t = 0; t < triangles_; ++t) {
       uint8_t rec[13];
       rec[0] = 3;
@@ -181,9 +187,7 @@ class StlWriter final : public MeshWriter {
   }
   Status finish() override {
     const std::string name = out_.destination().string();
-    if (finished_) return Status::error(name + ": finish called twice");
-    finished_ = true;
-    if (triangles_ == 0) return Status::error(name + ": no triangles to write (an empty mesh is not a valid file)");
+    RAYLOD_RETURN_IF_ERROR(start_finish(name, finished_, triangles_));
     const uint32_t count = uint32_t(triangles_);
     RAYLOD_RETURN_IF_ERROR(file_.write_at(80, &count, 4));
     RAYLOD_RETURN_IF_ERROR(file_.close());

@@ -91,15 +91,7 @@ TeapotPlan plan_teapot(uint64_t target) {
       candidates.push_back({r, c, n, std::abs(double(n) - double(target)), std::abs(std::log(double(r) / c))});
     }
   }
-  // The squarest grid among those within 0.05% of the best count (or the
-  // best count itself): near-square parameter cells give better triangles.
-  double min_err = 1e300;
-  for (const auto& k : candidates) min_err = std::min(min_err, k.err);
-  const double tolerance = std::max(min_err, 5e-4 * double(target));
-  const Candidate* best = nullptr;
-  for (const auto& k : candidates)
-    if (k.err <= tolerance && (!best || k.aspect < best->aspect || (k.aspect == best->aspect && k.err < best->err)))
-      best = &k;
+  const Candidate* best = &pick_squarest_resolution(candidates, target);
   TeapotPlan plan{best->r, best->c, best->n, 0};
   plan.vertices = BezierTeapot(plan).vertex_count();
   return plan;

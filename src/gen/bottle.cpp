@@ -161,14 +161,7 @@ BottlePlan plan_bottle(uint64_t target, const BottleConfig& config) {
       candidates.push_back({n, m, tri, std::abs(double(tri) - double(target)), std::abs(std::log(ratio))});
     }
   }
-  // The best-proportioned resolution within 0.05% of the closest count.
-  double min_err = 1e300;
-  for (const auto& k : candidates) min_err = std::min(min_err, k.err);
-  const double tolerance = std::max(min_err, 5e-4 * double(target));
-  const Candidate* best = nullptr;
-  for (const auto& k : candidates)
-    if (k.err <= tolerance && (!best || k.aspect < best->aspect || (k.aspect == best->aspect && k.err < best->err)))
-      best = &k;
+  const Candidate* best = &pick_squarest_resolution(candidates, target);
   BottlePlan plan{best->n, best->m, best->tri, 0};
   plan.vertices = uint64_t(plan.around) * (plan.profile_segments - 1) + 2;
   return plan;

@@ -18,6 +18,7 @@
 // return vertex normals on the same side (outward for closed shapes).
 #pragma once
 
+#include <algorithm>
 #include <cstdint>
 #include <span>
 #include <vector>
@@ -67,5 +68,22 @@ class GridSurface {
   uint64_t vertex_count() const;
   uint64_t triangle_count() const;
 };
+
+// Picks a tessellation resolution from candidates that each carry `err`
+// (|triangles - target|) and `aspect` (|log| of the parameter cells' aspect
+// ratio): the squarest among those within 0.05% of the target (or of the
+// closest count, if none is that close), since near-square parameter cells
+// give better-shaped triangles. candidates must not be empty.
+template <class Candidate>
+const Candidate& pick_squarest_resolution(const std::vector<Candidate>& candidates, uint64_t target) {
+  double min_err = 1e300;
+  for (const auto& k : candidates) min_err = std::min(min_err, k.err);
+  const double tolerance = std::max(min_err, 5e-4 * double(target));
+  const Candidate* best = nullptr;
+  for (const auto& k : candidates)
+    if (k.err <= tolerance && (!best || k.aspect < best->aspect || (k.aspect == best->aspect && k.err < best->err)))
+      best = &k;
+  return *best;
+}
 
 }  // namespace raylod
