@@ -111,10 +111,18 @@ bool register_command(const Command& c) {
 }
 const std::vector<Command>& commands() { return registry(); }
 
+StatusOr<double> crease_angle_from_args(const Args& args, double fallback) {
+  if (!args.has("--crease-angle")) return fallback;
+  RAYLOD_ASSIGN_OR_RETURN(double deg, args.get_double("--crease-angle", fallback));
+  if (!(deg >= 0 && deg <= 180)) return Status::error("--crease-angle must be between 0 and 180 degrees");
+  return deg;
+}
+
 StatusOr<Scene> scene_from_args(const Args& args) {
   if (args.positionals().size() > 1) return Status::error("expected at most one SCENE argument");
-  if (args.positionals().empty()) return default_scene();
-  return load_scene(args.positionals()[0]);
+  RAYLOD_ASSIGN_OR_RETURN(Scene scene, args.positionals().empty() ? default_scene() : load_scene(args.positionals()[0]));
+  RAYLOD_ASSIGN_OR_RETURN(scene.crease_angle_deg, crease_angle_from_args(args, scene.crease_angle_deg));
+  return scene;
 }
 
 int fail(const char* command, const Status& status) {

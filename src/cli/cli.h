@@ -57,8 +57,16 @@ struct Command {
 bool register_command(const Command& command);
 const std::vector<Command>& commands();
 
+// The --crease-angle option (degrees, 0 to 180) that commands which shade
+// meshes without normals share; `fallback` when it is absent.
+inline const char* kCreaseAngleHelp =
+    "shade facets meeting at more than DEG degrees as a crease, for meshes\n"
+    "                              without normals (default: the scene's crease_angle, 30)";
+StatusOr<double> crease_angle_from_args(const Args& args, double fallback);
+
 // The scene named by the single positional argument, or the embedded default
-// scene when there is none; more than one positional is an error.
+// scene when there is none (more than one positional is an error), with
+// --crease-angle applied if the command has it and it was given.
 StatusOr<Scene> scene_from_args(const Args& args);
 
 // Prints "raylod <cmd>: <message>" to stderr and returns the exit code 1.

@@ -51,6 +51,7 @@ Status run_report_cmd(int argc, char** argv) {
              {"--threads", "", "worker threads (default: all cores)", true, "T"},
              {"--memory-limit", "", "memory cap (default: a quarter of physical memory)", true, "SIZE"},
              {"--quick", "", "a small, fast report (50k-triangle teapot, 160x120, two K, two ray counts)", false, ""},
+             {"--crease-angle", "", kCreaseAngleHelp, true, "DEG"},
              {"--quiet", "-q", "no log lines", false, ""}});
   RAYLOD_RETURN_IF_ERROR(args.parse(argc, argv));
   if (args.help_requested()) {

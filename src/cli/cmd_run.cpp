@@ -37,6 +37,7 @@ Status run_run(int argc, char** argv, bool& help) {
              {"--no-cache", "", "neither reuse nor keep simplified meshes", false, ""},
              {"--compare", "", "also render the full-resolution mesh and report the error", false, ""},
              {"--stats-json", "", "write triangle counts, stage times, memory and cache use as JSON", true, "FILE"},
+             {"--crease-angle", "", kCreaseAngleHelp, true, "DEG"},
              {"--quiet", "-q", "no progress bars or log lines", false, ""}});
   RAYLOD_RETURN_IF_ERROR(args.parse(argc, argv));
   if (args.help_requested()) {

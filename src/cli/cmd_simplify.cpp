@@ -43,6 +43,8 @@ int run_simplify(int argc, char** argv) {
               true, "E"},
              {"--normal-bits", "", "Draco: octahedral normal quantisation bits, 2..30 (default 10)", true, "N"},
              {"--speed", "", "Draco: encoder speed 0 (smallest) .. 10 (fastest) (default 5)", true, "S"},
+             {"--crease-angle", "", "normals: facets meeting at more than DEG degrees keep separate\n"
+                                    "                              normals (default 30, as the scene's crease_angle)", true, "DEG"},
              {"--quiet", "-q", "no progress bar", false, ""}});
   if (Status st = args.parse(argc, argv); !st) return fail("simplify", st);
   if (args.help_requested()) {
@@ -90,7 +92,10 @@ int run_simplify(int argc, char** argv) {
                                           "--footprint-scale"));
 
   const double open_seconds = since(t_open);
+  auto crease = crease_angle_from_args(args, kDefaultCreaseAngleDeg);
+  if (!crease) return fail("simplify", crease.status());
   SimplifyConfig config;
+  config.crease_angle_deg = *crease;
   config.memory_limit = *limit;
   config.progress = !args.has("--quiet");
   auto result = simplify(**store, *cut, config);
@@ -138,13 +143,13 @@ int run_simplify(int argc, char** argv) {
   std::printf("wrote %s\n", out_path.string().c_str());
   std::printf("  triangles  %llu of %llu (%.2f%%)\n", ull(s.output_triangles), ull(s.input_triangles),
               s.input_triangles ? 100.0 * double(s.output_triangles) / double(s.input_triangles) : 0.0);
-  std::printf("  vertices   %llu (%llu representatives, %llu kept)\n", ull(s.output_vertices),
-              ull(s.representatives_used), ull(s.kept_vertices));
+  std::printf("  vertices   %llu (%llu representatives, %llu kept, %llu more where corners meet at a crease)\n",
+              ull(s.output_vertices), ull(s.representatives_used), ull(s.kept_vertices), ull(s.split_vertices));
   std::printf("  cut        %llu cells (%llu not in the store), %llu representatives clamped to their cell\n",
               ull(r.cut_cells), ull(r.cut_cells_missing), ull(r.clamped_representatives));
   std::printf("  dropped    %llu collapsed, %llu zero-area, %llu duplicate; %llu reverse-wound twins kept\n",
               ull(s.dropped_collapsed), ull(s.dropped_zero_area), ull(s.dropped_duplicate), ull(s.reverse_twins));
-  if (s.normal_fallbacks) std::printf("  normals    %llu fell back (merged normals cancelled)\n", ull(s.normal_fallbacks));
+  if (s.normal_fallbacks) std::printf("  normals    %llu fell back (merged normals cancelled; the quadric's normal used)\n", ull(s.normal_fallbacks));
   std::printf("%s", quantisation.c_str());
   std::printf("  bytes      %llu (%s)\n", ull(bytes), format_bytes(bytes).c_str());
   std::printf("  time       open %.2f s, collapse %.2f s (%llu pages), write %.2f s\n", open_seconds, r.seconds,

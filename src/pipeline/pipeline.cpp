@@ -110,9 +110,10 @@ double shading_normal_tolerance(const Scene& scene) {
 
 StatusOr<SimplifiedMesh> simplify_cut_to_draco(const OctreeStore& store, const Cut& cut, const fs::path& out,
                                                uint64_t memory_limit, double max_normal_error, bool progress,
-                                               double* seconds) {
+                                               double* seconds, double crease_angle_deg) {
   auto t0 = std::chrono::steady_clock::now();
   SimplifyConfig sc;
+  sc.crease_angle_deg = crease_angle_deg;
   sc.memory_limit = memory_limit;
   sc.progress = progress;
   RAYLOD_ASSIGN_OR_RETURN(SimplifyResult simplified, simplify(store, cut, sc));
@@ -249,7 +250,7 @@ StatusOr<RunResult> run_pipeline(Scene scene, const RunOptions& options, const L
     const Cut& cut = result.cuts[i];
     SimplifiedMesh sm;
     if (cache) {
-      const std::string key = SimplifiedCache::key_for(cut);
+      const std::string key = SimplifiedCache::key_for(cut, scene.crease_angle_deg);
       std::string note;
       std::optional<CacheEntry> entry = cache->find_exact(key, &note);
       if (entry) {
@@ -257,7 +258,7 @@ StatusOr<RunResult> run_pipeline(Scene scene, const RunOptions& options, const L
       } else {
         if (!note.empty()) say(log, note);
         std::string why;
-        entry = cache->find_reusable(cut, draco_error_bound(cut, store), &why);
+        entry = cache->find_reusable(cut, draco_error_bound(cut, store), &why, scene.crease_angle_deg);
         if (entry) note = "reusing " + entry->key + ": " + why;
       }
       if (entry) {
@@ -279,12 +280,13 @@ StatusOr<RunResult> run_pipeline(Scene scene, const RunOptions& options, const L
       fs::path staged = tmp.temp_path();
       staged += ".drc";
       RAYLOD_ASSIGN_OR_RETURN(sm, simplify_cut_to_draco(store, cut, staged, memory_limit,
-                                                              shading_normal_tolerance(scene), options.progress));
+                                                              shading_normal_tolerance(scene), options.progress,
+                                                              nullptr, scene.crease_angle_deg));
       // Rendered from the staged file, which lives until after rendering.
       scratch_files.push_back(staged);
       sm.cache_note = "simplified (cache disabled)";
       if (cache) {
-        RAYLOD_ASSIGN_OR_RETURN(CacheEntry entry, cache->insert(cut, staged, sm.triangles, sm.max_position_error));
+        RAYLOD_ASSIGN_OR_RETURN(CacheEntry entry, cache->insert(cut, staged, sm.triangles, sm.max_position_error, scene.crease_angle_deg));
         std::error_code ec;
         sm.cache_note = fs::is_regular_file(entry.mesh, ec) ? "simplified and cached as " + entry.key
                                                             : "simplified; not cached (larger than the cache limit)";

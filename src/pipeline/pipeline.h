@@ -102,7 +102,8 @@ StatusOr<ProbeConfig> make_probe_config(const Scene& scene, uint64_t rays, doubl
 // max_normal_error); fills triangles, bytes and bits.
 StatusOr<SimplifiedMesh> simplify_cut_to_draco(const OctreeStore& store, const Cut& cut, const std::filesystem::path& out,
                                                uint64_t memory_limit, double max_normal_error, bool progress,
-                                               double* seconds = nullptr);
+                                               double* seconds = nullptr,
+                                               double crease_angle_deg = kDefaultCreaseAngleDeg);
 
 // The largest normal error (radians) the scene's shading cannot show: a
 // rotation d of a shading normal changes a Lambert term by up to d and a

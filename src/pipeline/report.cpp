@@ -56,7 +56,7 @@ Vec3 level_colour(int level, int lo, int hi) {
 StatusOr<Image> cut_picture(const Scene& scene, const fs::path& simplified, const OctreeStore& store, const Cut& cut,
                             std::string* legend) {
   const glm::dmat4 to_world = scene.objects[0].transform;
-  RAYLOD_ASSIGN_OR_RETURN(TriangleMesh mesh, load_triangle_mesh(simplified, to_world, 0));
+  RAYLOD_ASSIGN_OR_RETURN(TriangleMesh mesh, load_triangle_mesh(simplified, to_world, 0, scene.crease_angle_deg));
   std::vector<TriangleMesh> meshes;
   meshes.push_back(std::move(mesh));
   RAYLOD_ASSIGN_OR_RETURN(auto geometry, EmbreeScene::build(std::move(meshes)));
@@ -294,7 +294,7 @@ StatusOr<ReportResult> run_report(const Scene& input_scene, const std::optional<
   if (cfg.baselines) {
     auto t0 = std::chrono::steady_clock::now();
     RAYLOD_ASSIGN_OR_RETURN(TriangleMesh m, load_triangle_mesh(mesh_path, base.objects[0].transform,
-                                                              base.objects[0].material));
+                                                              base.objects[0].material, base.crease_angle_deg));
     load_seconds = seconds_since(t0);
     loaded = std::move(m);
     say("loaded " + std::to_string(loaded->triangle_count()) + " triangles for the baselines in " +
@@ -345,7 +345,8 @@ StatusOr<ReportResult> run_report(const Scene& input_scene, const std::optional<
       fs::path drc = scratch / (name + ".drc");
       RAYLOD_ASSIGN_OR_RETURN(SimplifiedMesh sm,
                               simplify_cut_to_draco(store, probe.cuts[0], drc, memory_limit,
-                                                    shading_normal_tolerance(run.scene), false, &row.simplify_s));
+                                                    shading_normal_tolerance(run.scene), false, &row.simplify_s,
+                                                    run.scene.crease_angle_deg));
       row.triangles = sm.triangles;
       row.drc_bytes = sm.drc_bytes;
       RenderOptions o = ro;

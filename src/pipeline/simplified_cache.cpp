@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <chrono>
 #include <fstream>
+#include <limits>
 #include <set>
 #include <sstream>
 
@@ -60,6 +61,8 @@ std::optional<CacheEntry> read_meta(const fs::path& json_path) {
     e.triangles = j.at("triangles").get<uint64_t>();
     e.footprint_scale = j.at("footprint_scale").get<double>();
     e.max_position_error = j.at("max_position_error").get<double>();
+    e.crease_angle_deg = j.contains("crease_angle") ? j.at("crease_angle").get<double>()
+                                                    : std::numeric_limits<double>::quiet_NaN();
     e.last_used_ns = j.at("last_used_ns").get<int64_t>();
     fs::path dir = json_path.parent_path();
     e.mesh = dir / (e.key + ".drc");
@@ -82,6 +85,7 @@ Status write_meta(const fs::path& dir, const CacheEntry& e) {
   j["triangles"] = e.triangles;
   j["footprint_scale"] = e.footprint_scale;
   j["max_position_error"] = e.max_position_error;
+  j["crease_angle"] = e.crease_angle_deg;
   j["last_used_ns"] = e.last_used_ns;
   return write_file_atomic(dir / (e.key + ".json"), j.dump(2) + "\n");
 }
@@ -153,8 +157,12 @@ StatusOr<SimplifiedCache> SimplifiedCache::open(const fs::path& dir, uint64_t si
   return SimplifiedCache(dir, size_limit);
 }
 
-std::string SimplifiedCache::key_for(const Cut& cut) {
+std::string SimplifiedCache::key_for(const Cut& cut, double crease_angle_deg) {
+  // Version 2 of the normal rule: crease-angle normals (geometry/crease_normals.h).
+  const uint32_t normal_rule = 2;
   uint64_t h = fnv1a64(&cut.store_hash, sizeof cut.store_hash);
+  h = fnv1a64(&normal_rule, sizeof normal_rule, h);
+  h = fnv1a64(&crease_angle_deg, sizeof crease_angle_deg, h);
   for (const auto& c : cut.cells) {
     h = fnv1a64(&c.key.level, sizeof c.key.level, h);
     h = fnv1a64(&c.key.code, sizeof c.key.code, h);
@@ -187,13 +195,14 @@ std::optional<CacheEntry> SimplifiedCache::find_exact(const std::string& key, st
 }
 
 std::optional<CacheEntry> SimplifiedCache::find_reusable(const Cut& wanted, double max_position_error,
-                                                         std::string* why) {
+                                                         std::string* why, double crease_angle_deg) {
   CacheLock lock(dir_);
   // Candidates by the cheap checks first (metadata and cut); only the chosen
   // one is hashed, and a corrupt one is removed and the next tried.
   std::vector<std::pair<CacheEntry, size_t>> fine;
   for (const auto& e : entries()) {
     if (e.store_hash != wanted.store_hash || e.max_position_error > max_position_error * (1 + 1e-9)) continue;
+    if (!(e.crease_angle_deg == crease_angle_deg)) continue;  // another normal rule (or an old entry)
     auto cut = read_cut(e.cut);
     if (!cut.is_ok() || !cut_is_at_least_as_fine(*cut, wanted)) continue;
     fine.push_back({e, cut->cells.size()});
@@ -225,9 +234,10 @@ Status SimplifiedCache::checkout(const CacheEntry& entry, const fs::path& dest) 
 }
 
 StatusOr<CacheEntry> SimplifiedCache::insert(const Cut& cut, const fs::path& drc_file, uint64_t triangles,
-                                             double max_position_error) {
+                                             double max_position_error, double crease_angle_deg) {
   CacheEntry e;
-  e.key = key_for(cut);
+  e.key = key_for(cut, crease_angle_deg);
+  e.crease_angle_deg = crease_angle_deg;
   fs::path dir = dir_ / "simplified";
   e.mesh = dir / (e.key + ".drc");
   e.cut = dir / (e.key + ".cut");

@@ -20,6 +20,7 @@
 #include <vector>
 
 #include "core/status.h"
+#include "geometry/crease_normals.h"
 #include "streaming/cut_file.h"
 
 namespace raylod {
@@ -34,6 +35,9 @@ struct CacheEntry {
   uint64_t content_hash = 0;    // of the .drc
   double footprint_scale = 1;
   double max_position_error = 0;  // Draco quantisation bound of the mesh (world units)
+  // The normal rule the mesh was made with (NaN for entries from before
+  // crease-angle normals: never reused).
+  double crease_angle_deg = kDefaultCreaseAngleDeg;
   int64_t last_used_ns = 0;
 };
 
@@ -52,8 +56,9 @@ class SimplifiedCache {
   const std::filesystem::path& dir() const { return dir_; }
   uint64_t size_limit() const { return limit_; }
 
-  // Key of a cut for a store: stable hash of the store hash and the cut cells.
-  static std::string key_for(const Cut& cut);
+  // Key of a cut for a store: stable hash of the store hash, the cut cells
+  // and the normal rule (crease angle).
+  static std::string key_for(const Cut& cut, double crease_angle_deg = kDefaultCreaseAngleDeg);
 
   // Exact hit for this key, verified (content hash); a corrupt entry is
   // removed and reported through `note`.
@@ -61,11 +66,13 @@ class SimplifiedCache {
   // The coarsest verified entry for the same store whose cut is at least as
   // fine as `wanted` needs and whose quantisation error is at most
   // `max_position_error`; `why` says which and why.
-  std::optional<CacheEntry> find_reusable(const Cut& wanted, double max_position_error, std::string* why = nullptr);
+  // Only entries made with the same crease angle qualify.
+  std::optional<CacheEntry> find_reusable(const Cut& wanted, double max_position_error, std::string* why = nullptr,
+                                          double crease_angle_deg = kDefaultCreaseAngleDeg);
   // Copies a finished .drc (written elsewhere, e.g. a temporary file) into the
   // cache with its cut, then evicts least-recently-used entries over the limit.
   StatusOr<CacheEntry> insert(const Cut& cut, const std::filesystem::path& drc_file, uint64_t triangles,
-                              double max_position_error);
+                              double max_position_error, double crease_angle_deg = kDefaultCreaseAngleDeg);
   // Links (or copies) an entry's mesh to `dest` under the cache lock, so that
   // a concurrent eviction cannot remove the file this run is about to render.
   Status checkout(const CacheEntry& entry, const std::filesystem::path& dest);

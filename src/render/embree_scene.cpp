@@ -12,6 +12,7 @@
 
 #include <tbb/parallel_for.h>
 
+#include "geometry/crease_normals.h"
 #include "streaming/mesh_reader.h"
 
 namespace raylod {
@@ -120,8 +121,20 @@ StatusOr<uint64_t> declared_triangle_count(const std::filesystem::path& path) {
   return reader->header().face_count;
 }
 
+void add_crease_normals(TriangleMesh& mesh, double crease_angle_deg) {
+  if (!mesh.normals.empty()) return;
+  std::vector<Vec3> corner_normals = crease_corner_normals(mesh.positions, mesh.indices, crease_angle_deg);
+  std::vector<Vec3> soup(mesh.indices.size());
+  for (size_t i = 0; i < mesh.indices.size(); ++i) soup[i] = mesh.positions[mesh.indices[i]];
+  TriangleMesh split = weld_triangles(soup, corner_normals);
+  mesh.positions = std::move(split.positions);
+  mesh.normals = std::move(split.normals);
+  mesh.indices = std::move(split.indices);
+}
+
 StatusOr<TriangleMesh> load_triangle_mesh(const std::filesystem::path& path, const glm::dmat4& object_to_world,
-                                          int material, const std::function<void(uint64_t)>& on_triangles) {
+                                          int material, double crease_angle_deg,
+                                          const std::function<void(uint64_t)>& on_triangles) {
   RAYLOD_ASSIGN_OR_RETURN(auto reader, open_mesh(path));
   TriangleMesh mesh;
   mesh.material = material;
@@ -149,6 +162,7 @@ StatusOr<TriangleMesh> load_triangle_mesh(const std::filesystem::path& path, con
   }
   if (mesh.indices.empty()) return Status::error(path.string() + ": empty mesh (no triangles)");
   welder.reset();
+  if (!with_normals) add_crease_normals(mesh, crease_angle_deg);
   transform_mesh(mesh, object_to_world);
   for (const Vec3& p : mesh.positions)
     if (!is_finite(p)) return Status::error(path.string() + ": the object transform maps a vertex to Inf/NaN");

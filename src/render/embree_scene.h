@@ -37,13 +37,21 @@ struct TriangleMesh {
 // triangle ids match the soup's. normals is empty or positions.size().
 TriangleMesh weld_triangles(std::span<const Vec3> positions, std::span<const Vec3> normals);
 
-// Streams a mesh file with open_mesh (PLY, STL, OBJ, Draco), welds it and
-// transforms it to world space: positions by object_to_world, normals by its
-// inverse transpose; a mirroring transform (negative determinant) reverses
-// the winding so that front faces stay front faces. on_triangles (optional)
-// is told how many triangles each batch added, for progress bars.
+// Gives a welded mesh without normals per-corner crease-angle normals
+// (geometry/crease_normals.h): corners whose normals differ are split into
+// separate vertices. Triangle order and ids are kept.
+void add_crease_normals(TriangleMesh& mesh, double crease_angle_deg);
+
+// Streams a mesh file with open_mesh (PLY, STL, OBJ, Draco), welds it, gives
+// it crease-angle normals if the file has none (in object space, as the
+// collapse does), and transforms it to world space: positions by
+// object_to_world, normals by its inverse transpose; a mirroring transform
+// (negative determinant) reverses the winding so that front faces stay front
+// faces. on_triangles (optional) is told how many triangles each batch added,
+// for progress bars.
 StatusOr<TriangleMesh> load_triangle_mesh(const std::filesystem::path& path, const glm::dmat4& object_to_world,
-                                          int material, const std::function<void(uint64_t)>& on_triangles = {});
+                                          int material, double crease_angle_deg,
+                                          const std::function<void(uint64_t)>& on_triangles = {});
 
 // Triangle count a mesh file declares in its header (faces; for polygon
 // meshes a lower bound on triangles). Reads the header only.

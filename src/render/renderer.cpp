@@ -175,7 +175,7 @@ StatusOr<std::vector<TriangleMesh>> load_scene_meshes(const Scene& scene, const 
   std::optional<Progress> progress;
   if (options.progress) progress.emplace("load", declared, "triangles");
   for (size_t i = 0; i < paths.size(); ++i) {
-    auto mesh = load_triangle_mesh(paths[i], scene.objects[i].transform, scene.objects[i].material,
+    auto mesh = load_triangle_mesh(paths[i], scene.objects[i].transform, scene.objects[i].material, scene.crease_angle_deg,
                                    [&](uint64_t n) { if (progress) progress->advance(n); });
     if (!mesh) return mesh.status();
     meshes.push_back(std::move(mesh.value()));

@@ -187,7 +187,7 @@ StatusOr<Scene> parse_scene(const std::string& text, const std::filesystem::path
     return Status::error(source_name + ": not valid JSON: " + e.what());
   }
   RAYLOD_RETURN_IF_ERROR(p.known_keys(j, "scene", {"camera", "materials", "objects", "ground", "lights", "background",
-                                                  "spp", "max_depth", "seed", "comment"}));
+                                                  "spp", "max_depth", "seed", "crease_angle", "comment"}));
   Scene scene;
   if (!j.contains("camera")) return p.fail("scene", "missing 'camera'");
   RAYLOD_RETURN_IF_ERROR(parse_camera(p, j["camera"], scene.camera));
@@ -268,6 +268,12 @@ StatusOr<Scene> parse_scene(const std::string& text, const std::filesystem::path
   if (j.contains("spp")) { RAYLOD_RETURN_IF_ERROR(p.integer(j["spp"], "spp", 1, 4096, v)); scene.spp = int(v); }
   if (j.contains("max_depth")) { RAYLOD_RETURN_IF_ERROR(p.integer(j["max_depth"], "max_depth", 0, 64, v)); scene.max_depth = int(v); }
   if (j.contains("seed")) { RAYLOD_RETURN_IF_ERROR(p.integer(j["seed"], "seed", 0, INT64_MAX, v)); scene.seed = uint64_t(v); }
+  if (j.contains("crease_angle")) {
+    double deg;
+    RAYLOD_RETURN_IF_ERROR(p.number(j["crease_angle"], "crease_angle", deg));
+    if (!(deg >= 0 && deg <= 180)) return p.fail("crease_angle", "must be between 0 and 180 degrees");
+    scene.crease_angle_deg = deg;
+  }
   return scene;
 }
 

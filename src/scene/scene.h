@@ -95,6 +95,9 @@ struct Scene {
   int spp = 1;
   int max_depth = 5;
   uint64_t seed = 1;
+  // Shading normals for meshes without their own (geometry/crease_normals.h):
+  // facets meeting at more than this many degrees are shaded as a crease.
+  double crease_angle_deg = 30.0;
 
   bool any_reflection() const;
   bool any_refraction() const;

@@ -140,12 +140,17 @@ uint32_t CutLookup::find_code(uint64_t code) const {
 
 // ---------------------------------------------------------- CollapseBuilder
 
-CollapseBuilder::CollapseBuilder(std::span<const Representative> reps, bool input_has_normals)
-    : reps_(reps), has_normals_(input_has_normals) {
+// Clusters a representative keeps: enough for the sides of a cell that
+// spans creases (a box corner has 3) and the spread of a curved patch; more
+// merge into the nearest.
+constexpr uint32_t kRepresentativeClusters = 12;
+
+CollapseBuilder::CollapseBuilder(std::span<const Representative> reps, bool input_has_normals,
+                                 double crease_angle_deg)
+    : reps_(reps), has_normals_(input_has_normals), cos_crease_(crease_cosine(crease_angle_deg)),
+      clusters_(reps.size()) {
   rep_pos_.reserve(reps.size());
   for (const auto& r : reps) rep_pos_.push_back(Vec3(r.position));
-  rep_normal_sum_.assign(reps.size(), Vec3d(0));
-  rep_weight_sum_.assign(reps.size(), 0.0);
   table_.assign(1024, kKeepVertex);
 }
 
@@ -163,8 +168,9 @@ void CollapseBuilder::reserve(uint64_t vertices, uint64_t triangles) {
   }
   kept_pos_.reserve(vertices);
   if (has_normals_) kept_normal_.reserve(vertices);
-  else kept_normal_sum_.reserve(vertices);
+  clusters_.reserve(reps_.size() + vertices, has_normals_ ? reps_.size() * 2 : 2 * (reps_.size() + vertices));
   tris_.reserve(triangles);
+  keys_.reserve(triangles);
 }
 
 void CollapseBuilder::grow_table() {
@@ -192,7 +198,7 @@ uint32_t CollapseBuilder::kept_vertex(const Vec3& p_in, const Vec3& n_in) {
   assert(uint64_t(id) + reps_.size() < kKeepVertex);
   kept_pos_.push_back(p);
   if (has_normals_) kept_normal_.push_back(n);
-  else kept_normal_sum_.push_back(Vec3d(0));
+  clusters_.add_vertex();
   table_[i] = id;
   if (2 * kept_pos_.size() > table_.size()) grow_table();  // load factor <= 1/2
   return id;
@@ -206,21 +212,22 @@ void CollapseBuilder::add(const TriangleBatch& batch, std::span<const uint32_t> 
     const Vec3* p = &batch.positions[3 * t];
     const Vec3 n_none(0);
     const Vec3* n = batch_normals ? &batch.normals[3 * t] : nullptr;
-    // Area-weighted normals come from the input triangle, before collapse.
+    // Normals and weights come from the input triangle, before collapse.
     const Vec3d cross = glm::cross(Vec3d(p[1]) - Vec3d(p[0]), Vec3d(p[2]) - Vec3d(p[0]));
     const double area2 = glm::length(cross);
+    const Vec3d face = area2 > 0 && std::isfinite(area2) ? cross / area2 : Vec3d(0);
     std::array<uint32_t, 3> id;
     for (int k = 0; k < 3; ++k) {
       const uint32_t c = cell[3 * t + k];
       if (c != kKeepVertex) {
         assert(c < nreps);
         id[k] = c;
-        rep_normal_sum_[c] += n ? area2 * Vec3d(n[k]) : cross;
-        rep_weight_sum_[c] += area2;
+        const Vec3d nk = n ? glm::normalize(Vec3d(n[k])) : face;
+        clusters_.add(c, nk, area2, kRepresentativeClusters);
       } else {
         const uint32_t kv = kept_vertex(p[k], n ? n[k] : n_none);
         id[k] = nreps + kv;
-        if (!has_normals_) kept_normal_sum_[kv] += cross;
+        if (!has_normals_ && area2 > 0) clusters_.add(nreps + kv, face, corner_angle(p[0], p[1], p[2], k), kNoCluster);
       }
     }
     ++stats_.input_triangles;
@@ -228,15 +235,15 @@ void CollapseBuilder::add(const TriangleBatch& batch, std::span<const uint32_t> 
     auto pos = [&](uint32_t i) -> const Vec3& { return i < nreps ? rep_pos_[i] : kept_pos_[i - nreps]; };
     if (zero_area(pos(id[0]), pos(id[1]), pos(id[2]))) { ++stats_.dropped_zero_area; continue; }
     tris_.push_back(id);
+    keys_.push_back(Vec3(face));
   }
   stats_.peak_bytes = std::max(stats_.peak_bytes, memory_bytes());
 }
 
 uint64_t CollapseBuilder::memory_bytes() const {
-  return rep_pos_.capacity() * sizeof(Vec3) + rep_normal_sum_.capacity() * sizeof(Vec3d) +
-         rep_weight_sum_.capacity() * sizeof(double) + kept_pos_.capacity() * sizeof(Vec3) +
-         kept_normal_.capacity() * sizeof(Vec3) + kept_normal_sum_.capacity() * sizeof(Vec3d) +
-         table_.capacity() * sizeof(uint32_t) + tris_.capacity() * sizeof(tris_[0]);
+  return rep_pos_.capacity() * sizeof(Vec3) + kept_pos_.capacity() * sizeof(Vec3) +
+         kept_normal_.capacity() * sizeof(Vec3) + clusters_.memory_bytes() + table_.capacity() * sizeof(uint32_t) +
+         tris_.capacity() * sizeof(tris_[0]) + keys_.capacity() * sizeof(Vec3);
 }
 
 IndexedMesh CollapseBuilder::finish(CollapseStats* stats_out) {
@@ -263,50 +270,58 @@ IndexedMesh CollapseBuilder::finish(CollapseStats* stats_out) {
   std::vector<uint32_t>().swap(order);
   std::vector<std::array<uint32_t, 3>>().swap(unique_keys);
 
-  // Compact the vertices in order of first use.
+  // Resolve every corner's normal, then split each provisional vertex by the
+  // distinct normals its corners got; output vertices in order of first use.
   IndexedMesh mesh;
-  std::vector<uint32_t> remap(size_t(nreps) + kept_pos_.size(), kKeepVertex);
+  const size_t provisional = size_t(nreps) + kept_pos_.size();
+  std::vector<uint32_t> first_out(provisional, kKeepVertex);  // provisional -> its first output vertex
+  std::vector<uint32_t> next_out;                             // output vertex -> next split of the same vertex
   size_t kept_count = 0;
   for (size_t i = 0; i < tris_.size(); ++i) if (keep[i]) ++kept_count;
   mesh.indices.reserve(3 * kept_count);
   for (size_t i = 0; i < tris_.size(); ++i) {
     if (!keep[i]) continue;
+    const Vec3d key(keys_[i]);
     for (uint32_t v : tris_[i]) {
-      if (remap[v] == kKeepVertex) {
-        remap[v] = uint32_t(mesh.positions.size());
-        Vec3d normal;
-        double weight;
-        Vec3d fallback(0, 1, 0);
-        if (v < nreps) {
-          ++stats_.representatives_used;
-          mesh.positions.push_back(rep_pos_[v]);
-          normal = rep_normal_sum_[v];
-          weight = rep_weight_sum_[v];
-          fallback = reps_[v].fallback_normal;
-        } else {
-          ++stats_.kept_vertices;
-          const uint32_t k = v - nreps;
-          mesh.positions.push_back(kept_pos_[k]);
-          normal = has_normals_ ? Vec3d(kept_normal_[k]) : kept_normal_sum_[k];
-          weight = has_normals_ ? 1.0 : glm::length(normal);
-        }
-        const double len = glm::length(normal);
-        Vec3d unit;
-        if (len > 1e-6 * weight && len > 0 && std::isfinite(len)) {
-          unit = normal / len;
-        } else {
+      Vec3 unit;
+      if (v >= nreps && has_normals_) {
+        unit = kept_normal_[v - nreps];  // input normals are kept exactly
+      } else {
+        Vec3d nd = glm::length(key) > 0 ? clusters_.resolve(v, key, cos_crease_) : Vec3d(0);
+        if (glm::length(nd) == 0) nd = clusters_.mean(v);
+        if (glm::length(nd) == 0) {
           ++stats_.normal_fallbacks;
-          unit = glm::length(fallback) > 0 ? glm::normalize(fallback) : Vec3d(0, 1, 0);
+          const Vec3d fallback = v < nreps ? reps_[v].fallback_normal : key;
+          nd = glm::length(fallback) > 0 ? glm::normalize(fallback) : Vec3d(0, 1, 0);
         }
-        mesh.normals.push_back(Vec3(unit));
+        unit = Vec3(nd);
       }
-      mesh.indices.push_back(remap[v]);
+      uint32_t out = first_out[v];
+      while (out != kKeepVertex && !same_bits(mesh.normals[out], unit)) out = next_out[out];
+      if (out == kKeepVertex) {
+        out = uint32_t(mesh.positions.size());
+        if (first_out[v] == kKeepVertex) {
+          first_out[v] = out;
+          if (v < nreps) ++stats_.representatives_used;
+          else ++stats_.kept_vertices;
+        } else {
+          ++stats_.split_vertices;
+          uint32_t last = first_out[v];
+          while (next_out[last] != kKeepVertex) last = next_out[last];
+          next_out[last] = out;
+        }
+        mesh.positions.push_back(v < nreps ? rep_pos_[v] : kept_pos_[v - nreps]);
+        mesh.normals.push_back(unit);
+        next_out.push_back(kKeepVertex);
+      }
+      mesh.indices.push_back(out);
     }
   }
   stats_.output_triangles = mesh.triangle_count();
   stats_.output_vertices = mesh.positions.size();
-  stats_.peak_bytes = std::max(stats_.peak_bytes, memory_bytes() + remap.size() * 4 + tris_.size() / 8 +
-                                                      mesh.positions.capacity() * 24 + mesh.indices.capacity() * 4);
+  stats_.peak_bytes = std::max(stats_.peak_bytes, memory_bytes() + first_out.size() * 4 + next_out.capacity() * 4 +
+                                                      tris_.size() / 8 + mesh.positions.capacity() * 24 +
+                                                      mesh.indices.capacity() * 4);
   if (stats_out) *stats_out = stats_;
   return mesh;
 }
@@ -355,7 +370,7 @@ StatusOr<SimplifyResult> simplify(const OctreeStore& store, const Cut& cut, cons
     if (reps.back().clamped) ++result.clamped_representatives;
   }
   const CutLookup lookup(h.root_lo, h.root_size, keys);
-  CollapseBuilder builder(reps, h.has_normals);
+  CollapseBuilder builder(reps, h.has_normals, config.crease_angle_deg);
   {
     const SimplifyEstimate e = estimate_simplify(store, cut);
     builder.reserve(e.vertices + e.vertices / 4, e.triangles);

@@ -17,15 +17,21 @@
 //     the same cyclic order. Its reverse-wound twin (same vertices, opposite
 //     orientation) is KEPT: a thin wall collapsed to zero thickness keeps both
 //     sides, so every edge keeps its pairing and a closed input stays closed.
-//   * Normals: a kept vertex keeps its input normal (without input normals:
-//     the normalised area-weighted sum of its input faces' normals, +Y if that
-//     is zero). A representative vertex gets the normalised area-weighted sum
-//     of the merged corners' normals (vertex normals, or face normals where
-//     the input has none); if they cancel (length below 1e-6 of the summed
-//     weights), the dominant plane normal of the cell's quadric
-//     (dominant_normal), else +Y.
-//   * Output is indexed: kept vertices with bit-identical position and normal
-//     (position only without input normals) are one vertex. Vertex and
+//   * Normals follow the crease rule of geometry/crease_normals.h, so that
+//     collapsing nothing reproduces the full render. A kept vertex with
+//     input normals keeps its input normal exactly. A kept vertex without
+//     them gets, per corner, the angle-weighted sum of its input triangles'
+//     normals within the crease angle of that corner's input triangle (the
+//     full render's rule). A representative clusters the normals of every
+//     corner merged into it (input vertex normals, else face normals; area
+//     weighted), and a corner there gets the clusters within the crease
+//     angle of its input triangle's normal: a cell spanning a crease has one
+//     normal per side, a flat side exactly its own normal. If nothing is
+//     within the angle, the mean of all clusters, then the dominant plane
+//     normal of the cell's quadric (dominant_normal), then +Y.
+//   * Output is indexed: kept vertices with bit-identical position (and
+//     input normal, where the input has normals) are one vertex, then every
+//     vertex is split by the distinct normals its corners got. Vertex and
 //     triangle order follow the input stream, so the output is deterministic.
 #pragma once
 
@@ -35,6 +41,7 @@
 #include <unordered_map>
 #include <vector>
 
+#include "geometry/crease_normals.h"
 #include "simplify/qem_solve.h"
 #include "streaming/cut_file.h"
 #include "streaming/draco_io.h"
@@ -89,9 +96,10 @@ struct CollapseStats {
   uint64_t dropped_duplicate = 0;   // same vertices and orientation as an earlier triangle
   uint64_t reverse_twins = 0;       // kept triangles whose reverse-wound twin is also kept
   uint64_t output_vertices = 0;
-  uint64_t representatives_used = 0;
-  uint64_t kept_vertices = 0;
-  uint64_t normal_fallbacks = 0;    // vertices whose averaged normal cancelled
+  uint64_t representatives_used = 0;  // distinct representatives (before splitting by normal)
+  uint64_t kept_vertices = 0;         // distinct kept vertices (before splitting by normal)
+  uint64_t split_vertices = 0;        // extra output vertices for corners with their own normal
+  uint64_t normal_fallbacks = 0;      // corners whose normals cancelled (quadric's normal or +Y used)
   uint64_t peak_bytes = 0;          // largest memory_bytes() seen
 };
 
@@ -99,14 +107,16 @@ struct CollapseStats {
 class CollapseBuilder {
  public:
   // reps[i] is the output vertex of cell i; input_has_normals says whether
-  // batches carry vertex normals.
-  CollapseBuilder(std::span<const Representative> reps, bool input_has_normals);
+  // batches carry vertex normals; crease_angle_deg is the crease rule's angle.
+  CollapseBuilder(std::span<const Representative> reps, bool input_has_normals,
+                  double crease_angle_deg = kDefaultCreaseAngleDeg);
   // cell[k] is the representative index of batch vertex k (3 per triangle),
   // or kKeepVertex. Batch positions must be finite.
   void add(const TriangleBatch& batch, std::span<const uint32_t> cell);
   // Pre-sizes the buffers (avoids rehashing the vertex table while streaming).
   void reserve(uint64_t vertices, uint64_t triangles);
-  // Drops duplicates, compacts and returns the mesh (normals always filled).
+  // Drops duplicates, compacts, resolves the normals and returns the mesh
+  // (normals always filled).
   IndexedMesh finish(CollapseStats* stats = nullptr);
   // Bytes held by the mesh under construction (capacity of its buffers).
   uint64_t memory_bytes() const;
@@ -118,23 +128,24 @@ class CollapseBuilder {
 
   std::span<const Representative> reps_;
   bool has_normals_;
+  double cos_crease_;
   std::vector<Vec3> rep_pos_;            // float positions of the representatives
-  std::vector<Vec3d> rep_normal_sum_;
-  std::vector<double> rep_weight_sum_;
-  std::vector<Vec3> kept_pos_, kept_normal_;
-  std::vector<Vec3d> kept_normal_sum_;   // only without input normals
+  std::vector<Vec3> kept_pos_, kept_normal_;  // kept_normal_ only with input normals
+  NormalClusterPool clusters_;           // per provisional vertex (reps first, then kept)
   std::vector<uint32_t> table_;          // open addressing into kept_*, kKeepVertex = empty
   std::vector<std::array<uint32_t, 3>> tris_;  // provisional ids: reps first, then kept
+  std::vector<Vec3> keys_;               // per triangle: its input triangle's unit normal (crease key)
   CollapseStats stats_;
 };
 
 // Bytes per output triangle and vertex that CollapseBuilder and finish() hold
 // at their peak (used to check a memory limit before any work).
-inline constexpr uint64_t kCollapseBytesPerTriangle = 12 + 12 + 4 + 12;
-inline constexpr uint64_t kCollapseBytesPerVertex = 12 + 12 + 24 + 16 + 4 + 24;
+inline constexpr uint64_t kCollapseBytesPerTriangle = 12 + 12 + 4 + 12 + 12 + 12;
+inline constexpr uint64_t kCollapseBytesPerVertex = 12 + 12 + 8 + 4 + 2 * sizeof(NormalCluster) + 24 + 8;
 
 struct SimplifyConfig {
   QemSolveConfig qem;
+  double crease_angle_deg = kDefaultCreaseAngleDeg;  // the normal rule (geometry/crease_normals.h)
   // Memory the simplified mesh may use while it is built (bytes); 0 = no limit.
   uint64_t memory_limit = 0;
   bool progress = false;  // show a progress bar over the store's pages

@@ -2,6 +2,7 @@
 // differential test against the in-memory reference vertex clustering.
 #include <gtest/gtest.h>
 
+#include <map>
 #include <random>
 #include <set>
 
@@ -23,7 +24,8 @@ struct Collapsed {
   std::vector<Representative> reps;
   std::vector<CellKey> keys;
 };
-Collapsed collapse_level(const TriangleBatch& soup, const test::MemoryNodes& nodes, std::vector<uint64_t> codes = {}) {
+Collapsed collapse_level(const TriangleBatch& soup, const test::MemoryNodes& nodes, std::vector<uint64_t> codes = {},
+                         double crease_angle_deg = kDefaultCreaseAngleDeg) {
   Collapsed out;
   if (codes.empty()) for (const auto& [c, r] : nodes.nodes) codes.push_back(c);
   for (uint64_t c : codes) {
@@ -31,7 +33,7 @@ Collapsed collapse_level(const TriangleBatch& soup, const test::MemoryNodes& nod
     out.reps.push_back(make_representative(nodes.nodes.at(c), nodes.cell_bounds(c), nodes.origin));
   }
   const CutLookup lookup(nodes.root_lo, nodes.root_size, out.keys);
-  CollapseBuilder builder(out.reps, !soup.normals.empty());
+  CollapseBuilder builder(out.reps, !soup.normals.empty(), crease_angle_deg);
   std::vector<uint32_t> cell(soup.positions.size());
   for (size_t i = 0; i < cell.size(); ++i) cell[i] = lookup.find(Vec3d(soup.positions[i]));
   builder.add(soup, cell);
@@ -158,10 +160,12 @@ TEST(CollapseBuilder, RepresentativeNormalIsTheAreaWeightedMeanOfMergedNormals) 
   EXPECT_NEAR(glm::length(c.mesh.normals[rep]), 1.0f, 1e-6f);
 }
 
-TEST(CollapseBuilder, CancellingVertexNormalsFallBackToTheQuadricNormal) {
+TEST(CollapseBuilder, OppositeSheetsInOneCellKeepTheirOwnNormals) {
   // A thin wall (two coplanar sheets facing opposite ways, 1e-4 apart) in one
-  // collapsed cell: the merged vertex normals sum to zero. The naive
-  // normalise(sum) would be NaN; we get the wall's normal, unit length.
+  // collapsed cell: the merged vertex normals sum to zero, so one averaged
+  // normal would be NaN (or, with a fallback, wrong for one side). The crease
+  // rule gives each sheet's corner at the representative its own side's
+  // normal: one position, two vertices.
   TriangleBatch soup;
   const Vec3 up(0, 0, 1), down(0, 0, -1);
   add_tri_n(soup, {0.5f, 0.5f, 0.5f}, {3, 0.5f, 0.5f}, {0.5f, 3, 0.5f}, up, up, up);
@@ -170,15 +174,87 @@ TEST(CollapseBuilder, CancellingVertexNormalsFallBackToTheQuadricNormal) {
   // Collapse only cell (0,0,0): both sheets' first corners merge.
   const Collapsed c = collapse_level(soup, nodes, {morton_encode(0, 0, 0)});
   ASSERT_EQ(c.mesh.triangle_count(), 2u);
-  const Vec3 n = c.mesh.normals[c.mesh.indices[0]];
-  EXPECT_EQ(c.mesh.indices[0], c.mesh.indices[3]);
-  EXPECT_TRUE(is_finite(n));
-  EXPECT_NEAR(glm::length(n), 1.0f, 1e-6f);
-  EXPECT_NEAR(std::abs(n.z), 1.0f, 1e-6f);
-  EXPECT_EQ(c.stats.normal_fallbacks, 1u);
+  const uint32_t a = c.mesh.indices[0], b = c.mesh.indices[3];
+  EXPECT_NE(a, b);
+  EXPECT_EQ(c.mesh.positions[a], c.mesh.positions[b]);
+  EXPECT_EQ(c.mesh.normals[a], up);
+  EXPECT_EQ(c.mesh.normals[b], down);
+  EXPECT_EQ(c.stats.representatives_used, 1u);
+  EXPECT_EQ(c.stats.split_vertices, 1u);
+  EXPECT_EQ(c.stats.normal_fallbacks, 0u);
   // Naive: the normalised sum of the merged normals is NaN.
   const Vec3 naive = glm::normalize(up * 1.0f + down * 1.0f);
   EXPECT_FALSE(is_finite(naive));
+}
+
+TEST(CollapseBuilder, CellSpanningACreaseGetsOneNormalPerSideAndFlatSidesTheirOwn) {
+  // An L-shaped fold without input normals: a floor (y = 0, facing +y) and a
+  // wall (x = 0, facing +x), each of two triangles, meeting at x = 0. The cell
+  // at the fold corner collapses to one position; the floor's corners there
+  // must get exactly +y and the wall's exactly +x (no pillow shading).
+  TriangleBatch soup;
+  add_tri(soup, {0.1f, 0, 0.1f}, {0.1f, 0, 3.9f}, {3.9f, 0, 3.9f});
+  add_tri(soup, {0.1f, 0, 0.1f}, {3.9f, 0, 3.9f}, {3.9f, 0, 0.1f});
+  add_tri(soup, {0, 0.2f, 0.1f}, {0, 3.9f, 0.1f}, {0, 3.9f, 3.9f});
+  add_tri(soup, {0, 0.2f, 0.1f}, {0, 3.9f, 3.9f}, {0, 0.2f, 3.9f});
+  const test::MemoryNodes nodes = test::accumulate_nodes(soup, Vec3d(-0.5), 8.0, 2, Vec3d(0));
+  // Level 2 cells have side 2: the cell at the origin holds the floor's and
+  // the wall's first corners.
+  const uint64_t corner = morton_encode(0, 0, 0);
+  ASSERT_EQ(nodes.nodes.count(corner), 1u);
+  const Collapsed c = collapse_level(soup, nodes, {corner});
+  ASSERT_EQ(c.mesh.triangle_count(), 4u);
+  for (size_t t = 0; t < 4; ++t) {
+    const Vec3 want = t < 2 ? Vec3(0, 1, 0) : Vec3(1, 0, 0);
+    for (int k = 0; k < 3; ++k) {
+      const Vec3 n = c.mesh.normals[c.mesh.indices[3 * t + k]];
+      EXPECT_NEAR(glm::distance(n, want), 0.0f, 1e-6f) << "triangle " << t << " corner " << k;
+    }
+  }
+  EXPECT_EQ(c.stats.representatives_used, 1u);
+  EXPECT_EQ(c.stats.split_vertices, 1u);
+  // With a crease angle over 90 degrees the fold is smooth: one normal there.
+  const Collapsed smooth = collapse_level(soup, nodes, {corner}, 100.0);
+  EXPECT_EQ(smooth.stats.split_vertices, 0u);
+}
+
+TEST(CollapseBuilder, CollapsingNothingGivesTheFullRendersCornerNormals) {
+  // Without input normals, kept vertices follow the same crease rule as the
+  // full-resolution render (crease_corner_normals on the welded mesh).
+  const TriangleBatch box = test::closed_box({-1.2f, -1.3f, -0.9f}, {-0.4f, -0.8f, 1.2f}, 3);
+  TriangleBatch sphere = test::uv_sphere({0.3f, -0.2f, 0.1f}, 1.0f, 12, 20);
+  sphere.normals.clear();
+  for (const TriangleBatch* soup : {&box, static_cast<const TriangleBatch*>(&sphere)}) {
+    CollapseBuilder builder({}, false);
+    std::vector<uint32_t> cell(soup->positions.size(), kKeepVertex);
+    builder.add(*soup, cell);
+    CollapseStats stats;
+    const IndexedMesh out = builder.finish(&stats);
+    // Reference: weld by position, then the rule per corner.
+    std::map<std::array<float, 3>, uint32_t> ids;
+    std::vector<Vec3> pos;
+    std::vector<uint32_t> idx;
+    for (const Vec3& p : soup->positions) {
+      auto [it, fresh] = ids.try_emplace({p.x, p.y, p.z}, uint32_t(pos.size()));
+      if (fresh) pos.push_back(p);
+      idx.push_back(it->second);
+    }
+    const std::vector<Vec3> ref = crease_corner_normals(pos, idx, kDefaultCreaseAngleDeg);
+    ASSERT_EQ(out.triangle_count(), soup->size());
+    for (size_t i = 0; i < idx.size(); ++i) {
+      EXPECT_EQ(out.positions[out.indices[i]], soup->positions[i]);
+      EXPECT_NEAR(glm::distance(out.normals[out.indices[i]], ref[i]), 0.0f, 1e-5f) << "corner " << i;
+    }
+  }
+  // The box: 8 corners, each split into its 3 faces' normals.
+  CollapseBuilder builder({}, false);
+  std::vector<uint32_t> cell(box.positions.size(), kKeepVertex);
+  builder.add(box, cell);
+  const IndexedMesh out = builder.finish();
+  size_t axis_aligned = 0;
+  for (const Vec3& n : out.normals)
+    axis_aligned += std::abs(std::abs(n.x) + std::abs(n.y) + std::abs(n.z) - 1.0f) < 1e-6f;
+  EXPECT_EQ(axis_aligned, out.normals.size());
 }
 
 TEST(CollapseBuilder, ClosedInputStaysClosedWhenNoCellSpansTheWall) {
@@ -223,7 +299,9 @@ TEST(VertexClusteringDifferential, UniformCutEqualsReferenceClustering) {
     const double root_size = 3.0;
     for (const TriangleBatch* soup : {&mesh, &box}) {
       const test::MemoryNodes nodes = test::accumulate_nodes(*soup, root_lo, root_size, level, origin);
-      const Collapsed c = collapse_level(*soup, nodes);
+      // A crease angle of 180 degrees smooths everything: the reference's
+      // one area-weighted normal per representative.
+      const Collapsed c = collapse_level(*soup, nodes, {}, 180.0);
       VertexClusteringConfig cfg;
       cfg.root_lo = root_lo;
       cfg.root_size = root_size;

@@ -1,0 +1,115 @@
+// Crease-angle normals (see crease_normals.h for the rule and its reasons).
+#include "geometry/crease_normals.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include <tbb/parallel_for.h>
+
+namespace raylod {
+namespace {
+
+const double kCosMerge = std::cos(kClusterMergeAngleRad);
+
+Vec3d unit_or_zero(const Vec3d& v) {
+  const double len = glm::length(v);
+  return len > 0 && std::isfinite(len) ? v / len : Vec3d(0);
+}
+
+}  // namespace
+
+double crease_cosine(double crease_angle_deg) {
+  const double deg = std::clamp(crease_angle_deg, 0.0, 180.0);
+  return std::cos(deg * M_PI / 180.0);
+}
+
+double corner_angle(const Vec3& a, const Vec3& b, const Vec3& c, int k) {
+  const Vec3d p[3] = {Vec3d(a), Vec3d(b), Vec3d(c)};
+  const Vec3d e1 = p[(k + 1) % 3] - p[k], e2 = p[(k + 2) % 3] - p[k];
+  const double s = glm::length(glm::cross(e1, e2)), d = glm::dot(e1, e2);
+  if (!(s > 0)) return 0;
+  return std::atan2(s, d);  // robust for slivers, unlike acos of a ratio
+}
+
+void NormalClusterPool::add(uint32_t v, const Vec3d& n, double w, uint32_t max_clusters) {
+  if (!(w > 0)) return;
+  uint32_t best = kNoCluster, count = 0, last = kNoCluster;
+  double best_cos = -2;
+  for (uint32_t c = heads_[v]; c != kNoCluster; c = pool_[c].next) {
+    const double cs = glm::dot(unit_or_zero(Vec3d(pool_[c].sum)), n);
+    if (cs >= kCosMerge) { pool_[c].sum += Vec3(w * n); return; }
+    if (cs > best_cos) { best_cos = cs; best = c; }
+    last = c;
+    ++count;
+  }
+  if (count >= max_clusters && best != kNoCluster) { pool_[best].sum += Vec3(w * n); return; }
+  const uint32_t id = uint32_t(pool_.size());
+  pool_.push_back(NormalCluster{Vec3(w * n), kNoCluster});
+  // Appended at the tail, so that clusters keep their order of creation.
+  if (last == kNoCluster) heads_[v] = id;
+  else pool_[last].next = id;
+}
+
+Vec3d NormalClusterPool::resolve(uint32_t v, const Vec3d& key, double cos_crease) const {
+  Vec3d sum(0);
+  for (uint32_t c = heads_[v]; c != kNoCluster; c = pool_[c].next) {
+    const Vec3d s(pool_[c].sum);
+    if (glm::dot(unit_or_zero(s), key) >= cos_crease) sum += s;
+  }
+  return unit_or_zero(sum);
+}
+
+Vec3d NormalClusterPool::mean(uint32_t v) const {
+  Vec3d sum(0);
+  for (uint32_t c = heads_[v]; c != kNoCluster; c = pool_[c].next) sum += Vec3d(pool_[c].sum);
+  return unit_or_zero(sum);
+}
+
+std::vector<Vec3> crease_corner_normals(std::span<const Vec3> positions, std::span<const uint32_t> indices,
+                                        double crease_angle_deg) {
+  const size_t nv = positions.size(), nt = indices.size() / 3;
+  const double cos_crease = crease_cosine(crease_angle_deg);
+  // Face normals, then vertex -> incident corners (CSR, in triangle order).
+  std::vector<Vec3> face(nt);
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, nt, 1 << 14), [&](const auto& r) {
+    for (size_t t = r.begin(); t != r.end(); ++t) {
+      const uint32_t* f = &indices[3 * t];
+      face[t] = Vec3(face_normal(Vec3d(positions[f[0]]), Vec3d(positions[f[1]]), Vec3d(positions[f[2]])));
+    }
+  });
+  std::vector<uint32_t> start(nv + 1, 0);
+  for (uint32_t v : indices) ++start[v + 1];
+  for (size_t v = 0; v < nv; ++v) start[v + 1] += start[v];
+  std::vector<uint32_t> corners(indices.size());
+  {
+    std::vector<uint32_t> fill(start.begin(), start.end() - 1);
+    for (size_t i = 0; i < indices.size(); ++i) corners[fill[indices[i]]++] = uint32_t(i);
+  }
+  std::vector<Vec3> out(indices.size());
+  // Each vertex is independent: its clusters live in a thread-local pool of
+  // one vertex, so the result does not depend on the thread count.
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, nv, 1 << 12), [&](const auto& r) {
+    NormalClusterPool local(1);
+    for (size_t v = r.begin(); v != r.end(); ++v) {
+      local = NormalClusterPool(1);
+      for (uint32_t j = start[v]; j < start[v + 1]; ++j) {
+        const uint32_t corner = corners[j], t = corner / 3;
+        const uint32_t* f = &indices[3 * size_t(t)];
+        const double w = corner_angle(positions[f[0]], positions[f[1]], positions[f[2]], int(corner % 3));
+        local.add(0, Vec3d(face[t]), w, kNoCluster);
+      }
+      const Vec3d fallback = local.mean(0);
+      for (uint32_t j = start[v]; j < start[v + 1]; ++j) {
+        const uint32_t corner = corners[j];
+        const Vec3d key(face[corner / 3]);
+        Vec3d n = glm::length(key) > 0 ? local.resolve(0, key, cos_crease) : Vec3d(0);
+        if (glm::length(n) == 0) n = glm::length(key) > 0 ? key : fallback;
+        if (glm::length(n) == 0) n = Vec3d(0, 1, 0);
+        out[corner] = Vec3(n);
+      }
+    }
+  });
+  return out;
+}
+
+}  // namespace raylod

@@ -1,0 +1,90 @@
+// Crease-angle normals: the one shading-normal rule that the full-resolution
+// render and the collapse share, so that collapsing nothing reproduces the
+// full render.
+//
+// The rule. A corner of triangle t at vertex v gets the normalised weighted
+// sum of the normals of the triangles around v whose normal is within the
+// crease angle of t's own normal: smooth across the flat or gently curved
+// facets of one CAD face, split where two faces meet at a crease. The weight
+// is the triangle's angle at v (angle weighting: independent of how a face
+// happens to be cut into slivers). Normals that come with the input are kept
+// as they are; the rule applies only where the input gives none.
+//
+// Why clusters: a vertex can have thousands of incident triangles (the centre
+// of a tessellated disc) and a collapsed cell many more. Incident normals are
+// grouped into clusters of nearly equal direction (within kClusterMergeAngle,
+// far below any useful crease angle), and the crease test runs against the
+// clusters' mean directions. The result differs from the exact pairwise rule
+// only for a normal within that merge angle of the crease threshold.
+//
+// The representative of a collapsed cell (simplify/collapse.h) uses the same
+// clusters over all corners merged into it (area weighted), keyed by the
+// normal of the output triangle's input triangle: a cell that spans a crease
+// gets one normal per side, and a flat side gets exactly that side's normal.
+#pragma once
+
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include "core/math.h"
+
+namespace raylod {
+
+// Default crease angle: facets meeting at more than this are shaded as a
+// crease. 30 degrees keeps 45- and 90-degree CAD edges (chamfers, steps,
+// bores) sharp while smoothing tessellations of curved faces, whose
+// neighbouring facets differ by a few degrees (OpenCASCADE's angular
+// deflection defaults to 0.5 rad = 28.6 degrees, its coarsest usual setting).
+inline constexpr double kDefaultCreaseAngleDeg = 30.0;
+
+// Two normals within this angle fall into one cluster.
+inline constexpr double kClusterMergeAngleRad = 0.5 * 3.14159265358979323846 / 180.0;
+
+// One cluster: the weighted sum of its members' unit normals, linked to the
+// next cluster of the same vertex (kNoCluster ends the list).
+inline constexpr uint32_t kNoCluster = 0xffffffffu;
+struct NormalCluster {
+  Vec3 sum{0};
+  uint32_t next = kNoCluster;
+};
+
+// Per-vertex lists of normal clusters in one pool (vertex ids are dense).
+class NormalClusterPool {
+ public:
+  NormalClusterPool() = default;
+  explicit NormalClusterPool(size_t vertices) { heads_.assign(vertices, kNoCluster); }
+  void add_vertex() { heads_.push_back(kNoCluster); }
+  size_t vertices() const { return heads_.size(); }
+  // Adds unit normal n with weight w > 0 to vertex v: into the first cluster
+  // whose mean is within the merge angle, else a new one; once the vertex
+  // has max_clusters, into the nearest.
+  void add(uint32_t v, const Vec3d& n, double w, uint32_t max_clusters);
+  // The rule for a corner whose own (face) normal is `key`: the normalised sum
+  // of v's clusters within the crease angle (cos_crease) of key; zero if
+  // there is none (then the caller falls back).
+  Vec3d resolve(uint32_t v, const Vec3d& key, double cos_crease) const;
+  // The normalised sum of all of v's clusters (zero if they cancel).
+  Vec3d mean(uint32_t v) const;
+  uint64_t memory_bytes() const { return heads_.capacity() * 4 + pool_.capacity() * sizeof(NormalCluster); }
+  void reserve(size_t vertices, size_t clusters) { heads_.reserve(vertices); pool_.reserve(clusters); }
+
+ private:
+  std::vector<uint32_t> heads_;
+  std::vector<NormalCluster> pool_;
+};
+
+// cos of a crease angle given in degrees, clamped to [0, 180].
+double crease_cosine(double crease_angle_deg);
+
+// The triangle's interior angle at corner k (0 for a degenerate triangle).
+double corner_angle(const Vec3& a, const Vec3& b, const Vec3& c, int k);
+
+// Per-corner normals of an indexed mesh by the rule above (3 per triangle).
+// Vertices must be welded (equal positions share an index) for smoothing to
+// reach across triangles. A degenerate triangle's corners get the mean of
+// their vertex's clusters (+Y if there is nothing to average).
+std::vector<Vec3> crease_corner_normals(std::span<const Vec3> positions, std::span<const uint32_t> indices,
+                                        double crease_angle_deg);
+
+}  // namespace raylod

@@ -1,0 +1,125 @@
+// The crease rule (geometry/crease_normals.h): tiny exact cases, then a seeded
+// property test against the brute-force pairwise rule.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+
+#include "geometry/crease_normals.h"
+
+namespace raylod {
+namespace {
+
+// A "roof": two triangles sharing edge (0,1) with a dihedral of `deg` degrees
+// between their normals.
+void roof(double deg, std::vector<Vec3>& pos, std::vector<uint32_t>& idx) {
+  const double a = deg * M_PI / 180.0 / 2.0;
+  pos = {Vec3(0, 0, 0), Vec3(1, 0, 0), Vec3(0.5f, float(std::cos(a)), float(std::sin(a))),
+         Vec3(0.5f, float(-std::cos(a)), float(std::sin(a)))};
+  idx = {0, 1, 2, 1, 0, 3};
+}
+
+TEST(CreaseNormals, FlatAtACreaseSmoothBelowIt) {
+  std::vector<Vec3> pos;
+  std::vector<uint32_t> idx;
+  roof(90, pos, idx);  // normals 90 degrees apart
+  const Vec3d n0 = face_normal(Vec3d(pos[0]), Vec3d(pos[1]), Vec3d(pos[2]));
+  const Vec3d n1 = face_normal(Vec3d(pos[1]), Vec3d(pos[0]), Vec3d(pos[3]));
+  ASSERT_NEAR(glm::dot(n0, n1), 0.0, 1e-6);
+  // 30 degrees: a crease; every corner has its face's normal.
+  std::vector<Vec3> n = crease_corner_normals(pos, idx, 30);
+  for (int k = 0; k < 3; ++k) EXPECT_NEAR(glm::distance(Vec3d(n[k]), n0), 0.0, 1e-6);
+  for (int k = 3; k < 6; ++k) EXPECT_NEAR(glm::distance(Vec3d(n[k]), n1), 0.0, 1e-6);
+  // 100 degrees: smooth; the shared corners get the (equal-angle) mean and
+  // the apexes, touched by one face each, keep their face's normal.
+  n = crease_corner_normals(pos, idx, 100);
+  const Vec3d mean = glm::normalize(n0 + n1);
+  for (int k : {0, 1, 3, 4}) EXPECT_NEAR(glm::distance(Vec3d(n[k]), mean), 0.0, 1e-6) << k;
+  EXPECT_NEAR(glm::distance(Vec3d(n[2]), n0), 0.0, 1e-6);
+  EXPECT_NEAR(glm::distance(Vec3d(n[5]), n1), 0.0, 1e-6);
+}
+
+TEST(CreaseNormals, AngleWeightingIgnoresHowAFaceIsCut) {
+  // A vertex of a flat square fan cut into one big and many thin triangles on
+  // one side, one triangle on the other side of a 20-degree fold: with angle
+  // weights the result depends on the angles, not on the number of slivers.
+  std::vector<Vec3> pos = {Vec3(0, 0, 0)};
+  std::vector<uint32_t> idx;
+  const int slivers = 9;
+  for (int i = 0; i <= slivers; ++i) {
+    const double a = M_PI / 2 * double(i) / slivers;
+    pos.push_back(Vec3(float(std::cos(a)), float(std::sin(a)), 0));
+  }
+  for (int i = 0; i < slivers; ++i) idx.insert(idx.end(), {0, uint32_t(i + 1), uint32_t(i + 2)});
+  const std::vector<Vec3> n = crease_corner_normals(pos, idx, 30);
+  for (size_t c = 0; c < idx.size(); ++c) EXPECT_NEAR(glm::distance(n[c], Vec3(0, 0, 1)), 0.0f, 1e-6f);
+}
+
+TEST(CreaseNormals, DegenerateTrianglesGetFiniteNormals) {
+  const std::vector<Vec3> pos = {Vec3(0, 0, 0), Vec3(1, 0, 0), Vec3(2, 0, 0), Vec3(0, 1, 0)};
+  const std::vector<uint32_t> idx = {0, 1, 2, 0, 1, 3, 2, 2, 2};
+  const std::vector<Vec3> n = crease_corner_normals(pos, idx, 30);
+  for (const Vec3& v : n) {
+    EXPECT_TRUE(is_finite(v));
+    EXPECT_NEAR(glm::length(v), 1.0f, 1e-6f);
+  }
+}
+
+TEST(CreaseNormals, ClusterPoolResolvesByKeyAndCapsClusters) {
+  NormalClusterPool pool(1);
+  pool.add(0, Vec3d(0, 0, 1), 1, 2);
+  pool.add(0, Vec3d(0, 0, 1), 3, 2);           // merges
+  pool.add(0, Vec3d(1, 0, 0), 1, 2);           // a second cluster
+  const Vec3d tilted = glm::normalize(Vec3d(0, 1, 1));
+  pool.add(0, tilted, 1, 2);                   // over the cap: into the nearest (+z)
+  const double c30 = crease_cosine(30);
+  EXPECT_NEAR(glm::distance(pool.resolve(0, Vec3d(1, 0, 0), c30), Vec3d(1, 0, 0)), 0.0, 1e-6);
+  const Vec3d z = pool.resolve(0, Vec3d(0, 0, 1), c30);
+  EXPECT_NEAR(glm::distance(z, glm::normalize(Vec3d(0, 0, 4) + tilted)), 0.0, 1e-6);
+  EXPECT_EQ(glm::length(pool.resolve(0, Vec3d(0, -1, 0), c30)), 0.0);  // nothing within 30 degrees
+  EXPECT_EQ(crease_cosine(-5), 1.0);
+  EXPECT_NEAR(crease_cosine(500), -1.0, 1e-12);
+}
+
+TEST(CreaseNormalsProperty, MatchesThePairwiseRuleOnRandomBumpyGrids) {
+  // Brute force: each corner sums the angle-weighted normals of every
+  // triangle at its vertex within the crease angle of its own triangle.
+  std::mt19937_64 rng(7);
+  std::uniform_real_distribution<double> h(-0.3, 0.3);
+  for (int trial = 0; trial < 20; ++trial) {
+    const int n = 8;
+    std::vector<Vec3> pos;
+    for (int j = 0; j <= n; ++j)
+      for (int i = 0; i <= n; ++i) pos.push_back(Vec3(float(i), float(h(rng)), float(j)));
+    std::vector<uint32_t> idx;
+    for (int j = 0; j < n; ++j)
+      for (int i = 0; i < n; ++i) {
+        const uint32_t a = uint32_t(j * (n + 1) + i), b = a + 1, c = a + uint32_t(n + 1), d = c + 1;
+        idx.insert(idx.end(), {a, c, b, b, c, d});
+      }
+    const double crease = 5 + 5 * trial;
+    const std::vector<Vec3> got = crease_corner_normals(pos, idx, crease);
+    const double cs = crease_cosine(crease);
+    std::vector<Vec3d> fn(idx.size() / 3);
+    for (size_t t = 0; t < fn.size(); ++t)
+      fn[t] = face_normal(Vec3d(pos[idx[3 * t]]), Vec3d(pos[idx[3 * t + 1]]), Vec3d(pos[idx[3 * t + 2]]));
+    int mismatches = 0;
+    for (size_t c = 0; c < idx.size(); ++c) {
+      Vec3d sum(0);
+      for (size_t d = 0; d < idx.size(); ++d) {
+        if (idx[d] != idx[c]) continue;
+        const size_t t = d / 3;
+        if (glm::dot(fn[t], fn[c / 3]) < cs) continue;
+        sum += corner_angle(pos[idx[3 * t]], pos[idx[3 * t + 1]], pos[idx[3 * t + 2]], int(d % 3)) * fn[t];
+      }
+      const Vec3d want = glm::normalize(sum);
+      // Clustering may move a normal within the merge angle of the threshold
+      // to the other side; anything else must agree closely.
+      if (glm::distance(Vec3d(got[c]), want) > 1e-5) ++mismatches;
+    }
+    EXPECT_LE(mismatches, int(idx.size()) / 50) << "crease " << crease;
+  }
+}
+
+}  // namespace
+}  // namespace raylod
