@@ -118,6 +118,37 @@ StatusOr<double> crease_angle_from_args(const Args& args, double fallback) {
   return deg;
 }
 
+std::vector<Args::Option> cut_options() {
+  char k[256], tol[200];
+  std::snprintf(k, sizeof k, "K: cells may collapse while their diagonal < K x footprint\n"
+                "                              (default %g; %g with --criterion diagonal)",
+                kDefaultFootprintScale, kDefaultDiagonalFootprintScale);
+  std::snprintf(tol, sizeof tol,
+                "deviation criterion: largest surface deviation a collapse may cause,\n"
+                "                              in pixels (default %g)", kDefaultTolerancePx);
+  return {{"--criterion", "", "which cells collapse: deviation (default; bounded surface and\n"
+                              "                              mirror-normal error) or diagonal (the paper's K test alone)", true, "NAME"},
+          {"--tolerance", "", tol, true, "PX"},
+          {"--footprint-scale", "", k, true, "K"}};
+}
+
+std::vector<Args::Option> with_cut_options(std::vector<Args::Option> options) {
+  for (auto& o : cut_options()) options.push_back(std::move(o));
+  return options;
+}
+
+StatusOr<CutOptions> cut_options_from_args(const Args& args) {
+  CutOptions o;
+  if (args.has("--criterion")) { RAYLOD_ASSIGN_OR_RETURN(o.criterion, parse_cut_criterion(args.get("--criterion"))); }
+  RAYLOD_ASSIGN_OR_RETURN(o.tolerance_px, args.get_double("--tolerance", kDefaultTolerancePx));
+  if (!(o.tolerance_px > 0)) return Status::error("--tolerance must be > 0 (pixels)");
+  const double default_k =
+      o.criterion == CutCriterion::Diagonal ? kDefaultDiagonalFootprintScale : kDefaultFootprintScale;
+  RAYLOD_ASSIGN_OR_RETURN(o.footprint_scale, args.get_double("--footprint-scale", default_k));
+  if (!(o.footprint_scale > 0)) return Status::error("--footprint-scale must be > 0");
+  return o;
+}
+
 StatusOr<Scene> scene_from_args(const Args& args) {
   if (args.positionals().size() > 1) return Status::error("expected at most one SCENE argument");
   RAYLOD_ASSIGN_OR_RETURN(Scene scene, args.positionals().empty() ? default_scene() : load_scene(args.positionals()[0]));

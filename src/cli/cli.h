@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "core/status.h"
+#include "probe/probe.h"
 #include "scene/scene.h"
 
 namespace raylod::cli {
@@ -63,6 +64,18 @@ inline const char* kCreaseAngleHelp =
     "shade facets meeting at more than DEG degrees as a crease, for meshes\n"
     "                              without normals (default: the scene's crease_angle, 30)";
 StatusOr<double> crease_angle_from_args(const Args& args, double fallback);
+
+// The cut options `raylod probe` and `raylod run` share (probe.h): the
+// criterion, its tolerance in pixels and K, with one set of defaults.
+std::vector<Args::Option> cut_options();
+// `options` followed by cut_options().
+std::vector<Args::Option> with_cut_options(std::vector<Args::Option> options);
+struct CutOptions {
+  CutCriterion criterion = CutCriterion::Deviation;
+  double tolerance_px = kDefaultTolerancePx;
+  double footprint_scale = kDefaultFootprintScale;
+};
+StatusOr<CutOptions> cut_options_from_args(const Args& args);
 
 // The scene named by the single positional argument, or the embedded default
 // scene when there is none (more than one positional is an error), with

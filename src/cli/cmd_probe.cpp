@@ -22,17 +22,18 @@ int cmd_probe(int argc, char** argv) {
                  "Traces test rays with Igehy ray differentials from random positions inside random pixels against\n"
                  "the full-resolution triangles in the store of each of the scene's meshes (built first if missing\n"
                  "or stale), following reflection and refraction only where the materials call for them, and\n"
-                 "marks the octree cells whose diagonal is below K times the footprint ||dP||. Writes the cut\n"
+                 "marks the octree cells whose collapse no ray can resolve (--criterion). Writes the cut\n"
                  "beside the store as MESH.<key>.cut (key: store, camera, options). Without SCENE, the embedded\n"
                  "default scene is used.",
-                 {{"--mesh", "", "use FILE in place of the scene's meshes", true, "FILE"},
+                 cli::with_cut_options({{"--mesh", "", "use FILE in place of the scene's meshes", true, "FILE"},
                   {"--rays", "", "test rays (default 5000)", true, "N"},
                   {"--seed", "", "random seed (default: the scene's seed)", true, "S"},
-                  {"--footprint-scale", "", "K: collapse cells with diagonal < K * footprint (default 1)", true, "K"},
                   {"--threads", "", "threads (default: all cores)", true, "T"},
                   {"--memory-limit", "", "memory limit (default: a quarter of physical memory)", true, "SIZE"},
-                  {"--output", "-o", "cut file to write (single-mesh scenes)", true, "CUT"}});
+                  {"--output", "-o", "cut file to write (single-mesh scenes)", true, "CUT"}}));
   if (Status s = args.parse(argc, argv); !s) return cli::fail("probe", s);
+  auto cut_opts = cli::cut_options_from_args(args);
+  if (!cut_opts) return cli::fail("probe", cut_opts.status());
   if (args.help_requested()) {
     std::printf("%s", args.help_text().c_str());
     return 0;
@@ -43,12 +44,10 @@ int cmd_probe(int argc, char** argv) {
 
   auto rays = args.get_int("--rays", 5000, 1, 100'000'000);
   auto seed = args.get_int("--seed", int64_t(scene.seed), 0, INT64_MAX);
-  auto k = args.get_double("--footprint-scale", 1.0);
   auto threads = args.get_int("--threads", 0, 0, 1024);
   auto limit = args.get_size("--memory-limit", 0);
-  for (const Status& s : {rays.status(), seed.status(), k.status(), threads.status(), limit.status()})
+  for (const Status& s : {rays.status(), seed.status(), threads.status(), limit.status()})
     if (!s) return cli::fail("probe", s);
-  if (!(*k > 0)) return cli::fail("probe", Status::error("--footprint-scale must be > 0"));
 
   // One store per distinct mesh, built first if missing or stale (saying so).
   StoreOptions store_options;
@@ -67,11 +66,13 @@ int cmd_probe(int argc, char** argv) {
     return cli::fail("probe", Status::error("-o names one cut, but the scene has " + std::to_string(meshes.size()) +
                                             " meshes; omit -o to write one cut beside each store"));
 
-  auto config_or = make_probe_config(scene, uint64_t(*rays), *k, int(*threads), resolved_memory_limit(store_options),
+  auto config_or = make_probe_config(scene, uint64_t(*rays), cut_opts->footprint_scale, int(*threads), resolved_memory_limit(store_options),
                                      true);
   if (!config_or) return cli::fail("probe", config_or.status());
   ProbeConfig config = *config_or;
   config.seed = uint64_t(*seed);
+  config.criterion = cut_opts->criterion;
+  config.tolerance_px = cut_opts->tolerance_px;
 
   auto result = run_probe(scene, stores, objects, config);
   if (!result) return cli::fail("probe", result.status());

@@ -203,6 +203,8 @@ StatusOr<RunResult> run_pipeline(Scene scene, const RunOptions& options, const L
   say(log, "[2/4] probe: " + std::to_string(options.rays) + " test rays");
   RAYLOD_ASSIGN_OR_RETURN(ProbeConfig probe, make_probe_config(scene, options.rays, options.footprint_scale,
                                                               options.threads, memory_limit, options.progress));
+  probe.criterion = options.criterion;
+  probe.tolerance_px = options.tolerance_px;
   auto t_probe = std::chrono::steady_clock::now();
   uint64_t previous_estimate = UINT64_MAX;
   for (;;) {
@@ -220,11 +222,16 @@ StatusOr<RunResult> run_pipeline(Scene scene, const RunOptions& options, const L
                            format_bytes(memory_limit));
     previous_estimate = estimate;
     ++result.coarsening_steps;
+    // Both limits double: under the deviation criterion K alone may not bind.
     say(log, "the simplified mesh would need " + format_bytes(need) + " (about " + std::to_string(estimate) +
                  " triangles), over the memory limit of " + format_bytes(memory_limit) +
                  ": coarsening the cut, footprint scale " + fmt("%g", probe.footprint_scale) + " -> " +
-                 fmt("%g", probe.footprint_scale * 2));
+                 fmt("%g", probe.footprint_scale * 2) +
+                 (probe.criterion == CutCriterion::Deviation
+                      ? ", tolerance " + fmt("%g", probe.tolerance_px) + " -> " + fmt("%g", probe.tolerance_px * 2) + " px"
+                      : std::string()));
     probe.footprint_scale *= 2;
+    probe.tolerance_px *= 2;
   }
   result.footprint_scale = probe.footprint_scale;
   result.cuts = result.probe.cuts;

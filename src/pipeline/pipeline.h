@@ -47,7 +47,9 @@ struct RunOptions {
   std::optional<std::filesystem::path> mesh_override;
   uint64_t memory_limit = 0;          // 0 = a quarter of physical memory
   uint64_t rays = 5000;
-  double footprint_scale = 10.0;      // K (see README, "What accuracy costs": why this default)
+  double footprint_scale = kDefaultFootprintScale;  // K (see README, "What accuracy costs": why this default)
+  CutCriterion criterion = CutCriterion::Deviation;
+  double tolerance_px = kDefaultTolerancePx;        // deviation criterion (probe.h)
   int threads = 0;
   std::filesystem::path cache_dir;    // empty = default_cache_dir()
   uint64_t cache_limit = uint64_t(4) << 30;

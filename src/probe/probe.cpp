@@ -18,6 +18,7 @@
 #include "core/random.h"
 #include "core/progress.h"
 #include "core/system.h"
+#include "geometry/collapse_deviation.h"
 #include "probe/store_tracer.h"
 #include "render/camera.h"
 
@@ -59,6 +60,7 @@ struct HitRecord {
   std::array<Vec3d, 3> corners{};  // hit triangle's corners, store coordinates
   double footprint = 0;            // store units; if estimated, without the factor m
   double ratio = -1;               // f / (a_ray * path length) of a measured secondary hit
+  double angular = std::numeric_limits<double>::infinity();  // mirror/glass hit: ||dD|| of the ray leaving it
   bool estimated = false;
 };
 
@@ -202,8 +204,16 @@ class ProbeTracer {
         out.hits.push_back(h);
       }
 
-      if (pr.depth >= scene_.max_depth) continue;
       const Material& mat = scene_.materials[size_t(material)];
+      if (wh.object != kGround && mat.reflects()) {
+        // How finely the rays leaving this surface resolve directions: a
+        // normal tilt shows once it turns them by more than this.
+        const RayDifferential out_rd = reflect(r, sp, config_.limits);
+        out.hits.back().angular = out_rd.has_differentials
+                                      ? std::max(glm::length(out_rd.dd_dx), glm::length(out_rd.dd_dy))
+                                      : beam;
+      }
+      if (pr.depth >= scene_.max_depth) continue;
       auto spawn = [&](const RayDifferential& next, Kind kind) {
         PathRay s;
         s.rd = next;
@@ -330,6 +340,14 @@ uint64_t store_fingerprint(const OctreeStore& store) {
   return fp;
 }
 
+const char* to_string(CutCriterion c) { return c == CutCriterion::Diagonal ? "diagonal" : "deviation"; }
+
+StatusOr<CutCriterion> parse_cut_criterion(const std::string& name) {
+  if (name == "deviation") return CutCriterion::Deviation;
+  if (name == "diagonal") return CutCriterion::Diagonal;
+  return Status::error("unknown cut criterion '" + name + "' (use deviation or diagonal)");
+}
+
 std::string probe_key(const Scene& scene, const OctreeStore& store, std::span<const ProbeObject> objects,
                       size_t store_index, const ProbeConfig& config) {
   uint64_t k = store_fingerprint(store);
@@ -362,6 +380,8 @@ std::string probe_key(const Scene& scene, const OctreeStore& store, std::span<co
   mix(config.rays);
   mix(config.seed);
   mix(config.footprint_scale);
+  mix(config.criterion);
+  mix(config.tolerance_px);
   mix(config.calibration_quantile);
   mix(config.shadow_factor);
   mix(config.limits.min_cos);
@@ -381,6 +401,7 @@ StatusOr<ProbeResult> run_probe(const Scene& scene, std::span<const ProbeStore> 
       return Status::error("probe: object material index out of range");
   }
   if (!(config.footprint_scale > 0)) return Status::error("probe: footprint scale must be > 0");
+  if (!(config.tolerance_px > 0)) return Status::error("probe: tolerance must be > 0 pixels");
   const auto t_start = std::chrono::steady_clock::now();
   PageCache cache(config.cache_bytes);
   ProbeTracer tracer(scene, stores, objects, config, cache);
@@ -471,7 +492,7 @@ StatusOr<ProbeResult> run_probe(const Scene& scene, std::span<const ProbeStore> 
     cut.counters = result.counters;
 
     // Measured footprints at the finest level, attached to the hit triangles' corner cells.
-    struct Measured { double f = kInf; uint32_t hits = 0; };
+    struct Measured { double f = kInf; double angular = kInf; uint32_t hits = 0; };
     std::unordered_map<uint64_t, Measured> measured;
     double min_fp = kInf;
     uint64_t store_hits = 0;
@@ -488,6 +509,7 @@ StatusOr<ProbeResult> run_probe(const Scene& scene, std::span<const ProbeStore> 
           if ((k > 0 && codes[k] == codes[0]) || (k > 1 && codes[k] == codes[1])) continue;
           Measured& e = measured[codes[k]];
           e.f = std::min(e.f, f);
+          e.angular = std::min(e.angular, h.angular);
           ++e.hits;
         }
       }
@@ -515,17 +537,29 @@ StatusOr<ProbeResult> run_probe(const Scene& scene, std::span<const ProbeStore> 
       return need;
     };
 
-    // need() bottom-up: measured or estimated at level Q, min over children above.
-    std::vector<std::vector<double>> need(size_t(Q) + 1);
+    // Mirror or glass objects on this store: their cells also bound the normal.
+    bool store_specular = false;
+    for (const ObjectXf& x : xf)
+      if (x.store == s) store_specular |= scene.materials[size_t(x.material)].reflects();
+    const bool deviation = config.criterion == CutCriterion::Deviation;
+    const bool bound_normals = deviation && store_specular;
+
+    // need() and the angular need bottom-up: measured or estimated at level
+    // Q, min over children above.
+    std::vector<std::vector<double>> need(size_t(Q) + 1), angular(size_t(Q) + 1);
+    tbb::task_arena arena(config.threads > 0 ? config.threads : tbb::task_arena::automatic);
     {
       const auto nodes = st.level(Q);
       need[size_t(Q)].assign(nodes.size(), kInf);
-      tbb::task_arena arena(config.threads > 0 ? config.threads : tbb::task_arena::automatic);
+      if (bound_normals) angular[size_t(Q)].assign(nodes.size(), kInf);
       arena.execute([&] {
         tbb::parallel_for(tbb::blocked_range<size_t>(0, nodes.size(), 1024), [&](const tbb::blocked_range<size_t>& r) {
           for (size_t i = r.begin(); i != r.end(); ++i) {
             auto it = measured.find(nodes[i].code);
             need[size_t(Q)][i] = it != measured.end() ? it->second.f : estimate(CellKey{uint32_t(Q), nodes[i].code});
+            // Unreached mirror or glass cells: the pixel angle, as magnified
+            // as the most magnified measured paths.
+            if (bound_normals) angular[size_t(Q)][i] = it != measured.end() ? it->second.angular : a_min * m;
           }
         });
       });
@@ -533,35 +567,65 @@ StatusOr<ProbeResult> run_probe(const Scene& scene, std::span<const ProbeStore> 
     for (int L = Q - 1; L >= 0; --L) {
       const auto parents = st.level(L), children = st.level(L + 1);
       need[size_t(L)].assign(parents.size(), kInf);
+      if (bound_normals) angular[size_t(L)].assign(parents.size(), kInf);
       size_t j = 0;
       for (size_t i = 0; i < parents.size(); ++i) {
         while (j < children.size() && (children[j].code >> 3) < parents[i].code) ++j;
-        for (; j < children.size() && (children[j].code >> 3) == parents[i].code; ++j)
+        for (; j < children.size() && (children[j].code >> 3) == parents[i].code; ++j) {
           need[size_t(L)][i] = std::min(need[size_t(L)][i], need[size_t(L) + 1][j]);
+          if (bound_normals) angular[size_t(L)][i] = std::min(angular[size_t(L)][i], angular[size_t(L) + 1][j]);
+        }
       }
     }
-    // The cut: the largest cells with diagonal < K * need (collapsibility is
-    // monotone: a child's need is >= its parent's and its diagonal smaller).
+    // The cut: top-down, the largest cells the criterion accepts (a cell
+    // inside an accepted one is collapsed with it).
+    const QemSolveConfig qem;
+    const Vec3d origin = st.header().origin;
+    uint64_t rejected_deviation = 0, rejected_normal = 0;
     std::vector<std::vector<char>> collapsed(size_t(Q) + 1);
     for (int L = 0; L <= Q; ++L) {
       const auto nodes = st.level(L);
       collapsed[size_t(L)].assign(nodes.size(), 0);
       const double diag = st.cell_diagonal(L);
-      size_t j = 0;
-      for (size_t i = 0; i < nodes.size(); ++i) {
-        bool parent_collapsed = false;
-        if (L > 0) {
-          const auto parents = st.level(L - 1);
+      // 1 = inside a collapsed parent, 0 = to decide.
+      std::vector<char> inside(nodes.size(), 0);
+      if (L > 0) {
+        const auto parents = st.level(L - 1);
+        size_t j = 0;
+        for (size_t i = 0; i < nodes.size(); ++i) {
           while (j < parents.size() && parents[j].code < (nodes[i].code >> 3)) ++j;
-          parent_collapsed = j < parents.size() && parents[j].code == (nodes[i].code >> 3) && collapsed[size_t(L) - 1][j];
+          inside[i] = j < parents.size() && parents[j].code == (nodes[i].code >> 3) && collapsed[size_t(L) - 1][j];
         }
-        if (parent_collapsed) { collapsed[size_t(L)][i] = 1; continue; }
-        if (diag < K * need[size_t(L)][i]) {
+      }
+      // 0 = keep, 1 = collapse, 2 = kept for its deviation, 3 = for its normal.
+      std::vector<char> verdict(nodes.size(), 0);
+      arena.execute([&] {
+        tbb::parallel_for(tbb::blocked_range<size_t>(0, nodes.size(), 256), [&](const tbb::blocked_range<size_t>& r) {
+          for (size_t i = r.begin(); i != r.end(); ++i) {
+            if (inside[i]) continue;
+            const double f = need[size_t(L)][i];
+            if (!(diag < K * f)) continue;
+            if (!deviation) { verdict[i] = 1; continue; }
+            const Bbox cell = st.cell_bounds(CellKey{uint32_t(L), nodes[i].code});
+            const CollapseDeviation dev = collapse_deviation(nodes[i], Bbox{cell.lo - origin, cell.hi - origin}, qem);
+            if (dev.position > config.tolerance_px * f) { verdict[i] = 2; continue; }
+            if (bound_normals && 2.0 * dev.normal > config.tolerance_px * angular[size_t(L)][i]) { verdict[i] = 3; continue; }
+            verdict[i] = 1;
+          }
+        });
+      });
+      for (size_t i = 0; i < nodes.size(); ++i) {
+        if (inside[i]) { collapsed[size_t(L)][i] = 1; continue; }
+        rejected_deviation += verdict[i] == 2;
+        rejected_normal += verdict[i] == 3;
+        if (verdict[i] == 1) {
           collapsed[size_t(L)][i] = 1;
           cut.cells.push_back({CellKey{uint32_t(L), nodes[i].code}, 0.0f, 0});
         }
       }
     }
+    cut.counters["cells_kept_for_deviation"] = rejected_deviation;
+    cut.counters["cells_kept_for_normals"] = rejected_normal;
     std::sort(cut.cells.begin(), cut.cells.end(), [](const CollapsedCell& a, const CollapsedCell& b) { return a.key < b.key; });
     // Footprints and hit counts of the marked cells (each hit counted once per cell).
     std::unordered_map<uint64_t, size_t> cell_index;  // (level << 58 | code) -> index

@@ -39,6 +39,20 @@
 // unreached cells are assumed to be as magnified as the most magnified
 // measured paths. Secondary paths are never shorter than d, so the bound
 // also holds for cells reached through mirrors and glass.
+// Two criteria decide which cells collapse (ProbeConfig::criterion):
+//   - diagonal (the paper's): diagonal(cell) < K * need(cell);
+//   - deviation (the default): diagonal(cell) < K * need(cell) AND the
+//     surface deviation the collapse causes (geometry/collapse_deviation.h:
+//     chord error from the cell's quadric, 0 on flat regions, creases and
+//     corners) is at most tolerance_px * need(cell), i.e. the collapsed
+//     surface stays within tolerance_px pixels of the input wherever a ray
+//     sees it, silhouettes included; AND, on mirror and glass objects, the
+//     reflected ray's turn 2 * normal_deviation is at most tolerance_px times
+//     the angular spread ||dD|| of the rays leaving that surface (the
+//     smallest measured at hits in the cell, else a_min * m for unreached
+//     cells). K then only caps how large a cell may get relative to the
+//     footprint (bounding what a quadric cannot see, such as open rims).
+//
 // Cells that no ray path can reach -- outside the view frustum in a scene
 // with no mirror or glass (so no secondary ray can turn towards them) -- only
 // matter for shadows: with lights they get shadow_factor times the estimate
@@ -65,10 +79,28 @@
 
 namespace raylod {
 
+enum class CutCriterion { Deviation, Diagonal };
+const char* to_string(CutCriterion c);
+// Parses "deviation" or "diagonal".
+StatusOr<CutCriterion> parse_cut_criterion(const std::string& name);
+
+// Defaults shared by `raylod probe`, `run` and `report` (README, "What
+// accuracy costs", for how they were chosen).
+// Measured on the 10M teapot, OpenCASCADE parts (whole views and close-ups)
+// and the glass bottle: with the deviation criterion at 0.5 px every one
+// stayed at or above its noise floor for K up to 64; K = 32 is where the
+// teapot's reduction levels off (README). The diagonal criterion alone needs
+// a small K (its cells grow with the footprint whatever their curvature).
+inline constexpr double kDefaultFootprintScale = 32.0;
+inline constexpr double kDefaultDiagonalFootprintScale = 10.0;
+inline constexpr double kDefaultTolerancePx = 0.5;
+
 struct ProbeConfig {
   uint64_t rays = 5000;            // test rays (the paper uses 5,000)
   uint64_t seed = 1;
-  double footprint_scale = 1.0;    // K: collapse cells with diagonal < K * footprint
+  CutCriterion criterion = CutCriterion::Deviation;
+  double footprint_scale = kDefaultFootprintScale;  // K: collapse cells with diagonal < K * footprint
+  double tolerance_px = kDefaultTolerancePx;        // deviation criterion: surface deviation, in pixels
   int threads = 0;                 // 0 = all cores
   uint64_t cache_bytes = uint64_t(256) << 20;  // page cache budget
   DifferentialLimits limits;

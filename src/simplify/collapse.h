@@ -42,7 +42,7 @@
 #include <vector>
 
 #include "geometry/crease_normals.h"
-#include "simplify/qem_solve.h"
+#include "geometry/qem_solve.h"
 #include "streaming/cut_file.h"
 #include "streaming/draco_io.h"
 #include "streaming/octree_store.h"

@@ -5,7 +5,7 @@
 // streaming collapse of a uniform cut is checked against.
 #pragma once
 
-#include "simplify/qem_solve.h"
+#include "geometry/qem_solve.h"
 #include "streaming/draco_io.h"
 #include "streaming/mesh_reader.h"
 

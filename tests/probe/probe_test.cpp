@@ -15,6 +15,7 @@
 
 #include "core/system.h"
 #include "gen/generate.h"
+#include "geometry/collapse_deviation.h"
 #include "probe/probe.h"
 #include "probe/store_tracer.h"
 #include "streaming/cut_file.h"
@@ -430,6 +431,7 @@ TEST(Probe, ObjectTransformScalesFootprints) {
   ProbeConfig c;
   c.rays = 1000;
   c.seed = 7;
+  c.footprint_scale = 1.0;  // as probe() below
   auto scaled = run_probe(scene, std::span<const ProbeStore>(&store, 1), std::span<const ProbeObject>(&object, 1), c);
   auto plain = probe(make_scene(MaterialType::Diffuse, kEye, kLook, false), b, 1000);
   ASSERT_TRUE(scaled && plain);
@@ -437,6 +439,82 @@ TEST(Probe, ObjectTransformScalesFootprints) {
   EXPECT_NEAR(double(scaled->cuts[0].min_footprint), double(plain->cuts[0].min_footprint),
               1e-6 * double(plain->cuts[0].min_footprint));
   EXPECT_EQ(scaled->cuts[0].cells.size(), plain->cuts[0].cells.size());
+}
+
+// The deviation criterion (probe.h): flat regions are bounded by K alone,
+// curved ones also by the deviation their collapse causes.
+StatusOr<ProbeResult> probe_with(const Scene& scene, const Built& b, CutCriterion criterion, double k, double tol) {
+  ProbeStore store{b.store.get(), b.store_path};
+  ProbeObject object{0, glm::dmat4(1.0), 0};
+  ProbeConfig c;
+  c.rays = 2000;
+  c.seed = 7;
+  c.criterion = criterion;
+  c.footprint_scale = k;
+  c.tolerance_px = tol;
+  return run_probe(scene, std::span<const ProbeStore>(&store, 1), std::span<const ProbeObject>(&object, 1), c);
+}
+
+const Built& plane() {
+  static Built b = [] {
+    test::TestMesh m;
+    const int n = 64;
+    auto at = [&](int i, int j) { return Vec3d(-2.0 + 4.0 * i / n, 1.0, -2.0 + 4.0 * j / n); };
+    for (int i = 0; i < n; ++i)
+      for (int j = 0; j < n; ++j) {
+        for (const Vec3d& p : {at(i, j), at(i, j + 1), at(i + 1, j + 1), at(i, j), at(i + 1, j + 1), at(i + 1, j)}) {
+          m.p.push_back(p);
+          m.n.push_back(Vec3d(0, 1, 0));
+        }
+      }
+    return build("plane", m);
+  }();
+  return b;
+}
+
+TEST(ProbeDeviation, FlatPlaneCollapsesAsCoarselyAsKAllows) {
+  const Scene scene = make_scene(MaterialType::Diffuse, Vec3d(0.5, 6, 4), Vec3d(0, 1, 0), false);
+  for (double k : {2.0, 8.0, 32.0}) {
+    auto dev = probe_with(scene, plane(), CutCriterion::Deviation, k, 0.5);
+    auto diag = probe_with(scene, plane(), CutCriterion::Diagonal, k, 0.5);
+    ASSERT_TRUE(dev && diag);
+    // A plane's quadric has no residual: the deviation test never binds.
+    EXPECT_EQ(dev->cuts[0].counters.at("cells_kept_for_deviation"), 0u) << "K " << k;
+    ASSERT_EQ(dev->cuts[0].cells.size(), diag->cuts[0].cells.size()) << "K " << k;
+    for (size_t i = 0; i < dev->cuts[0].cells.size(); ++i)
+      EXPECT_EQ(dev->cuts[0].cells[i].key, diag->cuts[0].cells[i].key);
+  }
+}
+
+TEST(ProbeDeviation, CurvedCellsKeepTheirDeviationBelowTheTolerance) {
+  const Built& b = teapot();
+  const Scene scene = make_scene(MaterialType::Diffuse, kEye, kLook);
+  const Vec3d origin = b.store->header().origin;
+  uint64_t previous = 0;
+  for (double tol : {2.0, 0.5, 0.125}) {
+    auto r = probe_with(scene, b, CutCriterion::Deviation, 64, tol);
+    ASSERT_TRUE(r);
+    const Cut& cut = r->cuts[0];
+    EXPECT_GT(cut.counters.at("cells_kept_for_deviation"), 0u) << "tolerance " << tol;
+    // Every collapsed cell a test ray hit keeps its deviation under the
+    // tolerance times the smallest footprint measured in it.
+    size_t checked = 0;
+    for (const CollapsedCell& c : cut.cells) {
+      if (c.hits == 0) continue;
+      const NodeRecord* node = b.store->find(c.key);
+      ASSERT_NE(node, nullptr);
+      const Bbox cell = b.store->cell_bounds(c.key);
+      const CollapseDeviation d = collapse_deviation(*node, Bbox{cell.lo - origin, cell.hi - origin});
+      EXPECT_LE(d.position, tol * c.min_footprint * (1 + 1e-6)) << "level " << c.key.level;
+      ++checked;
+    }
+    EXPECT_GT(checked, 0u);
+    // A smaller tolerance never gives a coarser mesh.
+    uint64_t corners = 0;
+    for (const CollapsedCell& c : cut.cells) corners += b.store->find(c.key)->corner_count;
+    if (previous) EXPECT_LE(corners, previous) << "tolerance " << tol;
+    previous = corners;
+  }
 }
 
 }  // namespace

@@ -6,6 +6,7 @@
 #include <random>
 #include <set>
 
+#include "geometry/collapse_deviation.h"
 #include "simplify/collapse.h"
 #include "simplify/vertex_clustering.h"
 #include "test_meshes.h"
@@ -373,6 +374,60 @@ TEST(CollapseProperty, SeededRandomMeshesGiveFiniteVerticesInsideTheirCells) {
     for (size_t t = 0; t < c.mesh.triangle_count(); ++t) {
       const uint32_t* f = &c.mesh.indices[3 * t];
       ASSERT_TRUE(f[0] != f[1] && f[1] != f[2] && f[0] != f[2]);
+    }
+  }
+}
+
+}  // namespace
+}  // namespace raylod
+
+namespace raylod {
+namespace {
+
+TEST(CollapseDeviationProperty, CollapsedSphereStaysWithinTheDeviationItsCellsPromised) {
+  // Differential test against the analytic surface: collapse a finely
+  // tessellated sphere uniformly at several levels; every point sampled on
+  // the output triangles lies within the promised deviation of the sphere
+  // (a triangle spans neighbouring cells, so up to twice the largest cell
+  // deviation), and every output normal is within the promised normal
+  // deviation of the true normal at the point it shades, up to the angle
+  // the chord itself subtends.
+  const Vec3d centre(0.3, -0.2, 0.1);
+  const float radius = 1.0f;
+  const TriangleBatch sphere = test::uv_sphere(Vec3(centre), radius, 120, 240);
+  // Level 3 cells (side 0.375) span about 25 degrees of the unit sphere;
+  // level 2 cells (45 degrees and more) are beyond anything a cut accepts.
+  for (int level = 3; level <= 6; ++level) {
+    const Vec3d root_lo(-1.5, -1.5, -1.5), origin(0.1, 0.0, -0.2);
+    const test::MemoryNodes nodes = test::accumulate_nodes(sphere, root_lo, 3.0, level, origin);
+    double promised = 0, promised_normal = 0;
+    for (const auto& [code, node] : nodes.nodes) {
+      const Bbox b = nodes.cell_bounds(code);
+      const CollapseDeviation d = collapse_deviation(node, Bbox{b.lo - origin, b.hi - origin});
+      promised = std::max(promised, d.position);
+      promised_normal = std::max(promised_normal, d.normal);
+    }
+    const Collapsed c = collapse_level(sphere, nodes);
+    ASSERT_GT(c.mesh.triangle_count(), 0u);
+    double worst = 0;
+    for (size_t t = 0; t < c.mesh.triangle_count(); ++t) {
+      const Vec3d a(c.mesh.positions[c.mesh.indices[3 * t]]), b(c.mesh.positions[c.mesh.indices[3 * t + 1]]),
+          d(c.mesh.positions[c.mesh.indices[3 * t + 2]]);
+      for (int i = 0; i <= 4; ++i)
+        for (int j = 0; i + j <= 4; ++j) {
+          const Vec3d p = a + (b - a) * (i / 4.0) + (d - a) * (j / 4.0);
+          worst = std::max(worst, std::abs(glm::length(p - centre) - radius));
+        }
+    }
+    EXPECT_LE(worst, 2.0 * promised + 1e-6) << "level " << level << ": promised " << promised;
+    EXPECT_GT(worst, 0.1 * promised) << "level " << level << ": the bound is far from tight";
+    for (size_t v = 0; v < c.mesh.positions.size(); ++v) {
+      const Vec3d truth = glm::normalize(Vec3d(c.mesh.positions[v]) - centre);
+      const double angle = std::acos(std::clamp(glm::dot(truth, Vec3d(c.mesh.normals[v])), -1.0, 1.0));
+      // The rep's normal is its cell's mean normal; the rep itself sits
+      // within the cell, so the true normal there differs by at most the
+      // cell's angular size, sqrt(2 promised_normal) (collapse_deviation.h).
+      EXPECT_LE(angle, std::sqrt(2.0 * promised_normal) + 1e-3) << "level " << level << " vertex " << v;
     }
   }
 }

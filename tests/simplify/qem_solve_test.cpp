@@ -6,7 +6,7 @@
 
 #include <random>
 
-#include "simplify/qem_solve.h"
+#include "geometry/qem_solve.h"
 #include "test_meshes.h"
 
 namespace raylod {

@@ -8,7 +8,7 @@
 #include <vector>
 
 #include "core/math.h"
-#include "simplify/qem_solve.h"
+#include "geometry/qem_solve.h"
 #include "simplify/vertex_clustering.h"
 #include "streaming/draco_io.h"
 #include "streaming/mesh_reader.h"
@@ -111,7 +111,8 @@ inline MemoryNodes accumulate_nodes(const TriangleBatch& soup, const Vec3d& root
       r.code = morton_encode(c[0], c[1], c[2]);
       if (area2 > 0) quadric_add(r.quadric, quadric_from_plane(plane_n, p[k], area2 / 6.0));
       r.vertex_sum += p[k];
-      r.normal_sum += tn ? area2 * Vec3d(tn[k]) : cross;
+      // As the store build: area / 3 per corner, the weight of the quadric.
+      if (area2 > 0) r.normal_sum += (area2 / 6.0) * (tn ? Vec3d(tn[k]) : cross / area2);
       ++r.corner_count;
     }
   }

@@ -2,7 +2,7 @@
 // the cell's mean vertex (Lindstrom, "Out-of-Core Simplification of Large
 // Polygonal Models", SIGGRAPH 2000, section 3: pseudo-inverse with a relative
 // singular value threshold; method eqs. 3-4).
-#include "simplify/qem_solve.h"
+#include "geometry/qem_solve.h"
 
 #include <algorithm>
 #include <cmath>

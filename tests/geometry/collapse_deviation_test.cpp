@@ -1,0 +1,94 @@
+// Collapse deviation from a quadric (geometry/collapse_deviation.h): exact
+// cases (plane, crease, corner) and the analytic chord error of spherical caps.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <vector>
+
+#include "geometry/collapse_deviation.h"
+
+namespace raylod {
+namespace {
+
+// Accumulates a triangle into a node as the store build does: each corner
+// adds the triangle's plane quadric and unit normal with weight area / 3.
+void add_triangle(NodeRecord& node, const Vec3d& a, const Vec3d& b, const Vec3d& c) {
+  const Vec3d cross = glm::cross(b - a, c - a);
+  const double twice_area = glm::length(cross);
+  if (!(twice_area > 0)) return;
+  const Vec3d n = cross / twice_area;
+  for (const Vec3d& p : {a, b, c}) {
+    quadric_add(node.quadric, quadric_from_plane(n, p, twice_area / 6.0));
+    node.normal_sum += (twice_area / 6.0) * n;
+    node.vertex_sum += p;
+    ++node.corner_count;
+  }
+}
+
+// A spherical cap of radius r and half-angle alpha around +z, finely tessellated.
+NodeRecord cap(double r, double alpha, int rings = 80, int slices = 160) {
+  NodeRecord node;
+  auto at = [&](int i, int j) {
+    const double th = alpha * double(i) / rings, ph = 2 * M_PI * double(j) / slices;
+    return Vec3d(r * std::sin(th) * std::cos(ph), r * std::sin(th) * std::sin(ph), r * std::cos(th));
+  };
+  for (int i = 0; i < rings; ++i)
+    for (int j = 0; j < slices; ++j) {
+      add_triangle(node, at(i, j), at(i + 1, j), at(i + 1, j + 1));
+      if (i > 0) add_triangle(node, at(i, j), at(i + 1, j + 1), at(i, j + 1));
+    }
+  return node;
+}
+
+TEST(CollapseDeviation, FlatCreaseAndCornerCellsDoNotMove) {
+  const Bbox cell{Vec3d(-1), Vec3d(1)};
+  NodeRecord flat;
+  add_triangle(flat, {-1, 0, -1}, {-1, 0, 1}, {1, 0, 1});
+  add_triangle(flat, {-1, 0, -1}, {1, 0, 1}, {1, 0, -1});
+  EXPECT_NEAR(collapse_deviation(flat, cell).position, 0.0, 1e-9);
+  EXPECT_NEAR(collapse_deviation(flat, cell).normal, 0.0, 1e-12);
+  // A 90-degree crease (floor + wall) and a box corner (three faces): the
+  // representative lies on every plane, and crease-split normals keep them sharp.
+  NodeRecord crease = flat;
+  add_triangle(crease, {0.2, 0, -1}, {0.2, 1, -1}, {0.2, 1, 1});
+  add_triangle(crease, {0.2, 0, -1}, {0.2, 1, 1}, {0.2, 0, 1});
+  const CollapseDeviation c = collapse_deviation(crease, cell);
+  EXPECT_NEAR(c.position, 0.0, 1e-9);
+  EXPECT_NEAR(c.normal, 0.0, 1e-12);
+  NodeRecord corner = crease;
+  add_triangle(corner, {0.2, 0, 0.3}, {0.2, 1, 0.3}, {-1, 1, 0.3});
+  EXPECT_NEAR(collapse_deviation(corner, cell).position, 0.0, 1e-9);
+  // Empty and zero-area cells: nothing to move.
+  NodeRecord empty;
+  EXPECT_EQ(collapse_deviation(empty, cell).position, 0.0);
+}
+
+TEST(CollapseDeviation, SphericalCapsGiveTheirChordError) {
+  // position = the cap's sagitta r (1 - cos alpha); normal = kappa * sagitta
+  // = alpha^2 / 2 to leading order.
+  for (double r : {0.5, 1.0, 40.0})
+    for (double alpha : {0.02, 0.1, 0.3}) {
+      const NodeRecord node = cap(r, alpha);
+      const double h = r * std::sin(alpha) * 1.01;
+      const Bbox cell{Vec3d(-h, -h, r * std::cos(alpha) - h), Vec3d(h, h, r + h)};
+      const CollapseDeviation d = collapse_deviation(node, cell);
+      const double sagitta = r * (1 - std::cos(alpha));
+      EXPECT_NEAR(d.position / sagitta, 1.0, 0.03) << "r " << r << " alpha " << alpha;
+      EXPECT_NEAR(d.normal / (alpha * alpha / 2), 1.0, 0.05) << "r " << r << " alpha " << alpha;
+    }
+}
+
+TEST(CollapseDeviation, ThinWallIsItsThickness) {
+  // Two parallel sheets facing away from each other, t apart: the
+  // representative sits between them, and the collapse moves each by t / 2.
+  const double t = 0.01;
+  NodeRecord wall;
+  add_triangle(wall, {-1, 0, -1}, {-1, 0, 1}, {1, 0, 1});
+  add_triangle(wall, {-1, t, -1}, {1, t, 1}, {-1, t, 1});
+  const CollapseDeviation d = collapse_deviation(wall, Bbox{Vec3d(-1), Vec3d(1)});
+  EXPECT_GE(d.position, t / 2);
+  EXPECT_LE(d.position, 2 * t);
+}
+
+}  // namespace
+}  // namespace raylod
