@@ -207,8 +207,10 @@ StatusOr<RunResult> run_pipeline(Scene scene, const RunOptions& options, const L
   probe.tolerance_px = options.tolerance_px;
   auto t_probe = std::chrono::steady_clock::now();
   uint64_t previous_estimate = UINT64_MAX;
+  // The rays are traced once; coarsening only selects coarser cuts from them.
+  RAYLOD_ASSIGN_OR_RETURN(const ProbeTrace trace, trace_probe(scene, stores.probe_stores, stores.objects, probe));
   for (;;) {
-    RAYLOD_ASSIGN_OR_RETURN(result.probe, run_probe(scene, stores.probe_stores, stores.objects, probe));
+    RAYLOD_ASSIGN_OR_RETURN(result.probe, select_cuts(trace, scene, stores.probe_stores, stores.objects, probe));
     uint64_t estimate = 0;
     for (size_t i = 0; i < stores.stores.size(); ++i)
       estimate += estimate_simplify(*stores.stores[i], result.probe.cuts[i]).triangles;

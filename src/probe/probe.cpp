@@ -53,16 +53,22 @@ struct ObjectXf {
   int material = 0;
 };
 
+ObjectXf make_object_xf(const ProbeObject& o) {
+  ObjectXf x;
+  x.m = o.transform;
+  x.minv = glm::inverse(o.transform);
+  const Mat3d l(o.transform);
+  x.linv = glm::inverse(l);
+  x.normal = glm::transpose(x.linv);
+  x.sigma = max_singular_value(l);
+  x.store = o.store;
+  x.material = o.material;
+  return x;
+}
+
 enum Kind { kPrimary, kReflection, kRefraction };
 
-struct HitRecord {
-  uint32_t object = 0;
-  std::array<Vec3d, 3> corners{};  // hit triangle's corners, store coordinates
-  double footprint = 0;            // store units; if estimated, without the factor m
-  double ratio = -1;               // f / (a_ray * path length) of a measured secondary hit
-  double angular = std::numeric_limits<double>::infinity();  // mirror/glass hit: ||dD|| of the ray leaving it
-  bool estimated = false;
-};
+using HitRecord = ProbeHit;
 
 struct ProbeRayCounters {
   uint64_t v[10] = {};
@@ -101,15 +107,7 @@ class ProbeTracer {
     for (const ProbeStore& s : stores) tracers_.emplace_back(*s.store, cache);
     Bbox world;
     for (const ProbeObject& o : objects) {
-      ObjectXf x;
-      x.m = o.transform;
-      x.minv = glm::inverse(o.transform);
-      const Mat3d l(o.transform);
-      x.linv = glm::inverse(l);
-      x.normal = glm::transpose(x.linv);
-      x.sigma = max_singular_value(l);
-      x.store = o.store;
-      x.material = o.material;
+      const ObjectXf x = make_object_xf(o);
       xf_.push_back(x);
       const Bbox b = tracers_[o.store].bounds();
       if (!b.empty())
@@ -392,8 +390,10 @@ std::string probe_key(const Scene& scene, const OctreeStore& store, std::span<co
   return buf;
 }
 
-StatusOr<ProbeResult> run_probe(const Scene& scene, std::span<const ProbeStore> stores,
-                                std::span<const ProbeObject> objects, const ProbeConfig& config) {
+namespace {
+
+Status check_probe_inputs(const Scene& scene, std::span<const ProbeStore> stores, std::span<const ProbeObject> objects,
+                          const ProbeConfig& config) {
   for (const ProbeObject& o : objects) {
     if (o.store >= stores.size() || !stores[o.store].store)
       return Status::error("probe: object refers to store " + std::to_string(o.store) + ", which is not given");
@@ -402,6 +402,14 @@ StatusOr<ProbeResult> run_probe(const Scene& scene, std::span<const ProbeStore> 
   }
   if (!(config.footprint_scale > 0)) return Status::error("probe: footprint scale must be > 0");
   if (!(config.tolerance_px > 0)) return Status::error("probe: tolerance must be > 0 pixels");
+  return {};
+}
+
+}  // namespace
+
+StatusOr<ProbeTrace> trace_probe(const Scene& scene, std::span<const ProbeStore> stores,
+                                 std::span<const ProbeObject> objects, const ProbeConfig& config) {
+  RAYLOD_RETURN_IF_ERROR(check_probe_inputs(scene, stores, objects, config));
   const auto t_start = std::chrono::steady_clock::now();
   PageCache cache(config.cache_bytes);
   ProbeTracer tracer(scene, stores, objects, config, cache);
@@ -431,7 +439,7 @@ StatusOr<ProbeResult> run_probe(const Scene& scene, std::span<const ProbeStore> 
     });
     if (progress) progress->finish();
   }
-  ProbeResult result;
+  ProbeTrace result;
   ProbeRayCounters total;
   for (const RayOutcome& o : outcomes) {
     if (!o.status) return o.status;
@@ -445,14 +453,15 @@ StatusOr<ProbeResult> run_probe(const Scene& scene, std::span<const ProbeStore> 
   result.counters["cache_misses"] = cc.misses;
   result.counters["cache_evictions"] = cc.evictions;
   result.counters["cache_peak_bytes"] = cc.peak_bytes;
-  const auto t_traced = std::chrono::steady_clock::now();
-  result.trace_seconds = std::chrono::duration<double>(t_traced - t_start).count();
+  for (RayOutcome& o : outcomes)
+    for (HitRecord& h : o.hits) result.hits.push_back(h);
+  result.rays = config.rays;
+  result.seed = config.seed;
 
   // The policy's magnification m: a low quantile of measured secondary hits.
   std::vector<double> ratios;
-  for (const RayOutcome& o : outcomes)
-    for (const HitRecord& h : o.hits)
-      if (h.ratio >= 0) ratios.push_back(h.ratio);
+  for (const HitRecord& h : result.hits)
+    if (h.ratio >= 0) ratios.push_back(h.ratio);
   double m = 1;
   if (!ratios.empty()) {
     std::sort(ratios.begin(), ratios.end());
@@ -462,8 +471,24 @@ StatusOr<ProbeResult> run_probe(const Scene& scene, std::span<const ProbeStore> 
   result.magnification = m;
   result.counters["magnification_ppm"] = uint64_t(std::llround(m * 1e6));
 
+  result.trace_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
+  return result;
+}
+
+StatusOr<ProbeResult> select_cuts(const ProbeTrace& trace, const Scene& scene, std::span<const ProbeStore> stores,
+                                  std::span<const ProbeObject> objects, const ProbeConfig& config) {
+  RAYLOD_RETURN_IF_ERROR(check_probe_inputs(scene, stores, objects, config));
+  const auto t_select = std::chrono::steady_clock::now();
+  ProbeResult result;
+  result.counters = trace.counters;
+  result.magnification = trace.magnification;
+  result.trace_seconds = trace.trace_seconds;
+  const double m = trace.magnification;
+  std::vector<ObjectXf> xf;
+  for (const ProbeObject& o : objects) xf.push_back(make_object_xf(o));
+
   // Scene facts the policy needs.
-  const PinholeCamera& cam = tracer.camera();
+  const PinholeCamera cam = make_pinhole_camera(scene.camera);
   const Frustum frustum = make_frustum(cam);
   double a_min = kInf;  // smallest angle between neighbouring pixels' rays (at the image corners)
   for (double px : {0.0, 0.5 * cam.width, double(cam.width)})
@@ -476,7 +501,6 @@ StatusOr<ProbeResult> run_probe(const Scene& scene, std::span<const ProbeStore> 
   if (scene.ground) specular |= scene.materials[size_t(scene.ground->material)].reflects();
   const bool lights = !scene.lights.empty();
   const double K = config.footprint_scale;
-  const auto& xf = tracer.transforms();
 
   // A4: one cut per store.
   for (size_t s = 0; s < stores.size(); ++s) {
@@ -486,8 +510,8 @@ StatusOr<ProbeResult> run_probe(const Scene& scene, std::span<const ProbeStore> 
     cut.store_hash = store_fingerprint(st);
     cut.store_path = stores[s].path.string();
     cut.key = probe_key(scene, st, objects, s, config);
-    cut.rays = config.rays;
-    cut.seed = config.seed;
+    cut.rays = trace.rays;
+    cut.seed = trace.seed;
     cut.footprint_scale = K;
     cut.counters = result.counters;
 
@@ -497,22 +521,21 @@ StatusOr<ProbeResult> run_probe(const Scene& scene, std::span<const ProbeStore> 
     double min_fp = kInf;
     uint64_t store_hits = 0;
     auto hit_footprint = [&](const HitRecord& h) { return h.estimated ? h.footprint * m : h.footprint; };
-    for (const RayOutcome& o : outcomes)
-      for (const HitRecord& h : o.hits) {
-        if (xf[h.object].store != s) continue;
-        ++store_hits;
-        const double f = hit_footprint(h);
-        min_fp = std::min(min_fp, f);
-        uint64_t codes[3];
-        for (int k = 0; k < 3; ++k) {
-          codes[k] = st.cell_of(h.corners[k], Q).code;
-          if ((k > 0 && codes[k] == codes[0]) || (k > 1 && codes[k] == codes[1])) continue;
-          Measured& e = measured[codes[k]];
-          e.f = std::min(e.f, f);
-          e.angular = std::min(e.angular, h.angular);
-          ++e.hits;
-        }
+    for (const HitRecord& h : trace.hits) {
+      if (xf[h.object].store != s) continue;
+      ++store_hits;
+      const double f = hit_footprint(h);
+      min_fp = std::min(min_fp, f);
+      uint64_t codes[3];
+      for (int k = 0; k < 3; ++k) {
+        codes[k] = st.cell_of(h.corners[k], Q).code;
+        if ((k > 0 && codes[k] == codes[0]) || (k > 1 && codes[k] == codes[1])) continue;
+        Measured& e = measured[codes[k]];
+        e.f = std::min(e.f, f);
+        e.angular = std::min(e.angular, h.angular);
+        ++e.hits;
       }
+    }
     cut.min_footprint = std::isfinite(min_fp) ? float(min_fp) : 0.0f;
     cut.counters["store_hits"] = store_hits;
 
@@ -632,35 +655,40 @@ StatusOr<ProbeResult> run_probe(const Scene& scene, std::span<const ProbeStore> 
     auto pack = [](uint32_t level, uint64_t code) { return (uint64_t(level) << 58) ^ code; };
     for (size_t i = 0; i < cut.cells.size(); ++i) cell_index[pack(cut.cells[i].key.level, cut.cells[i].key.code)] = i;
     uint64_t hit_cells = 0;
-    for (const RayOutcome& o : outcomes)
-      for (const HitRecord& h : o.hits) {
-        if (xf[h.object].store != s) continue;
-        size_t found[3];
-        int nfound = 0;
-        for (int k = 0; k < 3; ++k) {
-          const uint64_t code = st.cell_of(h.corners[k], Q).code;
-          for (int L = Q; L >= 0; --L) {
-            auto it = cell_index.find(pack(uint32_t(L), code >> (3 * (Q - L))));
-            if (it == cell_index.end()) continue;
-            if (std::find(found, found + nfound, it->second) == found + nfound) found[nfound++] = it->second;
-            break;
-          }
-        }
-        for (int k = 0; k < nfound; ++k) {
-          CollapsedCell& c = cut.cells[found[k]];
-          const float f = float(hit_footprint(h));
-          c.min_footprint = c.hits == 0 ? f : std::min(c.min_footprint, f);
-          ++c.hits;
+    for (const HitRecord& h : trace.hits) {
+      if (xf[h.object].store != s) continue;
+      size_t found[3];
+      int nfound = 0;
+      for (int k = 0; k < 3; ++k) {
+        const uint64_t code = st.cell_of(h.corners[k], Q).code;
+        for (int L = Q; L >= 0; --L) {
+          auto it = cell_index.find(pack(uint32_t(L), code >> (3 * (Q - L))));
+          if (it == cell_index.end()) continue;
+          if (std::find(found, found + nfound, it->second) == found + nfound) found[nfound++] = it->second;
+          break;
         }
       }
+      for (int k = 0; k < nfound; ++k) {
+        CollapsedCell& c = cut.cells[found[k]];
+        const float f = float(hit_footprint(h));
+        c.min_footprint = c.hits == 0 ? f : std::min(c.min_footprint, f);
+        ++c.hits;
+      }
+    }
     for (const CollapsedCell& c : cut.cells) hit_cells += c.hits > 0;
     cut.counters["cells_marked"] = cut.cells.size();
     cut.counters["cells_marked_with_hits"] = hit_cells;
     cut.counters["quadric_depth"] = uint64_t(Q);
     result.cuts.push_back(std::move(cut));
   }
-  result.cut_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_traced).count();
+  result.cut_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_select).count();
   return result;
+}
+
+StatusOr<ProbeResult> run_probe(const Scene& scene, std::span<const ProbeStore> stores,
+                                std::span<const ProbeObject> objects, const ProbeConfig& config) {
+  RAYLOD_ASSIGN_OR_RETURN(ProbeTrace trace, trace_probe(scene, stores, objects, config));
+  return select_cuts(trace, scene, stores, objects, config);
 }
 
 }  // namespace raylod

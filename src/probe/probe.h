@@ -63,7 +63,9 @@
 // m * a_ray * path length.
 #pragma once
 
+#include <array>
 #include <cstdint>
+#include <limits>
 #include <filesystem>
 #include <map>
 #include <span>
@@ -134,8 +136,36 @@ struct ProbeResult {
   double trace_seconds = 0, cut_seconds = 0;
 };
 
-// Runs the probe. Fails with a clear message if a page of a store cannot be
-// read (a corrupt store is reported, never traced through).
+// One mesh hit of a test ray: what selecting a cut needs of it.
+struct ProbeHit {
+  uint32_t object = 0;             // index into the objects span
+  std::array<Vec3d, 3> corners{};  // hit triangle's corners, store coordinates
+  double footprint = 0;            // ||dP|| in store units; if estimated, without the factor m
+  double ratio = -1;               // f / (a_ray * path length) of a measured secondary hit
+  double angular = std::numeric_limits<double>::infinity();  // mirror/glass hit: ||dD|| of the ray leaving it
+  bool estimated = false;          // differentials dropped: footprint from the beam
+};
+
+// The traced test rays (A2, A3): independent of K, the tolerance and the
+// criterion, so sweeps and memory coarsening select cuts from one trace.
+struct ProbeTrace {
+  std::vector<ProbeHit> hits;      // every mesh hit, by ray index, then along the path
+  std::map<std::string, uint64_t> counters;
+  double magnification = 1;        // m of the policy
+  double trace_seconds = 0;
+  uint64_t rays = 0, seed = 0;
+};
+
+// Traces the test rays. Fails with a clear message if a page of a store
+// cannot be read (a corrupt store is reported, never traced through).
+StatusOr<ProbeTrace> trace_probe(const Scene& scene, std::span<const ProbeStore> stores,
+                                 std::span<const ProbeObject> objects, const ProbeConfig& config);
+// Selects one cut per store from a trace (A4) by config's criterion, K and
+// tolerance (config's rays and seed are not used: the trace's are recorded).
+StatusOr<ProbeResult> select_cuts(const ProbeTrace& trace, const Scene& scene, std::span<const ProbeStore> stores,
+                                  std::span<const ProbeObject> objects, const ProbeConfig& config);
+
+// Both: trace, then select.
 StatusOr<ProbeResult> run_probe(const Scene& scene, std::span<const ProbeStore> stores,
                                 std::span<const ProbeObject> objects, const ProbeConfig& config);
 
