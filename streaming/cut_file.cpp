@@ -112,6 +112,7 @@ Status write_cut(const std::filesystem::path& path, const Cut& cut) {
 }
 
 bool is_cut_file(const std::filesystem::path& path) {
+  if (!check_regular_file(path)) return false;  // a FIFO would block the open
   std::ifstream f(path, std::ios::binary);
   char m[sizeof(kMagic)];
   if (!f.read(m, sizeof(m))) return false;
@@ -120,6 +121,7 @@ bool is_cut_file(const std::filesystem::path& path) {
 
 StatusOr<Cut> read_cut(const std::filesystem::path& path) {
   const std::string name = path.string();
+  RAYLOD_RETURN_IF_ERROR(check_regular_file(path));
   std::ifstream f(path, std::ios::binary);
   if (!f) return Status::error(name + ": cannot open cut file");
   std::string header(kHeaderBytes, '\0');

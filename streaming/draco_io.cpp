@@ -13,9 +13,11 @@
 #include "streaming/draco_io.h"
 
 #include <cmath>
+#include <cstdio>
 #include <cstring>
 #include <fstream>
 #include <iterator>
+#include <limits>
 
 #include <draco/compression/decode.h>
 #include <draco/compression/encode.h>
@@ -102,6 +104,13 @@ StatusOr<DracoWriteReport> write_draco(const std::filesystem::path& path, const 
     max_abs = std::max({max_abs, double(std::abs(p.x)), double(std::abs(p.y)), double(std::abs(p.z))});
   }
   const double extent = std::max({box.extent().x, box.extent().y, box.extent().z});
+  // Draco takes max - min in float as its quantisation range; past the float
+  // range that is inf and the encoder crashes instead of failing.
+  if (!(extent <= double(std::numeric_limits<float>::max()))) {
+    char what[120];
+    std::snprintf(what, sizeof what, ": the mesh spans %g, more than the float range (about 3.4e38) Draco quantises over", extent);
+    return Status::error(path.string() + what);
+  }
 
   DracoWriteReport report;
   if (options.position_bits > 0) {

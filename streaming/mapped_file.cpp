@@ -11,6 +11,8 @@
 #include <cstring>
 #include <utility>
 
+#include "core/system.h"
+
 namespace raylod {
 
 namespace {
@@ -40,7 +42,9 @@ MappedFile& MappedFile::operator=(MappedFile&& o) noexcept {
 
 StatusOr<MappedFile> MappedFile::open(const std::filesystem::path& path) {
   const std::string name = path.string();
-  int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+  // O_NONBLOCK: opening a FIFO for reading would otherwise wait for a writer
+  // before fstat could reject it (it changes nothing for regular files).
+  int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC | O_NONBLOCK);
   if (fd < 0) return Status::error(name + ": cannot open: " + errno_text());
   struct stat st{};
   if (::fstat(fd, &st) != 0) {
@@ -48,9 +52,9 @@ StatusOr<MappedFile> MappedFile::open(const std::filesystem::path& path) {
     ::close(fd);
     return s;
   }
-  if (S_ISDIR(st.st_mode)) {
+  if (const std::string what = not_regular_file_text(st.st_mode); !what.empty()) {
     ::close(fd);
-    return Status::error(name + ": is a directory, not a mesh file");
+    return Status::error(name + ": " + what);
   }
   MappedFile m;
   m.path_ = path;

@@ -26,7 +26,9 @@ class MappedFile {
   MappedFile(const MappedFile&) = delete;
   MappedFile& operator=(const MappedFile&) = delete;
 
-  // Errors name the file: "mesh.ply: cannot open: No such file or directory".
+  // Errors name the file: "mesh.ply: cannot open: No such file or directory",
+  // "f.ply: is a named pipe (FIFO), not a regular file" (only regular files
+  // are mapped; a FIFO is rejected without waiting for a writer).
   static StatusOr<MappedFile> open(const std::filesystem::path& path);
 
   const uint8_t* data() const { return data_; }

@@ -3,8 +3,13 @@
 #include "streaming/mesh_reader.h"
 
 #include <cctype>
+#include <cinttypes>
+#include <cstdio>
+#include <mutex>
+#include <set>
 #include <string>
 
+#include "core/system.h"
 #include "streaming/draco_io.h"
 
 namespace raylod {
@@ -19,6 +24,22 @@ const char* to_string(MeshFormat f) {
   return "unknown";
 }
 
+void MeshReader::warn_repaired_normals() const {
+  if (repaired_normals_ == 0) return;
+  static std::mutex mutex;
+  static std::set<std::string> warned;
+  std::error_code ec;
+  std::filesystem::path key = std::filesystem::weakly_canonical(path_, ec);
+  {
+    std::lock_guard<std::mutex> lock(mutex);
+    if (!warned.insert((ec ? path_ : key).string()).second) return;
+  }
+  std::fprintf(stderr,
+               "raylod: warning: %s: %" PRIu64 " triangle corner%s had a zero-length normal; "
+               "each was given its triangle's face normal\n",
+               path_.string().c_str(), repaired_normals_, repaired_normals_ == 1 ? "" : "s");
+}
+
 StatusOr<MeshFormat> mesh_format_from_extension(const std::filesystem::path& path) {
   std::string ext = path.extension().string();
   for (char& c : ext) c = char(std::tolower(static_cast<unsigned char>(c)));
@@ -31,9 +52,10 @@ StatusOr<MeshFormat> mesh_format_from_extension(const std::filesystem::path& pat
 }
 
 StatusOr<std::unique_ptr<MeshReader>> open_mesh(const std::filesystem::path& path, ReaderOptions options) {
+  // What the path is comes first: a FIFO or a device must fail at once, and
+  // saying "unknown mesh format ''" about /dev/zero would hide the real problem.
+  RAYLOD_RETURN_IF_ERROR(check_regular_file(path));
   RAYLOD_ASSIGN_OR_RETURN(MeshFormat format, mesh_format_from_extension(path));
-  std::error_code ec;
-  if (!std::filesystem::exists(path, ec)) return Status::error(path.string() + ": no such file");
   switch (format) {
     case MeshFormat::Ply: return open_ply_reader(path, options);
     case MeshFormat::Stl: return open_stl_reader(path, options);

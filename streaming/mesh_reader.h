@@ -29,9 +29,15 @@
 // Validation: every bad input is an error naming the file and, for text
 // formats, the line: truncated data, bad headers, wrong counts in headers
 // (too little or too much data), indices out of range, NaN/Inf coordinates,
-// zero-length or non-finite normals, polygons with fewer than 3 corners,
-// unsupported PLY property types, empty meshes. Vertices are checked where
-// a face uses them (an unreferenced binary PLY vertex is not inspected).
+// coordinates and normals beyond the float range (1e39 in text, or a double
+// PLY property past +-3.4e38: no float holds them), non-finite normals,
+// polygons with fewer than 3 corners, unsupported PLY property types, empty
+// meshes. Text vertices are checked as they are read; binary PLY vertices
+// where a face uses them (an unreferenced one is not inspected).
+// Zero-length normals (CAD tessellations write (0, 0, 0) on degenerate
+// triangles) are not an error: each such triangle corner gets the triangle's
+// face normal (repair_zero_normals in vertex_table.h), and the count is
+// printed once per file as a warning on stderr when the mesh has been read.
 // Format decisions: STL facet normals are parsed and must be finite (NaN is
 // an error, a zero normal is accepted, since many exporters write 0 0 0) but
 // are otherwise ignored (has_normals = false). OBJ normals are used only if
@@ -88,14 +94,24 @@ class MeshReader {
   // NaN/Inf coordinates, zero-length normal, ...). At the end, a mesh that
   // yielded no triangle at all is an error ("empty mesh").
   virtual StatusOr<bool> next(TriangleBatch& batch) = 0;
+  // Triangle corners so far whose zero-length normal was replaced by a face normal.
+  uint64_t repaired_normals() const { return repaired_normals_; }
 
  protected:
+  // At the end of the mesh: if normals were repaired, prints "raylod:
+  // warning: FILE: N triangle corners ..." to stderr, once per file in this
+  // process (a build reads its mesh twice; one warning is enough).
+  void warn_repaired_normals() const;
+
   MeshHeader header_;
   std::filesystem::path path_;
+  uint64_t repaired_normals_ = 0;
 };
 
 // Opens a mesh by extension (.ply, .stl, .obj, .drc; case-insensitive), with
-// the file's content checked against the extension.
+// the file's content checked against the extension. A path that is not a
+// regular file fails at once and says what it is ("is a named pipe (FIFO),
+// not a regular file", "is a directory, ...", "is a character device, ...").
 StatusOr<std::unique_ptr<MeshReader>> open_mesh(const std::filesystem::path& path, ReaderOptions options = {});
 
 // Full-pass summary for `raylod info`.

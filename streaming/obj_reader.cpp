@@ -148,7 +148,12 @@ Status ObjReader::first_pass() {
       float x[3];
       for (float& c : x) {
         if (!tok.next(t)) return at(ln, "'" + std::string(kw) + "' needs 3 coordinates");
-        if (!text::parse_number(t, c)) return at(ln, "'" + std::string(text::clip(t)) + "' is not a number");
+        const text::FloatParse parsed = text::parse_float(t, c);
+        if (parsed == text::FloatParse::NotANumber) return at(ln, "'" + std::string(text::clip(t)) + "' is not a number");
+        if (parsed == text::FloatParse::OutOfRange)
+          return at(ln, (kw == "v" ? "vertex " + std::to_string(nv + 1) + " coordinate "
+                                   : "normal " + std::to_string(nn + 1) + " component ") +
+                            std::string(text::clip(t)) + " is beyond the float range (about +-3.4e38)");
       }
       const Vec3 p(x[0], x[1], x[2]);
       if (kw == "v") {
@@ -237,6 +242,7 @@ StatusOr<bool> ObjReader::next(TriangleBatch& batch) {
     const size_t n = corners_.size();
     poly_pos_.resize(n);
     poly_nrm_.resize(n);
+    bool zero_normal = false;
     for (size_t k = 0; k < n; ++k) {
       const Corner& c = corners_[k];
       // 1-based, or relative to the vertices defined so far (pass 1 checked those).
@@ -251,9 +257,11 @@ StatusOr<bool> ObjReader::next(TriangleBatch& batch) {
         return at(ln, "normal index " + std::to_string(c.vn) + " is out of range (the file has " +
                           std::to_string(nrm_.count) + " normals)");
       poly_nrm_[k] = nrm_.load(uint64_t(ni));
-      if (!unit_normal(poly_nrm_[k]))
-        return at(ln, "normal " + std::to_string(ni + 1) + " has zero length " + vec_text(poly_nrm_[k]));
+      // Pass 1 rejected non-finite normals, so this one has zero length:
+      // replaced per triangle below.
+      if (!unit_normal(poly_nrm_[k])) zero_normal = true;
     }
+    const size_t first = batch.positions.size();
     for (size_t k = 1; k + 1 < n; ++k) {
       batch.positions.push_back(poly_pos_[0]);
       batch.positions.push_back(poly_pos_[k]);
@@ -263,6 +271,10 @@ StatusOr<bool> ObjReader::next(TriangleBatch& batch) {
         batch.normals.push_back(poly_nrm_[k]);
         batch.normals.push_back(poly_nrm_[k + 1]);
       }
+    }
+    if (zero_normal) {
+      for (size_t c = first; c < batch.positions.size(); c += 3)
+        repaired_normals_ += uint64_t(repair_zero_normals(&batch.positions[c], &batch.normals[c]));
     }
     triangles_ += n - 2;
     ++faces_done_;
@@ -275,6 +287,7 @@ StatusOr<bool> ObjReader::next(TriangleBatch& batch) {
   if (batch.size() > 0) return true;
   done_ = true;
   if (triangles_ == 0) return error("empty mesh: no triangles");
+  warn_repaired_normals();
   return false;
 }
 

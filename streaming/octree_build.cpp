@@ -41,7 +41,9 @@
 #include <cerrno>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <cstring>
+#include <limits>
 #include <mutex>
 
 #include <tbb/concurrent_queue.h>
@@ -358,6 +360,18 @@ StatusOr<Scan> scan_pass(MeshReader& reader, size_t ntokens) {
   progress.finish();
   RAYLOD_RETURN_IF_ERROR(s);
   if (scan.triangles == 0) return Status::error(name + ": empty mesh (no triangles)");
+  // Every coordinate is a float, but corners at -3e38 and +3e38 are further
+  // apart than a float can say: the stages after the build subtract positions
+  // in float (Draco's quantisation range among them, which then crashes).
+  const Vec3d ext = scan.bounds.extent();
+  for (int axis = 0; axis < 3; ++axis) {
+    if (ext[axis] > double(std::numeric_limits<float>::max())) {
+      char what[160];
+      std::snprintf(what, sizeof what, ": the mesh spans %g along %c (from %g to %g), more than the float range (about 3.4e38)",
+                    ext[axis], "xyz"[axis], scan.bounds.lo[axis], scan.bounds.hi[axis]);
+      return Status::error(name + what);
+    }
+  }
   return scan;
 }
 

@@ -41,7 +41,7 @@ StatusOr<uint64_t> hash_file(const std::filesystem::path& path) {
 StatusOr<SourceFingerprint> fingerprint_file(const std::filesystem::path& path, bool with_hash) {
   struct stat st {};
   if (::stat(path.c_str(), &st) != 0) return Status::error(path.string() + ": " + std::strerror(errno));
-  if (!S_ISREG(st.st_mode)) return Status::error(path.string() + ": not a regular file");
+  if (!S_ISREG(st.st_mode)) return Status::error(path.string() + ": " + not_regular_file_text(st.st_mode));
   SourceFingerprint fp;
   std::error_code ec;
   auto abs = std::filesystem::weakly_canonical(std::filesystem::absolute(path), ec);

@@ -193,6 +193,7 @@ class FileStore final : public OctreeStore {
   static StatusOr<std::unique_ptr<OctreeStore>> open_file(const std::filesystem::path& path) {
     auto store = std::make_unique<FileStore>();
     store->path_ = path;
+    RAYLOD_RETURN_IF_ERROR(check_regular_file(path));  // a FIFO would block the open
     store->fd_ = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
     if (store->fd_ < 0) return Status::error(path.string() + ": cannot open store: " + std::strerror(errno));
     RAYLOD_RETURN_IF_ERROR(read_header(store->fd_, path, store->header_, store->layout_));
@@ -346,6 +347,7 @@ std::filesystem::path default_store_path(const std::filesystem::path& mesh) {
 }
 
 bool is_store_file(const std::filesystem::path& path) {
+  if (!check_regular_file(path)) return false;
   int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
   if (fd < 0) return false;
   char magic[8];

@@ -40,6 +40,9 @@ struct PlyElement {
   size_t record_size = 0;        // bytes per binary record; 0 if it has a list property
 };
 
+// The vertex properties the reader uses, in coord_prop_ order.
+const char* const kCoordNames[6] = {"x", "y", "z", "nx", "ny", "nz"};
+
 bool parse_scalar_type(std::string_view s, ScalarType& t) {
   struct Name { const char* name; ScalarType type; };
   static const Name names[] = {
@@ -196,17 +199,16 @@ Status PlyReader::check_elements() {
   if (vertex_el_ < 0) return error("the header declares no 'vertex' element");
   if (face_el_ < 0) return error("the header declares no 'face' element (a point cloud is not a mesh)");
   const PlyElement& ve = elements_[vertex_el_];
-  const char* names[6] = {"x", "y", "z", "nx", "ny", "nz"};
   for (size_t k = 0; k < ve.props.size(); ++k) {
     for (int c = 0; c < 6; ++c) {
-      if (ve.props[k].name == names[c] && coord_prop_[c] < 0) {
-        if (ve.props[k].is_list) return error(std::string("vertex property '") + names[c] + "' is a list");
+      if (ve.props[k].name == kCoordNames[c] && coord_prop_[c] < 0) {
+        if (ve.props[k].is_list) return error(std::string("vertex property '") + kCoordNames[c] + "' is a list");
         coord_prop_[c] = int(k);
       }
     }
   }
   for (int c = 0; c < 3; ++c)
-    if (coord_prop_[c] < 0) return error(std::string("the vertex element has no '") + names[c] + "' property");
+    if (coord_prop_[c] < 0) return error(std::string("the vertex element has no '") + kCoordNames[c] + "' property");
   const int normals = (coord_prop_[3] >= 0) + (coord_prop_[4] >= 0) + (coord_prop_[5] >= 0);
   if (normals != 0 && normals != 3) return error("the vertex element has some but not all of nx, ny, nz");
   has_normals_ = normals == 3;
@@ -353,8 +355,14 @@ Status PlyReader::load_ascii() {
           continue;
         }
         for (int c = 0; c < ncoords; ++c) {
-          if (coord_prop_[c] == int(k) && !text::parse_number(t, v[c]))
+          if (coord_prop_[c] != int(k)) continue;
+          const text::FloatParse parsed = text::parse_float(t, v[c]);
+          if (parsed == text::FloatParse::NotANumber)
             return error(ln + "'" + std::string(text::clip(t)) + "' is not a number");
+          if (parsed == text::FloatParse::OutOfRange)
+            return error(ln + "vertex " + std::to_string(r) + (c < 3 ? " coordinate " : " normal component ") +
+                         kCoordNames[c] + " = " + std::string(text::clip(t)) +
+                         " is beyond the float range (about +-3.4e38)");
         }
       }
       if (!tok.done()) return error(ln + "vertex " + std::to_string(r) + " has more values than its header declares");
@@ -410,10 +418,19 @@ Status PlyReader::corner_error(int64_t index, uint64_t face, uint64_t line) cons
   if (index < 0 || uint64_t(index) >= pos_.count)
     return error(at + "vertex index " + std::to_string(index) + " is out of range (the file has " +
                  std::to_string(pos_.count) + " vertices)");
+  const std::string vertex = "vertex " + std::to_string(index);
   const Vec3 p = pos_.load(uint64_t(index));
-  if (!is_finite(p)) return error(at + "vertex " + std::to_string(index) + " has a non-finite coordinate " + vec_text(p));
-  return error(at + "vertex " + std::to_string(index) + " has a zero-length or non-finite normal " +
-               vec_text(nrm_.load(uint64_t(index))));
+  if (!is_finite(p)) {
+    // A double property past the float range loads as inf: say what the file holds.
+    const Vec3d exact = pos_.load_exact(uint64_t(index));
+    if (beyond_float_range(exact))
+      return error(at + vertex + " has a coordinate beyond the float range (about +-3.4e38) " + vec_text(exact));
+    return error(at + vertex + " has a non-finite coordinate " + vec_text(p));
+  }
+  const Vec3d exact = nrm_.load_exact(uint64_t(index));
+  if (beyond_float_range(exact))
+    return error(at + vertex + " has a normal component beyond the float range (about +-3.4e38) " + vec_text(exact));
+  return error(at + vertex + " has a non-finite normal " + vec_text(nrm_.load(uint64_t(index))));
 }
 
 Status PlyReader::emit_polygon(const int64_t* index, size_t n, TriangleBatch& batch, uint64_t face, uint64_t line) {
@@ -421,6 +438,7 @@ Status PlyReader::emit_polygon(const int64_t* index, size_t n, TriangleBatch& ba
     return error(where(face, line) + ": a face has " + std::to_string(n) + " corners; at least 3 are needed");
   poly_pos_.resize(n);
   if (has_normals_) poly_nrm_.resize(n);
+  bool zero_normal = false;
   for (size_t k = 0; k < n; ++k) {
     const int64_t i = index[k];
     if (i < 0 || uint64_t(i) >= pos_.count) return corner_error(i, face, line);
@@ -428,10 +446,14 @@ Status PlyReader::emit_polygon(const int64_t* index, size_t n, TriangleBatch& ba
     if (!is_finite(poly_pos_[k])) return corner_error(i, face, line);
     if (has_normals_) {
       poly_nrm_[k] = nrm_.load(uint64_t(i));
-      if (!unit_normal(poly_nrm_[k])) return corner_error(i, face, line);
+      if (!unit_normal(poly_nrm_[k])) {
+        if (!is_zero(poly_nrm_[k])) return corner_error(i, face, line);
+        zero_normal = true;  // replaced per triangle below
+      }
     }
   }
   // Fan around corner 0: (0, k, k+1).
+  const size_t first = batch.positions.size();
   for (size_t k = 1; k + 1 < n; ++k) {
     batch.positions.push_back(poly_pos_[0]);
     batch.positions.push_back(poly_pos_[k]);
@@ -441,6 +463,10 @@ Status PlyReader::emit_polygon(const int64_t* index, size_t n, TriangleBatch& ba
       batch.normals.push_back(poly_nrm_[k]);
       batch.normals.push_back(poly_nrm_[k + 1]);
     }
+  }
+  if (zero_normal) {
+    for (size_t c = first; c < batch.positions.size(); c += 3)
+      repaired_normals_ += uint64_t(repair_zero_normals(&batch.positions[c], &batch.normals[c]));
   }
   triangles_ += n - 2;
   return Status::ok();
@@ -531,11 +557,17 @@ StatusOr<bool> PlyReader::next_binary_fast(TriangleBatch& batch) {
         }
       }
       if (!ok) {
-        // Rare: non-finite data (an error) or a non-unit normal (normalised).
+        // Rare: non-finite data (an error), a non-unit normal (normalised) or
+        // a zero-length one (replaced by the face normal).
+        bool zero_normal = false;
         for (int k = 0; k < 3; ++k) {
           if (!is_finite(pp[out + size_t(k)])) return fail(corner_error(int64_t(raw[k]), faces_done_, 0));
-          if (kNormals && !unit_normal(np[out + size_t(k)])) return fail(corner_error(int64_t(raw[k]), faces_done_, 0));
+          if (kNormals && !unit_normal(np[out + size_t(k)])) {
+            if (!is_zero(np[out + size_t(k)])) return fail(corner_error(int64_t(raw[k]), faces_done_, 0));
+            zero_normal = true;
+          }
         }
+        if (kNormals && zero_normal) repaired_normals_ += uint64_t(repair_zero_normals(pp + out, np + out));
       }
       out += 3;
       ++triangles_;
@@ -661,6 +693,7 @@ StatusOr<bool> PlyReader::end_of_faces() {
     done_ = true;
     if (encoding_ != PlyEncoding::Ascii) RAYLOD_RETURN_IF_ERROR(finish_binary());
     if (triangles_ == 0) return error("empty mesh: no triangles");
+    warn_repaired_normals();
   }
   return false;
 }

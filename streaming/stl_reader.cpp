@@ -93,9 +93,13 @@ Status StlReader::read_facet(StlCursor& c, bool& in_solid, Vec3 v[3], bool& have
   auto numbers = [&](const char* what, Vec3& out) -> Status {
     for (int k = 0; k < 3; ++k) {
       if (!c.token(t, line)) return error("truncated: the file ends inside a facet (in '" + std::string(what) + "')");
-      if (!text::parse_number(t, out[k]))
+      const text::FloatParse parsed = text::parse_float(t, out[k]);
+      if (parsed == text::FloatParse::NotANumber)
         return error(at(line) + "expected 3 numbers after '" + what + "', found '" +
                      std::string(text::clip(t)) + "'");
+      if (parsed == text::FloatParse::OutOfRange)
+        return error(at(line) + std::string(what) + (k == 0 ? " x" : k == 1 ? " y" : " z") + " = " +
+                     std::string(text::clip(t)) + " is beyond the float range (about +-3.4e38)");
     }
     return Status::ok();
   };

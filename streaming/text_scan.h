@@ -4,6 +4,7 @@
 #pragma once
 
 #include <charconv>
+#include <cmath>
 #include <cstdint>
 #include <cstring>
 #include <string_view>
@@ -80,6 +81,61 @@ inline bool parse_number(std::string_view tok, int64_t& out) {
   if (tok.empty()) return false;
   auto r = std::from_chars(tok.data(), tok.data() + tok.size(), out);
   return r.ec == std::errc() && r.ptr == tok.data() + tok.size();
+}
+
+// Whether a number token that from_chars rejected as out of range overflowed
+// (its decimal exponent is positive, "1e400") rather than underflowed ("1e-400").
+inline bool overflows(std::string_view tok) {
+  size_t i = 0;
+  if (i < tok.size() && (tok[i] == '+' || tok[i] == '-')) ++i;
+  int64_t int_digits = 0, point_zeros = 0;  // significant digits before the point; zeros after it before any
+  bool point = false, significant = false;
+  for (; i < tok.size(); ++i) {
+    const char c = tok[i];
+    if (c == '.') { point = true; continue; }
+    if (c < '0' || c > '9') break;
+    if (!significant && c == '0') { point_zeros += point; continue; }
+    significant = true;
+    int_digits += !point;
+  }
+  int64_t exponent = 0;
+  if (i + 1 < tok.size() && (tok[i] == 'e' || tok[i] == 'E')) {
+    std::string_view e = tok.substr(i + 1);
+    const bool negative = e.front() == '-';
+    if (e.front() == '+' || negative) e.remove_prefix(1);
+    // An exponent past int64 decides on its own.
+    if (std::from_chars(e.data(), e.data() + e.size(), exponent).ec != std::errc()) return !negative;
+    if (negative) exponent = -exponent;
+  }
+  const int64_t magnitude = int_digits > 0 ? int_digits - 1 : -(point_zeros + 1);
+  return magnitude + exponent > 0;
+}
+
+enum class FloatParse { Ok, NotANumber, OutOfRange };
+
+// A float coordinate or normal component. A value that rounds beyond the
+// float range (|x| >= 2^128 - 2^103, about 3.4e38, e.g. "1e39") is
+// OutOfRange, not "not a number": it is a number no float holds. Tiny values
+// round to a subnormal or zero like any float parse. "nan" and "inf" are Ok
+// (the callers report them as non-finite).
+inline FloatParse parse_float(std::string_view tok, float& out) {
+  if (!tok.empty() && tok.front() == '+') tok.remove_prefix(1);
+  if (tok.empty()) return FloatParse::NotANumber;
+  const char* end = tok.data() + tok.size();
+  auto r = std::from_chars(tok.data(), end, out);
+  if (r.ptr != end) return FloatParse::NotANumber;
+  if (r.ec == std::errc()) return FloatParse::Ok;
+  if (r.ec != std::errc::result_out_of_range) return FloatParse::NotANumber;
+  // Over- or underflow of float: a double tells which (and rounds underflow).
+  double d = 0;
+  if (std::from_chars(tok.data(), end, d).ec == std::errc()) {
+    if (!(std::fabs(d) < 0x1.ffffffp+127)) return FloatParse::OutOfRange;
+    out = float(d);
+    return FloatParse::Ok;
+  }
+  if (overflows(tok)) return FloatParse::OutOfRange;
+  out = tok.front() == '-' ? -0.0f : 0.0f;
+  return FloatParse::Ok;
 }
 
 inline bool iequals(std::string_view a, std::string_view b) {

@@ -9,6 +9,7 @@
 #include <cstdio>
 #include <cstdint>
 #include <cstring>
+#include <limits>
 #include <string>
 
 #include "core/math.h"
@@ -66,6 +67,20 @@ inline int64_t load_integer(const uint8_t* p, ScalarType t, bool swap) {
   }
 }
 
+// Floats round to nearest, so a double is representable as a finite float
+// below 2^128 - 2^103 (FLT_MAX plus half an ulp), about 3.4e38.
+constexpr double kFloatRangeLimit = 0x1.ffffffp+127;
+inline bool beyond_float_range(double d) { return std::isfinite(d) && !(std::fabs(d) < kFloatRangeLimit); }
+inline bool beyond_float_range(const Vec3d& v) {
+  return beyond_float_range(v.x) || beyond_float_range(v.y) || beyond_float_range(v.z);
+}
+// A scalar as float; a double beyond the float range becomes +-inf (which the
+// finiteness checks reject) rather than an undefined conversion.
+inline float to_float(double d) {
+  if (beyond_float_range(d)) return d > 0 ? std::numeric_limits<float>::infinity() : -std::numeric_limits<float>::infinity();
+  return float(d);
+}
+
 struct Vec3Table {
   const uint8_t* base = nullptr;
   size_t stride = 0;
@@ -86,11 +101,17 @@ struct Vec3Table {
     if (packed_float) {
       std::memcpy(&v.x, r + offset[0], sizeof(float) * 3);
     } else {
-      v.x = float(load_scalar(r + offset[0], type[0], swap));
-      v.y = float(load_scalar(r + offset[1], type[1], swap));
-      v.z = float(load_scalar(r + offset[2], type[2], swap));
+      v.x = to_float(load_scalar(r + offset[0], type[0], swap));
+      v.y = to_float(load_scalar(r + offset[1], type[1], swap));
+      v.z = to_float(load_scalar(r + offset[2], type[2], swap));
     }
     return v;
+  }
+  // The stored values exactly (for error messages about a record load() rejected).
+  Vec3d load_exact(uint64_t i) const {
+    const uint8_t* r = base + i * stride;
+    return Vec3d(load_scalar(r + offset[0], type[0], swap), load_scalar(r + offset[1], type[1], swap),
+                 load_scalar(r + offset[2], type[2], swap));
   }
 };
 
@@ -107,9 +128,44 @@ inline bool unit_normal(Vec3& n) {
   return true;
 }
 
+inline bool is_zero(const Vec3& n) { return n.x == 0 && n.y == 0 && n.z == 0; }
+
+// Zero-length normals: OpenCASCADE's tessellations (and other CAD exports)
+// store (0, 0, 0) normals, mostly on degenerate triangles, and refusing the
+// whole mesh for them would refuse real CAD data. Each corner of triangle
+// p[0..2] whose normal n[k] is zero gets, in this triangle only, the
+// triangle's unit face normal, turned to agree with the triangle's other
+// normals; if the triangle is degenerate, the normalised sum of its other
+// normals, else +Z. NaN/Inf normals stay errors (the callers reject them).
+// Returns how many corners were replaced.
+inline int repair_zero_normals(const Vec3* p, Vec3* n) {
+  int zero = 0;
+  Vec3d others(0);
+  for (int k = 0; k < 3; ++k) {
+    if (is_zero(n[k])) ++zero;
+    else others += Vec3d(n[k]);
+  }
+  if (zero == 0) return 0;
+  Vec3d f = face_normal(Vec3d(p[0]), Vec3d(p[1]), Vec3d(p[2]));
+  if (f == Vec3d(0)) {
+    const double len = glm::length(others);
+    f = len > 0 ? others / len : Vec3d(0, 0, 1);
+  } else if (glm::dot(f, others) < 0) {
+    f = -f;
+  }
+  for (int k = 0; k < 3; ++k)
+    if (is_zero(n[k])) n[k] = Vec3(f);
+  return zero;
+}
+
 inline std::string vec_text(const Vec3& v) {
   char buf[96];
   std::snprintf(buf, sizeof buf, "(%g, %g, %g)", double(v.x), double(v.y), double(v.z));
+  return buf;
+}
+inline std::string vec_text(const Vec3d& v) {
+  char buf[96];
+  std::snprintf(buf, sizeof buf, "(%g, %g, %g)", v.x, v.y, v.z);
   return buf;
 }
 

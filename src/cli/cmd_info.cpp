@@ -50,8 +50,8 @@ int run_info(int argc, char** argv) {
   }
   if (args.positionals().size() != 1) return fail("info", Status::error("expected one FILE (see raylod info --help)"));
   const std::filesystem::path path = args.positionals()[0];
-  std::error_code ec;
-  if (!std::filesystem::exists(path, ec)) return fail("info", Status::error(path.string() + ": no such file"));
+  // Before anything opens it: the magic checks below would block on a FIFO.
+  if (Status st = check_regular_file(path); !st) return fail("info", st);
 
   // Dispatch by content (store and cut magic) first, then meshes by
   // extension; a new file kind gets its branch here, before the mesh fallback.

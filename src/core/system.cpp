@@ -1,13 +1,16 @@
 #include "core/system.h"
 
 #include <fcntl.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <atomic>
 #include <cctype>
+#include <cerrno>
+#include <charconv>
 #include <cstdio>
 #include <cstdlib>
-#include <cmath>
+#include <cstring>
 #include <fstream>
 #include <random>
 #include <sstream>
@@ -36,24 +39,53 @@ uint64_t physical_memory_bytes() {
 }
 
 StatusOr<uint64_t> parse_size(const std::string& text) {
-  size_t pos = 0;
-  double value = 0;
-  try {
-    value = std::stod(text, &pos);
-  } catch (...) {
-    return Status::error("'" + text + "' is not a size (expected e.g. 512M, 2G)");
-  }
-  std::string unit = text.substr(pos);
+  const std::string quoted = "'" + text + "'";
+  // Digits first: from_chars takes no sign, space, point or exponent, so
+  // "0.5", "1e9", "+1G" and " 1G" stop early or fail and are rejected below
+  // rather than truncated to some other size.
+  uint64_t value = 0;
+  const char* begin = text.data();
+  const char* end = begin + text.size();
+  auto [digits_end, ec] = std::from_chars(begin, end, value);
+  if (digits_end == begin)
+    return Status::error(quoted + " is not a size (expected a whole number of bytes with an optional K, M, G or T suffix, e.g. 512M or 2G)");
+  if (ec == std::errc::result_out_of_range)
+    return Status::error(quoted + " is too large (more than 2^64 - 1 bytes)");
+  std::string unit(digits_end, end);
   for (auto& ch : unit) ch = char(std::toupper(static_cast<unsigned char>(ch)));
-  double scale = 1;
-  if (unit.empty() || unit == "B") scale = 1;
-  else if (unit == "K" || unit == "KB" || unit == "KIB") scale = 1024.0;
-  else if (unit == "M" || unit == "MB" || unit == "MIB") scale = 1024.0 * 1024;
-  else if (unit == "G" || unit == "GB" || unit == "GIB") scale = 1024.0 * 1024 * 1024;
-  else if (unit == "T" || unit == "TB" || unit == "TIB") scale = 1024.0 * 1024 * 1024 * 1024;
-  else return Status::error("'" + text + "': unknown size unit '" + unit + "' (use K, M, G or T)");
-  if (!(value > 0) || !std::isfinite(value)) return Status::error("'" + text + "': size must be positive");
-  return uint64_t(value * scale);
+  int shift = 0;
+  if (unit.empty() || unit == "B") shift = 0;
+  else if (unit == "K" || unit == "KB" || unit == "KIB") shift = 10;
+  else if (unit == "M" || unit == "MB" || unit == "MIB") shift = 20;
+  else if (unit == "G" || unit == "GB" || unit == "GIB") shift = 30;
+  else if (unit == "T" || unit == "TB" || unit == "TIB") shift = 40;
+  else if (!unit.empty() && (unit[0] == '.' || unit[0] == ','))
+    return Status::error(quoted + " is not a whole number of bytes (write e.g. 1536M for 1.5G)");
+  else return Status::error(quoted + ": unknown size unit '" + std::string(digits_end, end) + "' (use K, M, G or T)");
+  if (value == 0) return Status::error(quoted + ": the size must be at least 1 byte");
+  if (value > (UINT64_MAX >> shift)) return Status::error(quoted + " is too large (more than 2^64 - 1 bytes)");
+  return value << shift;
+}
+
+std::string not_regular_file_text(unsigned mode) {
+  if (S_ISREG(mode)) return "";
+  if (S_ISDIR(mode)) return "is a directory, not a regular file";
+  if (S_ISFIFO(mode)) return "is a named pipe (FIFO), not a regular file";
+  if (S_ISCHR(mode)) return "is a character device, not a regular file";
+  if (S_ISBLK(mode)) return "is a block device, not a regular file";
+  if (S_ISSOCK(mode)) return "is a socket, not a regular file";
+  return "is not a regular file";
+}
+
+Status check_regular_file(const std::filesystem::path& path) {
+  struct stat st {};
+  if (::stat(path.c_str(), &st) != 0) {
+    if (errno == ENOENT || errno == ENOTDIR) return Status::error(path.string() + ": no such file");
+    return Status::error(path.string() + ": cannot access: " + std::strerror(errno));
+  }
+  if (const std::string what = not_regular_file_text(st.st_mode); !what.empty())
+    return Status::error(path.string() + ": " + what);
+  return Status::ok();
 }
 
 std::string format_bytes(uint64_t bytes) {

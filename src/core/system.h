@@ -16,10 +16,23 @@ uint64_t current_rss_bytes();
 // Physical memory of the machine in bytes.
 uint64_t physical_memory_bytes();
 
-// Parses "512M", "1G", "1.5GiB", "1000000" (bytes). K/M/G/T are powers of 1024.
+// Parses a size in bytes: a positive whole number with an optional unit,
+// "1000000", "512M", "2G", "1GiB" (B, K, M, G, T and their KB/KiB spellings,
+// any case; powers of 1024). Fractions ("1.5G", "0.5"), signs, exponents, 0
+// and sizes past 2^64 - 1 bytes are errors that quote the text.
 StatusOr<uint64_t> parse_size(const std::string& text);
 // Formats bytes for people: "1.50 GiB".
 std::string format_bytes(uint64_t bytes);
+
+// Checks, without opening it, that path names a regular file (symbolic links
+// followed): opening a FIFO blocks until a writer comes, a device such as
+// /dev/zero never ends, and a directory is not data. The error names the path
+// and what it is instead: "f.ply: is a named pipe (FIFO), not a regular file",
+// "d: is a directory, not a regular file", "m.ply: no such file".
+Status check_regular_file(const std::filesystem::path& path);
+// What a file of this st_mode is, for the messages above: "is a directory,
+// not a regular file", ...; empty for a regular file.
+std::string not_regular_file_text(unsigned mode);
 
 // Output written atomically: write to a temporary sibling, fsync, rename over
 // the destination on commit(). Destroying without commit() removes the

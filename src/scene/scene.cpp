@@ -3,10 +3,12 @@
 #include <fstream>
 #include <map>
 #include <sstream>
+#include <vector>
 
 #include <glm/gtc/matrix_transform.hpp>
 #include <nlohmann/json.hpp>
 
+#include "core/system.h"
 #include "scene/default_scene.h"
 
 namespace raylod {
@@ -76,6 +78,64 @@ struct Parser {
     }
     return {};
   }
+};
+
+// A SAX pass that knows the JSON path of every value, for the one error the
+// DOM parser reports without a place: a number beyond the double range
+// (1e400), which nlohmann reports as out_of_range, not as a parse error.
+class PathTracker final : public json::json_sax_t {
+ public:
+  std::string path = "scene";  // where the parse stopped
+  std::string token;           // the text it stopped at
+  bool null() override { return value(); }
+  bool boolean(bool) override { return value(); }
+  bool number_integer(number_integer_t) override { return value(); }
+  bool number_unsigned(number_unsigned_t) override { return value(); }
+  bool number_float(number_float_t, const string_t&) override { return value(); }
+  bool string(string_t&) override { return value(); }
+  bool binary(binary_t&) override { return value(); }
+  bool start_object(std::size_t) override {
+    value();
+    frames_.push_back({false, -1, ""});
+    return true;
+  }
+  bool key(string_t& k) override {
+    frames_.back().key = k;
+    return true;
+  }
+  bool end_object() override {
+    frames_.pop_back();
+    return true;
+  }
+  bool start_array(std::size_t) override {
+    value();
+    frames_.push_back({true, -1, ""});
+    return true;
+  }
+  bool end_array() override {
+    frames_.pop_back();
+    return true;
+  }
+  bool parse_error(std::size_t, const std::string& last_token, const json::exception&) override {
+    value();  // the value that failed takes the next place in its array
+    std::string p;
+    for (const Frame& f : frames_) p += f.array ? "[" + std::to_string(f.index) + "]" : (p.empty() ? "" : ".") + f.key;
+    if (!p.empty()) path = p;
+    token = last_token;
+    return false;
+  }
+
+ private:
+  struct Frame {
+    bool array;
+    int64_t index;    // arrays: the element being read
+    std::string key;  // objects: the key being read
+  };
+  bool value() {
+    if (!frames_.empty() && frames_.back().array) ++frames_.back().index;
+    return true;
+  }
+  std::vector<Frame> frames_;
 };
 
 Status parse_camera(const Parser& p, const json& j, Camera& cam) {
@@ -185,6 +245,14 @@ StatusOr<Scene> parse_scene(const std::string& text, const std::filesystem::path
     j = json::parse(text);
   } catch (const json::parse_error& e) {
     return Status::error(source_name + ": not valid JSON: " + e.what());
+  } catch (const json::exception& e) {
+    // Valid syntax the parser still cannot hold (id 406: a number such as
+    // 1e400 overflows a double); a second, SAX pass finds where it is.
+    PathTracker where;
+    (void)json::sax_parse(text, &where);
+    if (e.id == 406)
+      return p.fail(where.path, "the number " + where.token + " is out of range (beyond the largest double, about 1.8e308)");
+    return p.fail(where.path, std::string("cannot be read: ") + e.what());
   }
   RAYLOD_RETURN_IF_ERROR(p.known_keys(j, "scene", {"camera", "materials", "objects", "ground", "lights", "background",
                                                   "spp", "max_depth", "seed", "crease_angle", "comment"}));
@@ -221,8 +289,11 @@ StatusOr<Scene> parse_scene(const std::string& text, const std::filesystem::path
     if (jm.is_string()) {
       std::filesystem::path mp = jm.get<std::string>();
       if (mp.is_relative()) mp = base_dir / mp;
-      std::error_code ec;
-      if (!std::filesystem::is_regular_file(mp, ec)) return p.fail(where + ".mesh", "file not found: " + mp.string());
+      if (Status st = check_regular_file(mp); !st) {
+        std::error_code ec;
+        if (!std::filesystem::exists(mp, ec)) return p.fail(where + ".mesh", "file not found: " + mp.string());
+        return p.fail(where + ".mesh", st.message());  // "m.ply: is a named pipe (FIFO), not a regular file"
+      }
       obj.mesh = mp;
     } else if (jm.is_object()) {
       RAYLOD_RETURN_IF_ERROR(p.known_keys(jm, where + ".mesh", {"generate", "triangles"}));
@@ -278,6 +349,7 @@ StatusOr<Scene> parse_scene(const std::string& text, const std::filesystem::path
 }
 
 StatusOr<Scene> load_scene(const std::filesystem::path& path) {
+  if (Status st = check_regular_file(path); !st) return st;  // a FIFO would block the read
   std::ifstream in(path, std::ios::binary);
   if (!in) return Status::error(path.string() + ": cannot open scene file");
   std::stringstream ss;

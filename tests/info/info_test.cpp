@@ -1,12 +1,15 @@
 // `raylod info` end to end: runs the raylod executable on meshes in data/ and
 // on bad files, and checks the output and the exit status.
 #include <gtest/gtest.h>
+#include <sys/stat.h>
 #include <sys/wait.h>
 
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <string>
+#include <utility>
+
 #include "test_tmp.h"
 
 namespace {
@@ -16,9 +19,11 @@ struct CommandResult {
   std::string out;  // stdout and stderr
 };
 
-CommandResult run(const std::string& args) {
+// timeout_s > 0 runs raylod under timeout(1), which exits with 124 if it hangs.
+CommandResult run(const std::string& args, int timeout_s = 0) {
   CommandResult r;
-  const std::string cmd = std::string(RAYLOD_EXE) + " " + args + " 2>&1";
+  const std::string limit = timeout_s > 0 ? "timeout " + std::to_string(timeout_s) + " " : "";
+  const std::string cmd = limit + std::string(RAYLOD_EXE) + " " + args + " 2>&1";
   std::FILE* p = ::popen(cmd.c_str(), "r");
   if (!p) return r;
   char buf[4096];
@@ -32,6 +37,12 @@ CommandResult run(const std::string& args) {
 std::filesystem::path scratch() {
   return raylod::test::scratch_dir("info-test");
 }
+
+// Removes this process's scratch directory after the last test.
+class RemoveScratch : public ::testing::Environment {
+  void TearDown() override { std::filesystem::remove_all(scratch()); }
+};
+const auto* const kRemoveScratch = ::testing::AddGlobalTestEnvironment(new RemoveScratch);
 
 TEST(Info, DescribesABinaryStl) {
   const CommandResult info = run("info " + std::string(RAYLOD_DATA_DIR) + "/abc/abc5.stl");
@@ -77,6 +88,50 @@ TEST(Info, BadFilesFailWithTheFileNamed) {
   EXPECT_NE(r.out.find("unknown mesh format '.txt'"), std::string::npos) << r.out;
   r = run("info");
   EXPECT_EQ(r.status, 1) << r.out;
+}
+
+// A path that is not a regular file fails at once, saying what it is.
+// `timeout` turns a hang (raylod waiting for a writer on the FIFO) into a
+// failure with exit status 124.
+TEST(Info, NotRegularFilesFailAtOnce) {
+  const auto fifo = scratch() / "pipe.ply";
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+  const auto dir = scratch() / "folder.ply";
+  std::filesystem::create_directories(dir);
+  const std::pair<std::string, std::string> cases[] = {
+      {fifo.string(), "pipe.ply: is a named pipe (FIFO), not a regular file"},
+      {dir.string(), "folder.ply: is a directory"},
+      {"/dev/zero", "/dev/zero: is a character device, not a regular file"}};
+  for (const auto& [path, expected] : cases) {
+    const CommandResult r = run("info '" + path + "'", 20);
+    EXPECT_EQ(r.status, 1) << path << "\n" << r.out;
+    EXPECT_NE(r.out.find("raylod info: error: " ), std::string::npos) << r.out;
+    EXPECT_NE(r.out.find(expected), std::string::npos) << r.out;
+  }
+}
+
+TEST(Info, CoordinateBeyondTheFloatRangeIsNamed) {
+  const auto path = scratch() / "huge.ply";
+  std::ofstream(path) << "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+                         "property float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n"
+                         "0 0 0\n1e39 0 0\n0 1 0\n3 0 1 2\n";
+  const CommandResult r = run("info " + path.string());
+  EXPECT_EQ(r.status, 1) << r.out;
+  EXPECT_NE(r.out.find("huge.ply: line 11: vertex 1 coordinate x = 1e39 is beyond the float range"), std::string::npos)
+      << r.out;
+}
+
+TEST(Info, ZeroNormalsAreRepairedWithOneWarning) {
+  const auto path = scratch() / "occ.obj";
+  std::ofstream(path) << "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nvn 0 0 1\nvn 0 0 0\nf 1//1 2//2 3//1\nf 1//2 3//2 4//2\n";
+  const CommandResult r = run("info " + path.string());
+  ASSERT_EQ(r.status, 0) << r.out;
+  EXPECT_NE(r.out.find("triangles:  2\n"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("normals:    yes"), std::string::npos) << r.out;
+  const std::string warning = "raylod: warning: " + path.string() + ": 4 triangle corners had a zero-length normal";
+  const size_t at = r.out.find(warning);
+  ASSERT_NE(at, std::string::npos) << r.out;
+  EXPECT_EQ(r.out.find("warning", at + warning.size()), std::string::npos) << r.out;
 }
 
 TEST(Info, Help) {

@@ -80,6 +80,7 @@ TEST(Scene, RelativeMeshPathResolvesAgainstSceneFile) {
   auto scene = load_scene(dir / "s.json");
   ASSERT_TRUE(scene.is_ok()) << scene.status().message();
   EXPECT_EQ(fs::canonical(scene->objects[0].mesh), fs::canonical(dir / "m.ply"));
+  fs::remove_all(temp_dir());
 }
 
 struct BadCase {
@@ -122,7 +123,14 @@ INSTANTIATE_TEST_SUITE_P(
         BadCase{"zero_direction", "[0, -2, 0]", "[0, 0, 0]", "must not be zero"},
         BadCase{"singular_transform", "\"scale\": 2", "\"scale\": 0", "singular"},
         BadCase{"spp_range", "\"spp\": 2", "\"spp\": 0", "spp"},
-        BadCase{"generator", "\"generate\": \"teapot\"", "\"generate\": \"cow\"", "'cow'"}),
+        BadCase{"generator", "\"generate\": \"teapot\"", "\"generate\": \"cow\"", "'cow'"},
+        // Numbers past the double range: the file and the JSON path, not "internal error".
+        BadCase{"number_overflow", "\"scale\": 2", "\"scale\": 1e400",
+                "bad.json: objects[0].transform.scale: the number 1e400 is out of range"},
+        BadCase{"number_overflow_in_array", "\"translate\": [1, 2, 3]", "\"translate\": [1, -1e999, 3]",
+                "bad.json: objects[0].transform.translate[1]: the number -1e999 is out of range"},
+        BadCase{"number_overflow_in_material", "\"ior\": 1.5", "\"ior\": 2e308", "materials.glass.ior: the number 2e308"},
+        BadCase{"number_overflow_at_top_level", "\"seed\": 7", "\"seed\": 1E+400", "bad.json: seed: the number 1E+400"}),
     [](const auto& info) { return std::string(info.param.name); });
 
 TEST(Scene, MissingFileIsAnError) {

@@ -127,11 +127,17 @@ TEST(ObjReaderErrors, MalformedStatements) {
   EXPECT_READ_ERROR(write_file("bin.obj", std::string("v 0 0 0\0\1\2", 10)), "contains binary data");
 }
 
-TEST(ObjReaderErrors, NonFiniteCoordinatesAndZeroNormals) {
+TEST(ObjReaderErrors, NonFiniteCoordinatesAndNormals) {
   EXPECT_READ_ERROR(write_file("nan.obj", "v 0 0 0\nv nan 0 0\nv 0 1 0\nf 1 2 3\n"), "line 2: vertex 2 has a non-finite coordinate");
   EXPECT_READ_ERROR(write_file("inf.obj", "v 0 0 0\nv 1 0 0\nv 0 1 -inf\nf 1 2 3\n"), "line 3: vertex 3 has a non-finite coordinate");
   EXPECT_READ_ERROR(write_file("nann.obj", kSquare + "vn nan 0 1\nf 1//1 2//1 3//1\n"), "line 5: normal 1 is not finite");
-  EXPECT_READ_ERROR(write_file("zeron.obj", kSquare + "vn 0 0 1\nvn 0 0 0\nf 1//1 2//2 3//1\n"), "line 7: normal 2 has zero length");
+}
+
+// A zero-length normal is replaced by the face normal (see zero_normal_test.cpp).
+TEST(ObjReader, ZeroLengthNormalGetsTheFaceNormal) {
+  auto r = read_all(write_file("zeron.obj", kSquare + "vn 0 0 1\nvn 0 0 0\nf 1//1 2//2 3//1\n"));
+  ASSERT_TRUE(r.status.is_ok()) << r.status.message();
+  EXPECT_EQ(r.normals, std::vector<Vec3>(3, Vec3(0, 0, 1)));
 }
 
 TEST(ObjReaderErrors, WrongExtensionForContent) {

@@ -20,17 +20,33 @@
 
 namespace raylod::test {
 
-inline std::filesystem::path scratch_dir() {
+// The scratch directory of one test (not created).
+inline std::filesystem::path scratch_dir_of(const ::testing::TestInfo* info) {
   const char* env = std::getenv("RAYLOD_TEST_TMP");
   std::filesystem::path root = env && *env ? std::filesystem::path(env) : std::filesystem::path(::testing::TempDir());
-  const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
   std::string name = "streaming-" + std::to_string(::getpid());
   if (info) name += std::string("-") + info->test_suite_name() + "-" + info->name();
   for (char& c : name) if (c == '/') c = '_';
-  std::filesystem::path dir = root / name;
+  return root / name;
+}
+
+// The running test's scratch directory, created on first use and removed
+// when the test ends (by the listener below), pass or fail.
+inline std::filesystem::path scratch_dir() {
+  std::filesystem::path dir = scratch_dir_of(::testing::UnitTest::GetInstance()->current_test_info());
   std::filesystem::create_directories(dir);
   return dir;
 }
+
+class RemoveScratchDir : public ::testing::EmptyTestEventListener {
+  void OnTestEnd(const ::testing::TestInfo& info) override {
+    std::error_code ec;
+    std::filesystem::remove_all(scratch_dir_of(&info), ec);
+  }
+};
+// Registered once per test program, before main() runs the tests (gtest owns the listener).
+inline const bool kRemoveScratchDirRegistered =
+    (::testing::UnitTest::GetInstance()->listeners().Append(new RemoveScratchDir), true);
 
 inline std::filesystem::path write_file(const std::string& name, const std::string& bytes) {
   std::filesystem::path p = scratch_dir() / name;

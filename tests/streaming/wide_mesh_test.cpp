@@ -1,0 +1,59 @@
+// A mesh whose coordinates are each floats but whose extent is not (corners
+// at -3e38 and +3e38): the store build rejects it while it reads the mesh,
+// naming the file and the axis, and the Draco writer refuses it instead of
+// crashing in the encoder. Nothing is written either way.
+#include <gtest/gtest.h>
+
+#include "core/progress.h"
+#include "reader_test_util.h"
+#include "streaming/draco_io.h"
+#include "streaming/octree_store.h"
+
+namespace raylod {
+namespace {
+
+namespace fs = std::filesystem;
+using test::Bytes;
+using test::write_file;
+
+TEST(WideMesh, StoreBuildRejectsAMeshWiderThanTheFloatRange) {
+  Progress::set_enabled(false);
+  Bytes b;
+  b.text("ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty double x\nproperty double y\n"
+         "property double z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n");
+  for (double c : {-3e38, 0.0, 0.0, 3e38, 0.0, 0.0, 0.0, 1.0, 0.0}) b.put<double>(c);
+  b.put<uint8_t>(3).put<int32_t>(0).put<int32_t>(1).put<int32_t>(2);
+  const fs::path mesh = write_file("wide.ply", b.data);
+  // Each coordinate reads fine: the reader is not what rejects it.
+  ASSERT_TRUE(test::read_all(mesh).status.is_ok());
+  const fs::path store = test::scratch_dir() / "wide.raylod";
+  auto built = build_store(mesh, store, StoreOptions{});
+  ASSERT_FALSE(built.is_ok());
+  const std::string msg = built.status().message();
+  EXPECT_NE(msg.find("wide.ply: the mesh spans 6e+38 along x (from -3e+38 to 3e+38), more than the float range"),
+            std::string::npos) << msg;
+  for (const auto& entry : fs::directory_iterator(test::scratch_dir()))
+    EXPECT_EQ(entry.path(), mesh) << "left behind: " << entry.path();
+}
+
+TEST(WideMesh, DracoWriterRefusesInsteadOfCrashing) {
+  IndexedMesh m;
+  m.positions = {{-3e38f, 0, 0}, {3e38f, 0, 0}, {0, 1, 0}};
+  m.indices = {0, 1, 2};
+  const fs::path out = test::scratch_dir() / "wide.drc";
+  auto written = write_draco(out, m, DracoOptions{});
+  ASSERT_FALSE(written.is_ok());
+  EXPECT_NE(written.status().message().find("wide.drc: the mesh spans 6e+38, more than the float range"),
+            std::string::npos) << written.status().message();
+  EXPECT_TRUE(fs::is_empty(test::scratch_dir()));
+  // Just inside the range it still encodes.
+  m.positions = {{-1.5e38f, 0, 0}, {1.5e38f, 0, 0}, {0, 1e38f, 0}};
+  written = write_draco(out, m, DracoOptions{});
+  ASSERT_TRUE(written.is_ok()) << written.status().message();
+  auto back = read_draco(out);
+  ASSERT_TRUE(back.is_ok()) << back.status().message();
+  EXPECT_EQ(back->triangle_count(), 1u);
+}
+
+}  // namespace
+}  // namespace raylod
