@@ -512,7 +512,9 @@ TEST(ProbeDeviation, CurvedCellsKeepTheirDeviationBelowTheTolerance) {
     // A smaller tolerance never gives a coarser mesh.
     uint64_t corners = 0;
     for (const CollapsedCell& c : cut.cells) corners += b.store->find(c.key)->corner_count;
-    if (previous) EXPECT_LE(corners, previous) << "tolerance " << tol;
+    if (previous) {
+      EXPECT_LE(corners, previous) << "tolerance " << tol;
+    }
     previous = corners;
   }
 }

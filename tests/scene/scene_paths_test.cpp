@@ -2,6 +2,8 @@
 // files: the error says what the path really is (a directory, a named pipe)
 // instead of "file not found", and a named pipe never blocks the load.
 #include <gtest/gtest.h>
+
+#include "fifo_guard.h"
 #include <fcntl.h>
 #include <sys/stat.h>
 #include <unistd.h>
@@ -40,20 +42,7 @@ class ScenePaths : public ::testing::Test {
   fs::path dir_;
 };
 
-// Runs f, which may open `fifo` for reading; if it is still blocked after
-// 10 s the test fails and the FIFO is opened for writing until f returns.
-template <class F>
-auto without_blocking(const fs::path& fifo, F f) {
-  auto result = std::async(std::launch::async, f);
-  if (result.wait_for(10s) == std::future_status::timeout) {
-    ADD_FAILURE() << "blocked on the named pipe " << fifo;
-    while (result.wait_for(100ms) == std::future_status::timeout) {
-      const int fd = ::open(fifo.c_str(), O_WRONLY | O_NONBLOCK);
-      if (fd >= 0) ::close(fd);
-    }
-  }
-  return result.get();
-}
+using test::without_blocking;
 
 TEST_F(ScenePaths, MeshThatIsADirectory) {
   fs::create_directories(dir_ / "parts.ply");

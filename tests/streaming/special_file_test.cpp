@@ -2,6 +2,8 @@
 // device) fail at once with what they are, instead of blocking on the open
 // (a FIFO waits for a writer) or reading forever (/dev/zero).
 #include <gtest/gtest.h>
+
+#include "fifo_guard.h"
 #include <fcntl.h>
 #include <sys/stat.h>
 #include <unistd.h>
@@ -26,21 +28,7 @@ fs::path make_fifo(const std::string& name) {
   return p;
 }
 
-// Runs f, which may open `fifo` for reading. If it is still blocked after
-// 10 s the test fails, and the FIFO is opened for writing (and closed) until
-// f returns, so that a regression fails the test instead of hanging it.
-template <class F>
-auto without_blocking(const fs::path& fifo, F f) {
-  auto result = std::async(std::launch::async, f);
-  if (result.wait_for(10s) == std::future_status::timeout) {
-    ADD_FAILURE() << "blocked on the named pipe " << fifo;
-    while (result.wait_for(100ms) == std::future_status::timeout) {
-      const int fd = ::open(fifo.c_str(), O_WRONLY | O_NONBLOCK);
-      if (fd >= 0) ::close(fd);
-    }
-  }
-  return result.get();
-}
+using test::without_blocking;
 
 TEST(SpecialFile, OpenMeshOnANamedPipeFailsAtOnce) {
   for (const char* name : {"pipe.ply", "pipe.obj", "pipe.stl", "pipe.drc"}) {
