@@ -109,12 +109,33 @@ std::string label_number(double v) {
 
 std::string mib(uint64_t bytes) { return fmt("%.1f", double(bytes) / (1024.0 * 1024.0)); }
 
-nlohmann::json row_json(const ReportRow& r) {
-  return {{"scene", r.scene}, {"method", r.method}, {"footprint_scale", r.footprint_scale}, {"rays", r.rays},
+// 999 stands for an infinite PSNR (identical images), which JSON cannot hold.
+double psnr_for_json(double psnr) { return std::isfinite(psnr) ? psnr : 999.0; }
+
+nlohmann::json row_json(const ReportRow& r, const NoiseFloor* floor) {
+  nlohmann::json j = {{"scene", r.scene}, {"method", r.method}, {"footprint_scale", r.footprint_scale}, {"rays", r.rays},
           {"triangles", r.triangles}, {"probe_seconds", r.probe_s}, {"simplify_seconds", r.simplify_s},
           {"render_seconds", r.render_s}, {"total_seconds", r.total_s}, {"drc_bytes", r.drc_bytes},
-          {"memory_bytes", r.memory_bytes}, {"psnr", std::isfinite(r.error.psnr) ? r.error.psnr : 999.0},
+          {"memory_bytes", r.memory_bytes}, {"psnr", psnr_for_json(r.error.psnr)},
           {"ssim", r.error.ssim}, {"max_diff", r.error.max_diff}, {"image", r.image}, {"diff_image", r.diff_image}};
+  if (floor && r.method != "full mesh") j["within_noise_floor"] = within_noise_floor(r.error, *floor);
+  return j;
+}
+
+const NoiseFloor* find_floor(const std::vector<ReportView>& views, const std::string& scene) {
+  for (const auto& v : views)
+    if (v.scene == scene) return &v.noise_floor;
+  return nullptr;
+}
+
+// The table's "vs noise floor" cell: how far a row's PSNR is below the
+// view's floor, or that it is not.
+std::string against_floor_cell(const ReportRow& r, const NoiseFloor* floor) {
+  if (r.method == "full mesh") return "reference";
+  if (!floor) return "";
+  if (within_noise_floor(r.error, *floor)) return "indistinguishable";
+  if (!std::isfinite(floor->psnr())) return "differs (floor: identical)";
+  return fmt("%.2f dB below", floor->psnr() - r.error.psnr);
 }
 
 const ReportRow* find_row(const std::vector<ReportRow>& rows, const std::string& scene, const std::string& method,
@@ -141,7 +162,14 @@ Status write_report_files(const ReportResult& result, const ReportConfig& cfg, c
   j["default_rays"] = cfg.default_rays;
   j["baseline_load_seconds"] = load_seconds;
   j["rows"] = nlohmann::json::array();
-  for (const auto& r : result.rows) j["rows"].push_back(row_json(r));
+  for (const auto& r : result.rows) j["rows"].push_back(row_json(r, find_floor(result.views, r.scene)));
+  j["noise_floors"] = nlohmann::json::array();
+  for (const auto& v : result.views) {
+    const NoiseFloor& f = v.noise_floor;
+    j["noise_floors"].push_back({{"scene", v.scene}, {"seed", f.seed}, {"other_seed", noise_floor_seed(f.seed)},
+                                 {"spp", f.spp}, {"psnr", psnr_for_json(f.psnr())}, {"ssim", f.error.ssim},
+                                 {"max_diff", f.error.max_diff}, {"render_seconds", f.render_seconds}});
+  }
   RAYLOD_RETURN_IF_ERROR(write_file_atomic(cfg.out_dir / "report.json", j.dump(2) + "\n"));
 
   std::ostringstream md;
@@ -156,6 +184,10 @@ Status write_report_files(const ReportResult& result, const ReportConfig& cfg, c
         "the renderer holds; for the baselines, the loaded mesh plus the simplifier's peak allocations.\n\n";
   md << "The default footprint scale is K = " << label_number(cfg.default_scale) << " with " << cfg.default_rays
      << " test rays.\n\n";
+  md << "Each view's noise floor is the error of the full mesh rendered at the next seed (same samples per pixel) "
+        "against the reference: the difference sampling alone makes. A row whose PSNR is at or above the floor is "
+        "\"indistinguishable\" from the full mesh at this sample count; otherwise the table says how many dB below "
+        "the floor it is.\n\n";
 
   std::vector<std::string> scenes;
   for (const auto& r : result.rows)
@@ -163,10 +195,17 @@ Status write_report_files(const ReportResult& result, const ReportConfig& cfg, c
 
   for (const auto& scene : scenes) {
     const std::string tag = slug(scene);
+    const NoiseFloor* floor = find_floor(result.views, scene);
     md << "## " << scene << " view\n\n";
+    if (floor) {
+      md << "Noise floor: PSNR " << (std::isfinite(floor->psnr()) ? fmt("%.2f dB", floor->psnr()) : "infinite")
+         << ", SSIM " << fmt("%.4f", floor->error.ssim) << ", max diff " << fmt("%.3f", floor->error.max_diff)
+         << " (full mesh at seed " << noise_floor_seed(floor->seed) << " against the reference at seed " << floor->seed
+         << ", " << floor->spp << " spp).\n\n";
+    }
     md << "| method | K | test rays | triangles | probe s | simplify s | render s | total s | .drc MiB | memory MiB "
-          "| PSNR dB | SSIM | max diff |\n";
-    md << "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n";
+          "| PSNR dB | SSIM | max diff | vs noise floor |\n";
+    md << "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|\n";
     for (const auto& r : result.rows) {
       if (r.scene != scene) continue;
       const bool ray = r.method == "raylod";
@@ -175,7 +214,8 @@ Status write_report_files(const ReportResult& result, const ReportConfig& cfg, c
          << " | " << (r.method == "full mesh" ? "" : fmt("%.2f", r.simplify_s)) << " | " << fmt("%.2f", r.render_s)
          << " | " << fmt("%.2f", r.total_s) << " | " << (ray ? mib(r.drc_bytes) : "") << " | " << mib(r.memory_bytes)
          << " | " << (std::isfinite(r.error.psnr) ? fmt("%.2f", r.error.psnr) : "reference") << " | "
-         << fmt("%.4f", r.error.ssim) << " | " << fmt("%.3f", r.error.max_diff) << " |\n";
+         << fmt("%.4f", r.error.ssim) << " | " << fmt("%.3f", r.error.max_diff) << " | "
+         << against_floor_cell(r, floor) << " |\n";
     }
     md << "\n";
 
@@ -190,7 +230,8 @@ Status write_report_files(const ReportResult& result, const ReportConfig& cfg, c
       const ReportRow* vc = find_row(result.rows, scene, "vertex clustering", def->triangles);
       const ReportRow* ec = find_row(result.rows, scene, "edge collapse", def->triangles);
       md << "At the default settings: " << fmt("%.1f", double(full->triangles) / std::max<uint64_t>(def->triangles, 1))
-         << "x fewer triangles than the input, PSNR " << fmt("%.2f dB", def->error.psnr) << "; probe + simplify + "
+         << "x fewer triangles than the input, PSNR " << fmt("%.2f dB", def->error.psnr)
+         << (floor ? " (" + describe_against_noise_floor(def->error, *floor) + ")" : std::string()) << "; probe + simplify + "
          << "render " << fmt("%.2f s", def->total_s) << " against " << fmt("%.2f s", full->total_s)
          << " to render the full mesh (load and BVH included).";
       if (vc)
@@ -230,6 +271,14 @@ Status write_report_files(const ReportResult& result, const ReportConfig& cfg, c
     by_x(k_sweep); by_x(ray_sweep); by_x(vc); by_x(ec);
     for (auto* s : {&k_sweep, &ray_sweep, &vc, &ec})
       if (!s->points.empty()) series.push_back(*s);
+    // The noise floor as a horizontal line across the measured times.
+    if (!series.empty() && floor && std::isfinite(floor->psnr())) {
+      double x0 = INFINITY, x1 = -INFINITY;
+      for (const auto& s : series)
+        for (const auto& p : s.points) { x0 = std::min(x0, p.first); x1 = std::max(x1, p.first); }
+      series.push_back({"noise floor (full mesh, next seed)", {0.45f, 0.45f, 0.45f},
+                        {{x0, floor->psnr()}, {x1, floor->psnr()}}});
+    }
     if (!series.empty()) {
       PlotConfig pc;
       pc.title = scene + " view: image error against time (full mesh: " + fmt("%.1f s", full ? full->total_s : 0) + ")";
@@ -309,7 +358,9 @@ StatusOr<ReportResult> run_report(const Scene& input_scene, const std::optional<
   for (const auto& run : runs) {
     const std::string tag = slug(run.label);
     // Reference: the full-resolution mesh, rendered the same way.
-    RAYLOD_ASSIGN_OR_RETURN(RenderResult reference, render(run.scene, ro));
+    RAYLOD_ASSIGN_OR_RETURN(FullRender full, render_full_with_noise_floor(run.scene, ro));
+    const RenderResult& reference = full.reference;
+    result.views.push_back({run.label, full.noise_floor});
     const RenderStats& rs = reference.stats;
     ReportRow ref;
     ref.scene = run.label;
@@ -323,7 +374,9 @@ StatusOr<ReportResult> run_report(const Scene& input_scene, const std::optional<
     ref.image = tag + "-reference.png";
     RAYLOD_RETURN_IF_ERROR(write_image(cfg.out_dir / ref.image, reference.color));
     result.rows.push_back(ref);
-    say(run.label + ": reference render " + fmt("%.2f s", ref.render_s));
+    say(run.label + ": reference render " + fmt("%.2f s", ref.render_s) + "; noise floor (seed " +
+        std::to_string(noise_floor_seed(full.noise_floor.seed)) + " against " + std::to_string(full.noise_floor.seed) +
+        ") PSNR " + fmt("%.2f dB", full.noise_floor.psnr()) + ", SSIM " + fmt("%.4f", full.noise_floor.error.ssim));
 
     // raylod: the K sweep at the default ray count, then the ray sweep at the default K.
     std::vector<std::pair<double, uint64_t>> variants;
@@ -375,8 +428,8 @@ StatusOr<ReportResult> run_report(const Scene& input_scene, const std::optional<
       }
       if (n == cfg.default_rays) targets.push_back(row.triangles);
       say(run.label + ": raylod K=" + label_number(k) + " rays=" + std::to_string(n) + ": " +
-          std::to_string(row.triangles) + " triangles, PSNR " + fmt("%.2f dB", row.error.psnr) + ", total " +
-          fmt("%.2f s", row.total_s));
+          std::to_string(row.triangles) + " triangles, PSNR " + fmt("%.2f dB", row.error.psnr) + " (" +
+          describe_against_noise_floor(row.error, full.noise_floor) + "), total " + fmt("%.2f s", row.total_s));
       result.rows.push_back(row);
     }
 
@@ -407,7 +460,7 @@ StatusOr<ReportResult> run_report(const Scene& input_scene, const std::optional<
           RAYLOD_RETURN_IF_ERROR(write_image(cfg.out_dir / row.image, img.color));
           RAYLOD_RETURN_IF_ERROR(write_image(cfg.out_dir / row.diff_image, difference_image(img.color, reference.color)));
           say(run.label + ": " + row.method + " " + std::to_string(row.triangles) + " triangles, PSNR " +
-              fmt("%.2f dB", row.error.psnr));
+              fmt("%.2f dB", row.error.psnr) + " (" + describe_against_noise_floor(row.error, full.noise_floor) + ")");
           result.rows.push_back(row);
         }
       }

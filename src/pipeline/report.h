@@ -2,7 +2,8 @@
 // Table 1 and Figure 4). For each scene: a reference render of the full
 // mesh; raylod at a sweep of footprint scales K and test-ray counts; and the
 // two uniform baselines (baselines.h) at the same triangle counts, all
-// rendered the same way and compared with the reference.
+// rendered the same way and compared with the reference. Each view also gets
+// its noise floor (noise_floor.h): the errors are read against it.
 #pragma once
 
 #include <cstdint>
@@ -13,6 +14,7 @@
 
 #include "core/status.h"
 #include "pipeline/image_compare.h"
+#include "pipeline/noise_floor.h"
 #include "pipeline/pipeline.h"
 #include "scene/scene.h"
 
@@ -49,8 +51,15 @@ struct ReportRow {
   std::string diff_image;
 };
 
+// A view of the report ("default", "close-up") and its noise floor.
+struct ReportView {
+  std::string scene;
+  NoiseFloor noise_floor;
+};
+
 struct ReportResult {
   std::vector<ReportRow> rows;
+  std::vector<ReportView> views;
   std::filesystem::path markdown, plot;
 };
 

@@ -7,23 +7,36 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <sstream>
 
 #include <nlohmann/json.hpp>
+
+#include "test_tmp.h"
 
 namespace {
 
 namespace fs = std::filesystem;
 
+// This process's scratch directory, removed when the tests end.
 fs::path work_dir() {
   static fs::path d = [] {
-    fs::path p = fs::temp_directory_path() / ("raylod-run-test-" + std::to_string(::getpid()));
+    fs::path p = raylod::test::scratch_dir("run-report");
     fs::remove_all(p);
     fs::create_directories(p);
     return p;
   }();
   return d;
 }
+
+class RemoveWorkDir : public ::testing::Environment {
+ public:
+  void TearDown() override {
+    std::error_code ec;
+    fs::remove_all(work_dir(), ec);
+  }
+};
+[[maybe_unused]] const auto* const kRemoveWorkDir = ::testing::AddGlobalTestEnvironment(new RemoveWorkDir);
 
 std::string read(const fs::path& p) {
   std::ifstream in(p);
@@ -166,6 +179,29 @@ TEST(Run, SameImageAndMeshOnOneOrTwoThreads) {
   EXPECT_EQ(read(work_dir() / "threads1.png"), read(work_dir() / "threads2.png"));
 }
 
+TEST(Run, CompareReportsTheNoiseFloor) {
+  fs::path scene = write_scene("compare.json", 1.0);
+  std::string out;
+  ASSERT_EQ(raylod("run '" + scene.string() + "' --no-cache --rays 500 --footprint-scale 4 --compare -o '" +
+                   (work_dir() / "cmp.png").string() + "' --stats-json '" + (work_dir() / "cmp.json").string() + "'",
+                   &out), 0) << out;
+  auto j = stats(work_dir() / "cmp.json");
+  ASSERT_TRUE(j.contains("noise_floor")) << j.dump(2);
+  const auto& floor = j["noise_floor"];
+  // The scene's seed is 3 and its spp 1: the floor is seed 4 against seed 3.
+  EXPECT_EQ(floor["seed"].get<uint64_t>(), 3u);
+  EXPECT_EQ(floor["other_seed"].get<uint64_t>(), 4u);
+  EXPECT_EQ(floor["spp"].get<int>(), 1);
+  ASSERT_TRUE(floor["psnr"].is_number()) << floor.dump();  // one jittered sample per pixel: seeds differ
+  ASSERT_TRUE(j["psnr"].is_number()) << j.dump(2);
+  const bool within = j["psnr"].get<double>() >= floor["psnr"].get<double>();
+  EXPECT_EQ(j["within_noise_floor"].get<bool>(), within) << j.dump(2);
+  EXPECT_NE(out.find("noise floor"), std::string::npos) << out;
+  EXPECT_NE(out.find(within ? ": indistinguishable" : "below the noise floor of"), std::string::npos) << out;
+  EXPECT_TRUE(fs::exists(work_dir() / "cmp.full.png"));
+  EXPECT_TRUE(fs::exists(work_dir() / "cmp.diff.png"));
+}
+
 TEST(Run, BadSceneIsAClearError) {
   fs::path bad = work_dir() / "bad.json";
   std::ofstream(bad) << "{\"camera\": 3}";
@@ -188,15 +224,32 @@ TEST(Report, QuickWritesMarkdownPlotAndPictures) {
                         "default-reference.png", "report.json"})
     EXPECT_TRUE(fs::exists(dir / f)) << f;
   auto j = nlohmann::json::parse(read(dir / "report.json"));
+  // A noise floor per view, printed before each table and judged per row.
+  EXPECT_NE(md.find("Noise floor: PSNR"), std::string::npos) << md;
+  EXPECT_NE(md.find("| vs noise floor |"), std::string::npos) << md;
+  ASSERT_EQ(j["noise_floors"].size(), 2u) << j.dump(2);
+  std::map<std::string, double> floors;
+  for (const auto& f : j["noise_floors"]) {
+    EXPECT_EQ(f["other_seed"].get<uint64_t>(), f["seed"].get<uint64_t>() + 1);
+    floors[f["scene"].get<std::string>()] = f["psnr"].get<double>();
+  }
+  EXPECT_EQ(floors.count("default"), 1u);
+  EXPECT_EQ(floors.count("close-up"), 1u);
   // Every simplified row has a measured, finite error (999 stands for an
-  // identical image, which a real simplification of the default view is not).
-  for (const auto& row : j["rows"])
-    if (row["method"] != "full mesh") {
-      EXPECT_GT(row["psnr"].get<double>(), 10.0) << row.dump();
-      EXPECT_GT(row["triangles"].get<uint64_t>(), 0u) << row.dump();
-      EXPECT_LT(row["triangles"].get<uint64_t>(), j["triangles"].get<uint64_t>()) << row.dump();
-      if (row["scene"] == "default") EXPECT_LT(row["psnr"].get<double>(), 999.0) << row.dump();
+  // identical image, which a real simplification of the default view is not)
+  // and is judged against its view's floor.
+  for (const auto& row : j["rows"]) {
+    if (row["method"] == "full mesh") continue;
+    EXPECT_GT(row["psnr"].get<double>(), 10.0) << row.dump();
+    EXPECT_GT(row["triangles"].get<uint64_t>(), 0u) << row.dump();
+    EXPECT_LT(row["triangles"].get<uint64_t>(), j["triangles"].get<uint64_t>()) << row.dump();
+    if (row["scene"] == "default") {
+      EXPECT_LT(row["psnr"].get<double>(), 999.0) << row.dump();
     }
+    EXPECT_EQ(row["within_noise_floor"].get<bool>(),
+              row["psnr"].get<double>() >= floors[row["scene"].get<std::string>()])
+        << row.dump();
+  }
 }
 
 }  // namespace
