@@ -7,9 +7,11 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <fstream>
 #include <mutex>
 #include <optional>
 
+#include <OpenImageIO/filesystem.h>
 #include <OpenImageIO/imageio.h>
 #include <nlohmann/json.hpp>
 #include <tbb/blocked_range.h>
@@ -58,22 +60,55 @@ bool is_float_format(const std::filesystem::path& path) {
 }
 
 // Writes raw pixel data of the given type through OIIO to a temporary name,
-// then renames it into place.
+// reads it back, then renames it into place. Some writers (libpng's, on a
+// full disk) report success for a truncated file, so a file is kept only if
+// it decodes to the image that was written; on any failure the temporary is
+// removed and the destination left as it was.
 Status write_pixels(const std::filesystem::path& path, const OIIO::ImageSpec& spec, const void* data,
                     OIIO::TypeDesc type) {
-  // The writer is chosen from the destination's name; the temporary name
-  // ("out.png.tmp-...") is then only the file it writes to.
-  auto out = OIIO::ImageOutput::create(path.string());
-  if (!out) return Status::error(path.string() + ": cannot write images of this type (" + OIIO::geterror() + ")");
+  // Declared first so that it outlives the writer: a writer that still holds
+  // the temporary open closes it before the temporary is removed.
   AtomicOutput atomic(path);
-  // No timestamp in the file (an empty DateTime stops the EXR writer from
-  // adding one): the same render gives the same bytes.
-  OIIO::ImageSpec stamped = spec;
-  stamped.attribute("DateTime", "");
-  if (!out->open(atomic.temp_path().string(), stamped))
-    return Status::error(path.string() + ": cannot open for writing: " + out->geterror());
-  if (!out->write_image(type, data)) return Status::error(path.string() + ": write failed: " + out->geterror());
-  if (!out->close()) return Status::error(path.string() + ": write failed: " + out->geterror());
+  {
+    // The writer is chosen from the destination's name; the temporary name
+    // ("out.png.tmp-...") is then only the file it writes to.
+    auto out = OIIO::ImageOutput::create(path.string());
+    if (!out) return Status::error(path.string() + ": cannot write images of this type (" + OIIO::geterror() + ")");
+    // No timestamp in the file (an empty DateTime stops the EXR writer from
+    // adding one): the same render gives the same bytes.
+    OIIO::ImageSpec stamped = spec;
+    stamped.attribute("DateTime", "");
+    // Writers that can encode into memory do (libjpeg's, for one, ends the
+    // process on a failed file write); the bytes are then written here,
+    // where every write is checked.
+    std::vector<unsigned char> encoded;
+    OIIO::Filesystem::IOVecOutput memory(encoded);
+    const bool in_memory = out->supports("ioproxy") && out->set_ioproxy(&memory);
+    if (!out->open(atomic.temp_path().string(), stamped))
+      return Status::error(path.string() + ": cannot open for writing: " + out->geterror());
+    const bool wrote = out->write_image(type, data);
+    const bool closed = out->close();
+    if (!wrote || !closed)
+      return Status::error(path.string() + ": write failed (disk full?): " + out->geterror());
+    if (in_memory) {
+      std::ofstream f(atomic.temp_path(), std::ios::binary | std::ios::trunc);
+      f.write(reinterpret_cast<const char*>(encoded.data()), std::streamsize(encoded.size()));
+      f.flush();
+      if (!f) return Status::error(path.string() + ": write failed (disk full?)");
+    }
+  }
+  // Read the file back: it must decode whole, with the size written.
+  {
+    auto in = OIIO::ImageInput::open(atomic.temp_path().string());
+    if (!in) return Status::error(path.string() + ": the written image cannot be read back (disk full?): " + OIIO::geterror());
+    const OIIO::ImageSpec& got = in->spec();
+    if (got.width != spec.width || got.height != spec.height || got.nchannels != spec.nchannels)
+      return Status::error(path.string() + ": the written image reads back with the wrong size (disk full?)");
+    std::vector<float> pixels(size_t(got.width) * size_t(got.height) * size_t(got.nchannels));
+    const bool read = in->read_image(0, 0, 0, got.nchannels, OIIO::TypeDesc::FLOAT, pixels.data());
+    in->close();
+    if (!read) return Status::error(path.string() + ": the written image is truncated (disk full?): " + in->geterror());
+  }
   return atomic.commit();
 }
 

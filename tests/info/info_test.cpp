@@ -141,3 +141,47 @@ TEST(Info, Help) {
 }
 
 }  // namespace
+
+namespace {
+
+TEST(ImageOutput, AFullDiskFailsEveryFormatNamesTheFileAndLeavesNothing) {
+  // A file size limit (ulimit -f, for the raylod process only) stands in for
+  // a full disk: writes past it fail with EFBIG as they would with ENOSPC.
+  // (SIGXFSZ is ignored, so the write returns the error.) PNG's writer used to report success for the truncated file, and the run
+  // printed "wrote" and exited 0.
+  const std::filesystem::path dir = scratch() / "full-disk";
+  std::filesystem::create_directories(dir);
+  {
+    std::ofstream(dir / "tetra.ply") << "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\n"
+                                        "property float z\nelement face 4\nproperty list uchar int vertex_indices\n"
+                                        "end_header\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n3 0 2 1\n3 0 1 3\n3 0 3 2\n3 1 2 3\n";
+    std::ofstream(dir / "scene.json")
+        << R"({"camera": {"eye": [2, 1.5, 3], "look_at": [0.3, 0.3, 0.3], "fov_y": 40, "width": 320, "height": 240},
+             "materials": {"m": {"type": "diffuse", "color": [0.8, 0.3, 0.2]}},
+             "objects": [{"mesh": "tetra.ply", "material": "m"}],
+             "lights": [{"type": "point", "position": [3, 4, 2], "intensity": 30}],
+             "background": [0.6, 0.7, 0.85], "spp": 2})";
+  }
+  for (const char* name : {"out.png", "out.jpg", "out.exr", "out.tif"}) {
+    const std::filesystem::path out = dir / name;
+    const std::string cmd = "sh -c 'trap \"\" XFSZ; ulimit -f 2; exec \"$0\" render \"$1\" -o \"$2\" -q' " + std::string(RAYLOD_EXE) +
+                            " '" + (dir / "scene.json").string() + "' '" + out.string() + "' 2>&1";
+    std::FILE* p = ::popen(cmd.c_str(), "r");
+    ASSERT_NE(p, nullptr);
+    std::string text;
+    char buf[4096];
+    size_t n;
+    while ((n = std::fread(buf, 1, sizeof buf, p)) > 0) text.append(buf, n);
+    const int st = ::pclose(p);
+    EXPECT_TRUE(WIFEXITED(st) && WEXITSTATUS(st) != 0) << name << ": " << text;
+    EXPECT_NE(text.find(out.string()), std::string::npos) << name << ": " << text;
+    EXPECT_FALSE(std::filesystem::exists(out)) << name;
+  }
+  for (const auto& e : std::filesystem::directory_iterator(dir)) {
+    const std::string f = e.path().filename().string();
+    EXPECT_TRUE(f == "tetra.ply" || f == "scene.json") << "left behind: " << f;
+  }
+  std::filesystem::remove_all(dir);
+}
+
+}  // namespace
