@@ -663,7 +663,9 @@ Status bin_pass(MeshReader& reader, size_t ntokens, const Plan& plan, bool has_n
                 RunFile& runs, Binned& out) {
   const std::string name = reader.path().string();
   NodeTable global;
-  global.nodes.reserve(plan.max_nodes);  // virtual until touched
+  // Virtual until touched, but sized by the data too: a limit of terabytes
+  // must not become a reservation of terabytes.
+  global.nodes.reserve(size_t(std::min<uint64_t>(plan.max_nodes, 3 * expected + 64)));
   int depth = plan.quadric_depth;
   Progress progress("binning", expected, "triangles");
   Status s = run_pass<BinToken>(

@@ -130,6 +130,21 @@ TEST(OctreeBuild, OneTriangle) {
   EXPECT_EQ(store->pages()[0].bounds.hi, Vec3d(2, 2, 0));
 }
 
+TEST(OctreeBuild, HugeMemoryLimitsAreNotReserved) {
+  // --memory-limit 1T on a one-triangle mesh used to end in std::bad_alloc:
+  // the node table was reserved from the limit, not from the data.
+  SoupMesh m;
+  m.positions = {Vec3(0, 0, 0), Vec3(2, 0, 0), Vec3(0, 2, 0)};
+  auto dir = testing::scratch_dir("huge-limit");
+  for (uint64_t limit : {uint64_t(100) << 30, uint64_t(1) << 40, uint64_t(64) << 40}) {
+    StoreOptions o;
+    o.memory_limit = limit;
+    auto store = build(m, dir / "one.raylod", o);
+    ASSERT_TRUE(store) << limit;
+    EXPECT_EQ(store->header().triangle_count, 1u);
+  }
+}
+
 SoupMesh cube() {
   // [-1, 1]^3, two triangles per face, outward winding.
   const Vec3 v[8] = {{-1, -1, -1}, {1, -1, -1}, {1, 1, -1}, {-1, 1, -1}, {-1, -1, 1}, {1, -1, 1}, {1, 1, 1}, {-1, 1, 1}};
