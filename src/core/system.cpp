@@ -1,11 +1,13 @@
 #include "core/system.h"
 
+
 #include <fcntl.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
 #include <atomic>
 #include <cctype>
+#include <csignal>
 #include <cerrno>
 #include <charconv>
 #include <cstdio>
@@ -98,7 +100,31 @@ std::string format_bytes(uint64_t bytes) {
   return buf;
 }
 
+size_t remove_stale_temporaries(const std::filesystem::path& destination) {
+  // Temporaries are named DEST.tmp-PID-N-R; one whose process is gone (a
+  // kill -9 during a write, a crash) is never renamed and can be removed.
+  const std::string prefix = destination.filename().string() + ".tmp-";
+  std::filesystem::path dir = destination.parent_path();
+  if (dir.empty()) dir = ".";
+  std::error_code ec;
+  size_t removed = 0;
+  for (std::filesystem::directory_iterator it(dir, ec), end; !ec && it != end; it.increment(ec)) {
+    const std::string name = it->path().filename().string();
+    if (name.size() <= prefix.size() || name.compare(0, prefix.size(), prefix) != 0) continue;
+    const std::string rest = name.substr(prefix.size());
+    const size_t dash = rest.find('-');
+    if (dash == 0 || dash == std::string::npos || rest.find_first_not_of("0123456789") != dash) continue;
+    const long pid = std::strtol(rest.substr(0, dash).c_str(), nullptr, 10);
+    if (pid <= 0 || pid == long(getpid())) continue;
+    if (::kill(pid_t(pid), 0) == 0 || errno != ESRCH) continue;  // alive, or not ours to judge
+    std::error_code rm;
+    if (std::filesystem::remove(it->path(), rm)) ++removed;
+  }
+  return removed;
+}
+
 AtomicOutput::AtomicOutput(std::filesystem::path destination) : dest_(std::move(destination)) {
+  remove_stale_temporaries(dest_);
   static std::atomic<uint64_t> counter{0};
   std::random_device rd;
   temp_ = dest_;

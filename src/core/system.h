@@ -37,6 +37,11 @@ std::string not_regular_file_text(unsigned mode);
 // Output written atomically: write to a temporary sibling, fsync, rename over
 // the destination on commit(). Destroying without commit() removes the
 // temporary, so a failure never leaves a half-written file under the real name.
+// Removes DEST.tmp-PID-* files left by processes that no longer exist (a
+// kill -9 during an atomic write); returns how many. AtomicOutput calls it
+// for its destination.
+size_t remove_stale_temporaries(const std::filesystem::path& destination);
+
 class AtomicOutput {
  public:
   explicit AtomicOutput(std::filesystem::path destination);
