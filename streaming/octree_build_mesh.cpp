@@ -2,6 +2,7 @@
 // the up-to-date check, and the two reader passes through open_mesh. The
 // algorithm itself is in octree_build.cpp and never opens files.
 #include <fcntl.h>
+#include <sys/file.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -36,6 +37,38 @@ StatusOr<uint64_t> hash_file(const std::filesystem::path& path) {
   return hasher.digest();
 }
 
+// flock() on the mesh file while its store is checked and built: concurrent
+// builds (three `raylod run` of one scene) build the store once, and the
+// others then find it current. The mesh itself is locked, not a lock file
+// beside the store, so that nothing is left behind; a mesh that cannot be
+// locked (not a regular file, a file system without flock) is built unlocked.
+class BuildLock {
+ public:
+  explicit BuildLock(const std::filesystem::path& mesh) {
+    fd_ = ::open(mesh.c_str(), O_RDONLY | O_NONBLOCK | O_CLOEXEC);  // O_NONBLOCK: a FIFO must not block here
+    struct stat st {};
+    if (fd_ >= 0 && (::fstat(fd_, &st) != 0 || !S_ISREG(st.st_mode))) {
+      ::close(fd_);
+      fd_ = -1;
+    }
+    if (fd_ >= 0)
+      while (::flock(fd_, LOCK_EX) != 0 && errno == EINTR) {
+      }
+  }
+  ~BuildLock() {
+    if (fd_ >= 0) ::close(fd_);  // releases the lock
+  }
+  BuildLock(const BuildLock&) = delete;
+  BuildLock& operator=(const BuildLock&) = delete;
+
+ private:
+  int fd_ = -1;
+};
+
+bool same_file_state(const SourceFingerprint& a, const SourceFingerprint& b) {
+  return a.bytes == b.bytes && a.mtime_ns == b.mtime_ns;
+}
+
 }  // namespace
 
 StatusOr<SourceFingerprint> fingerprint_file(const std::filesystem::path& path, bool with_hash) {
@@ -62,6 +95,8 @@ bool store_is_current(const std::filesystem::path& mesh, const std::filesystem::
   };
   std::error_code ec;
   if (!std::filesystem::exists(store, ec)) return say("no store yet");
+  if (auto corrupt = store_corruption(store))
+    return say("a reader found it corrupt: " + *corrupt + " (recorded in " + corruption_record_path(store).string() + ")");
   StoreHeader h;
   {  // Full open: header and table checksums; the tables are freed right away.
     auto opened = OctreeStore::open(store);
@@ -91,14 +126,20 @@ StatusOr<BuildReport> build_store(const std::filesystem::path& mesh, const std::
 }
 
 StatusOr<BuildReport> build_store(const std::filesystem::path& mesh, const std::filesystem::path& store,
-                                  const StoreOptions& options, bool force) {
+                                  const StoreOptions& options, bool force, bool verify) {
+  BuildLock lock(mesh);
   std::string reason = "--force";
   if (!force && store_is_current(mesh, store, options, &reason)) {
     BuildReport report;
     report.reused = true;
     report.reason = reason;
-    report.peak_rss = peak_rss_bytes();
-    return report;
+    auto verified = verify ? verify_store_pages(store) : StatusOr<uint64_t>(uint64_t(0));
+    if (verified.is_ok()) {
+      if (verify) report.reason += "; --verify: the checksums of all " + std::to_string(*verified) + " pages match";
+      report.peak_rss = peak_rss_bytes();
+      return report;
+    }
+    reason = "--verify: " + verified.status().message();
   }
   RAYLOD_ASSIGN_OR_RETURN(SourceFingerprint fp, fingerprint_file(mesh, false));
   // Hash the file on another thread while pass 1 parses it (both read the
@@ -106,22 +147,28 @@ StatusOr<BuildReport> build_store(const std::filesystem::path& mesh, const std::
   auto hash = std::async(std::launch::async, [&] {
     return fingerprint_file(mesh, true);
   });
+  const std::string changed = mesh.string() + ": the mesh changed while building " + store.string() +
+                              " (the store was left as it was); run raylod build again";
   auto opener = [&]() -> StatusOr<std::unique_ptr<MeshReader>> { return open_mesh(mesh); };
+  // Called after both passes, before the store is written: the file must be
+  // the one hashed and the one both passes read, or nothing is committed.
   auto built = build_store_from_stream(opener, fp, store, options, [&]() -> StatusOr<uint64_t> {
     auto h = hash.get();
     if (!h.is_ok()) return h.status();
-    if (h->bytes != fp.bytes || h->mtime_ns != fp.mtime_ns)
-      return Status::error(mesh.string() + ": the mesh changed while building; run raylod build again");
+    auto now = fingerprint_file(mesh, false);
+    if (!same_file_state(*h, fp) || !now.is_ok() || !same_file_state(*now, fp)) return Status::error(changed);
     return h->hash;
   });
   if (hash.valid()) hash.wait();
   if (!built.is_ok()) return built.status();
+  // The corruption record was about the replaced file; remove it with the store it named.
+  std::error_code ec;
+  std::filesystem::remove(corruption_record_path(store), ec);
+  // A change after the passes does not make this store wrong for the mesh it
+  // read (its fingerprint says which); it is never removed here, since another
+  // process may be using it, but the caller is told.
   auto after = fingerprint_file(mesh, false);
-  if (!after.is_ok() || after->bytes != fp.bytes || after->mtime_ns != fp.mtime_ns) {
-    std::filesystem::remove(store);
-    return Status::error(mesh.string() + ": the mesh changed while building; removed " + store.string() +
-                         ", run raylod build again");
-  }
+  if (!after.is_ok() || !same_file_state(*after, fp)) return Status::error(changed);
   built->reason = reason;
   return built;
 }

@@ -8,9 +8,12 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cerrno>
 #include <cinttypes>
 #include <cstring>
+#include <fstream>
+#include <sstream>
 
 #include "core/system.h"
 #include "streaming/octree_format.h"
@@ -184,6 +187,19 @@ namespace {
 
 using namespace store_format;
 
+constexpr char kRecordTitle[] = "raylod store corruption record";
+
+std::string file_identity(dev_t dev, ino_t ino) {
+  return std::to_string(uint64_t(dev)) + ":" + std::to_string(uint64_t(ino));
+}
+
+// The record names the store file by device and inode: a rebuilt store is a
+// new file (renamed into place), so a record about the old one stops applying.
+Status write_record(const std::filesystem::path& store, const std::string& identity, const std::string& what) {
+  std::string text = std::string(kRecordTitle) + "\nstore " + store.string() + "\nfile " + identity + "\n" + what + "\n";
+  return write_file_atomic(corruption_record_path(store), text);
+}
+
 class FileStore final : public OctreeStore {
  public:
   ~FileStore() override {
@@ -237,11 +253,21 @@ class FileStore final : public OctreeStore {
       batch.clear();
       char code[32];
       std::snprintf(code, sizeof code, "%" PRIx64, page.code);
-      return Status::error(path_.string() + ": page " + std::to_string(i) + " (cell " + code +
-                           ") checksum mismatch (the store is corrupt; rebuild it)");
+      const std::string what = "page " + std::to_string(i) + " (cell " + code + ") checksum mismatch";
+      // Recorded once per opened store (a corrupt page may be asked for by every thread).
+      std::string note = "recorded in " + corruption_record_path(path_).string() + "; `raylod build` rebuilds it";
+      if (!found_corruption_.exchange(true)) {
+        struct stat st {};
+        Status recorded = ::fstat(fd_, &st) == 0 ? write_record(path_, file_identity(st.st_dev, st.st_ino), what)
+                                                 : Status::error(std::strerror(errno));
+        if (!recorded) note = "could not record it: " + recorded.message() + "; rebuild it with `raylod build --force`";
+      }
+      return Status::error(path_.string() + ": " + what + " (the store is corrupt; " + note + ")");
     }
     return {};
   }
+
+  bool found_corruption() const override { return found_corruption_; }
 
  private:
   Status load_tables() {
@@ -285,6 +311,7 @@ class FileStore final : public OctreeStore {
   std::vector<NodeRecord> nodes_;
   std::vector<uint64_t> level_begin_;
   std::vector<PageInfo> pages_;
+  mutable std::atomic<bool> found_corruption_{false};
 };
 
 uint64_t spread3(uint32_t v) {
@@ -344,6 +371,43 @@ std::filesystem::path default_store_path(const std::filesystem::path& mesh) {
   std::filesystem::path p = mesh;
   p += ".raylod";
   return p;
+}
+
+std::filesystem::path corruption_record_path(const std::filesystem::path& store) {
+  std::filesystem::path p = store;
+  p += ".corrupt";
+  return p;
+}
+
+Status record_store_corruption(const std::filesystem::path& store, const std::string& what) {
+  struct stat st {};
+  if (::stat(store.c_str(), &st) != 0) return Status::error(store.string() + ": " + std::strerror(errno));
+  return write_record(store, file_identity(st.st_dev, st.st_ino), what);
+}
+
+std::optional<std::string> store_corruption(const std::filesystem::path& store) {
+  struct stat st {};
+  if (::stat(store.c_str(), &st) != 0) return std::nullopt;
+  std::ifstream in(corruption_record_path(store));
+  if (!in) return std::nullopt;
+  std::string title, store_line, file_line, what;
+  std::getline(in, title);
+  std::getline(in, store_line);
+  std::getline(in, file_line);
+  std::getline(in, what);
+  // An unreadable or foreign record is kept as a finding: rebuilding is the safe side.
+  if (title != kRecordTitle || file_line.rfind("file ", 0) != 0)
+    return "unreadable corruption record " + corruption_record_path(store).string();
+  if (file_line.substr(5) != file_identity(st.st_dev, st.st_ino)) return std::nullopt;  // about a replaced store
+  return what;
+}
+
+StatusOr<uint64_t> verify_store_pages(const std::filesystem::path& store) {
+  RAYLOD_ASSIGN_OR_RETURN(auto opened, OctreeStore::open(store));
+  TriangleBatch batch;
+  const size_t n = opened->pages().size();
+  for (size_t i = 0; i < n; ++i) RAYLOD_RETURN_IF_ERROR(opened->read_page(i, batch));
+  return uint64_t(n);
 }
 
 bool is_store_file(const std::filesystem::path& path) {

@@ -38,6 +38,7 @@
 #include <filesystem>
 #include <functional>
 #include <memory>
+#include <optional>
 #include <span>
 #include <string>
 #include <vector>
@@ -125,8 +126,11 @@ class OctreeStore {
   virtual const NodeRecord* find(const CellKey& key) const = 0;
   virtual std::span<const PageInfo> pages() const = 0;
   // Reads page i into batch (cleared first); fails with a clear message if
-  // its checksum does not match.
+  // its checksum does not match, and then records the mismatch beside the
+  // store (record_store_corruption) so that the next build rebuilds it.
   virtual Status read_page(size_t i, TriangleBatch& batch) const = 0;
+  // True once read_page has found a page whose checksum does not match.
+  virtual bool found_corruption() const = 0;
 
   // Cell geometry helpers.
   double cell_size(int level) const { return header().root_size / double(uint64_t(1) << level); }
@@ -163,10 +167,16 @@ struct BuildReport {
 // Builds (or reuses, if up to date for the same mesh and options) the store.
 StatusOr<BuildReport> build_store(const std::filesystem::path& mesh, const std::filesystem::path& store,
                                   const StoreOptions& options);
-// Same; with force, rebuilds even an up-to-date store (replacing it atomically).
+// Same; with force, rebuilds even an up-to-date store (replacing it atomically);
+// with verify, an up-to-date store has every page's checksum checked and is
+// rebuilt if one does not match. Builds from one mesh are serialised by
+// flock() on the mesh file, so concurrent callers build its store once and
+// the others reuse it. A build never removes a store: if the mesh changes while it is
+// read, the build fails and leaves whatever store was there.
 StatusOr<BuildReport> build_store(const std::filesystem::path& mesh, const std::filesystem::path& store,
-                                  const StoreOptions& options, bool force);
-// True if `store` exists, opens, and matches the mesh's size, mtime and hash.
+                                  const StoreOptions& options, bool force, bool verify = false);
+// True if `store` exists, opens, has no corruption record (store_corruption)
+// and matches the mesh's size, mtime and hash.
 bool store_is_current(const std::filesystem::path& mesh, const std::filesystem::path& store,
                       const StoreOptions& options, std::string* reason = nullptr);
 
@@ -204,6 +214,26 @@ bool is_store_file(const std::filesystem::path& path);
 // Prints levels, node counts per level, pages, bytes, quadric memory and the
 // build options of a store (for `raylod info STORE`).
 Status print_store_info(const std::filesystem::path& path, std::FILE* out);
+
+// ---- Corruption records (streaming/octree_store.cpp) ----
+//
+// A reader that finds a page whose checksum does not match writes STORE.corrupt
+// (atomically) naming the page and the store file (device and inode), so that
+// the finding outlives the process: store_is_current then says the store is
+// stale and `raylod build` / `raylod run` rebuild it. A record left for a
+// store file that has since been replaced (another inode) does not apply.
+
+// STORE.corrupt.
+std::filesystem::path corruption_record_path(const std::filesystem::path& store);
+// Records `what` (e.g. "page 789 (cell 1f3) checksum mismatch") for the store
+// file now at `store`.
+Status record_store_corruption(const std::filesystem::path& store, const std::string& what);
+// What was recorded, if a record exists and applies to the store file now at `store`.
+std::optional<std::string> store_corruption(const std::filesystem::path& store);
+// Reads every page of the store and checks its checksum (a mismatch is
+// recorded as by read_page); returns the number of pages checked, or the
+// first failure.
+StatusOr<uint64_t> verify_store_pages(const std::filesystem::path& store);
 
 // ---- Checksums (streaming/store_checksum.cpp) ----
 

@@ -1,4 +1,4 @@
-// raylod build MESH [-o STORE] [--memory-limit SIZE] [--max-depth N] [--threads T]
+// raylod build MESH [-o STORE] [--memory-limit SIZE] [--max-depth N] [--threads T] [--force] [--verify]
 #include <cstdio>
 
 #include "cli/cli.h"
@@ -19,13 +19,17 @@ int run_build(int argc, char** argv) {
             "stopping where cells hold about two vertices. Pages are the cells of one level\n"
             "chosen to hold about --page-triangles triangles each. Building again for an\n"
             "unchanged mesh (size, modification time, content hash) with the same options\n"
-            "does nothing; a changed mesh is rebuilt. The store is written atomically.",
+            "does nothing; a changed mesh is rebuilt, and so is a store in which a reader\n"
+            "(run, probe, simplify) found a page whose checksum does not match (it records\n"
+            "that in STORE.corrupt). --verify checks every page's checksum of an up-to-date\n"
+            "store and rebuilds it if one does not match. The store is written atomically.",
             {{"--output", "-o", "store to write (default MESH.raylod beside the mesh)", true, "STORE"},
              {"--memory-limit", "", "memory bound for the build, e.g. 1G (default: a quarter of RAM)", true, "SIZE"},
              {"--max-depth", "", "deepest octree level that may keep quadrics, 0..21 (default 12)", true, "N"},
              {"--threads", "", "worker threads (default: all cores); the store does not depend on it", true, "T"},
              {"--page-triangles", "", "target triangles per page (default 4096)", true, "N"},
              {"--force", "", "rebuild even if the store is up to date", false, ""},
+             {"--verify", "", "check every page's checksum of an up-to-date store; rebuild it on a mismatch", false, ""},
              {"--quiet", "-q", "no progress bar", false, ""}});
   if (Status st = args.parse(argc, argv); !st) return fail("build", st);
   if (args.help_requested()) {
@@ -51,7 +55,7 @@ int run_build(int argc, char** argv) {
   options.page_triangles = uint32_t(*page);
   if (args.has("--quiet")) Progress::set_enabled(false);
   // --force replaces the old store atomically; it stays in place if the build fails.
-  auto built = build_store(mesh, store, options, args.has("--force"));
+  auto built = build_store(mesh, store, options, args.has("--force"), args.has("--verify"));
   if (!built) return fail("build", built.status());
   const BuildReport& r = *built;
   if (r.reused) {

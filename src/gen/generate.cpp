@@ -1,5 +1,9 @@
 #include "gen/generate.h"
 
+#include <fcntl.h>
+#include <sys/file.h>
+#include <unistd.h>
+
 #include <algorithm>
 #include <bit>
 #include <cctype>
@@ -266,11 +270,30 @@ StatusOr<std::filesystem::path> ensure_generated_mesh(const GeneratedMesh& g, co
   RAYLOD_ASSIGN_OR_RETURN(auto surface, make_generated_surface(g.generator, g.triangles, &grid));
   const IndexedPlyLayout layout{surface->vertex_count(), surface->triangle_count(), true,
                                 ply_comments(g.generator, g.triangles, grid)};
+  auto complete = [&] {
+    std::error_code ec;
+    const uint64_t size = std::filesystem::file_size(path, ec);
+    return !ec && size == indexed_ply_file_bytes(layout);
+  };
+  if (complete()) return path;
   std::error_code ec;
-  const uint64_t size = std::filesystem::file_size(path, ec);
-  if (!ec && size == indexed_ply_file_bytes(layout)) return path;
   std::filesystem::create_directories(path.parent_path(), ec);
   if (ec) return Status::error(path.parent_path().string() + ": cannot create cache directory: " + ec.message());
+  // One writer at a time, and a complete file is never rewritten: a process
+  // building a store from it would see its modification time change and fail
+  // ("the mesh changed while building"). The lock is released on close.
+  std::filesystem::path lock_path = path;
+  lock_path += ".lock";
+  const int lock = ::open(lock_path.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
+  if (lock < 0) return Status::error(lock_path.string() + ": cannot create lock file: " + std::strerror(errno));
+  struct Unlock {
+    int fd;
+    ~Unlock() { ::close(fd); }
+  } unlock{lock};
+  while (::flock(lock, LOCK_EX) != 0)
+    if (errno != EINTR) return Status::error(lock_path.string() + ": cannot lock: " + std::strerror(errno));
+  if (complete()) return path;  // another process wrote it while we waited
+  // Written to a temporary and renamed into place when complete (AtomicOutput).
   RAYLOD_RETURN_IF_ERROR(write_grid_ply(*surface, path, true, layout.comments));
   return path;
 }

@@ -63,7 +63,9 @@ std::filesystem::path generated_mesh_path(const GeneratedMesh& g, const std::fil
 // Returns generated_mesh_path(g, cache_dir), generating it on first use. An
 // existing file is reused if its size is exactly what the generator writes;
 // otherwise (truncated, foreign) it is regenerated. Safe when processes race:
-// each writes its own temporary and renames it over the same, identical file.
+// generation holds flock() on <mesh>.lock beside it, a file found complete
+// (after taking the lock) is never rewritten, and the mesh is written to a
+// temporary and renamed into place, so readers see no file or a whole one.
 StatusOr<std::filesystem::path> ensure_generated_mesh(const GeneratedMesh& g, const std::filesystem::path& cache_dir);
 // Sets SceneObject::mesh for every object with `generate` set.
 Status resolve_generated_meshes(Scene& scene, const std::filesystem::path& cache_dir);

@@ -181,6 +181,39 @@ StatusOr<SceneStores> prepare_scene_stores(Scene& scene, const std::optional<fs:
   return out;
 }
 
+namespace {
+
+// After a probe or simplify failure: every store in which a reader found a
+// corrupt page (it recorded that in STORE.corrupt) is rebuilt and reopened in
+// place, at most once per run (`repaired`). True if the caller should retry;
+// false if no store was found corrupt (the failure was something else).
+StatusOr<bool> repair_corrupt_stores(SceneStores& stores, const StoreOptions& store_options, const std::string& stage,
+                                     bool& repaired, const LogFn& log) {
+  if (repaired) return false;
+  bool rebuilt = false;
+  for (size_t i = 0; i < stores.stores.size(); ++i) {
+    const fs::path& path = stores.store_paths[i];
+    const std::optional<std::string> recorded = store_corruption(path);
+    if (!stores.stores[i]->found_corruption() && !recorded) continue;
+    say(log, stage + " found " + path.string() + " corrupt (" + (recorded ? *recorded : "checksum mismatch") +
+                 "); rebuilding it and retrying the " + stage);
+    // The same options as the open store: the rebuilt store is byte-identical
+    // to the one the cuts were made for, had it not been damaged.
+    StoreOptions options = stores.stores[i]->header().options;
+    options.threads = store_options.threads;
+    RAYLOD_ASSIGN_OR_RETURN(BuildReport report, build_store(stores.meshes[i], path, options));
+    RAYLOD_ASSIGN_OR_RETURN(auto reopened, OctreeStore::open(path));
+    stores.stores[i] = std::move(reopened);
+    stores.probe_stores[i].store = stores.stores[i].get();
+    stores.builds[i] = report;
+    rebuilt = true;
+  }
+  repaired = rebuilt;
+  return rebuilt;
+}
+
+}  // namespace
+
 StatusOr<RunResult> run_pipeline(Scene scene, const RunOptions& options, const LogFn& log) {
   RunResult result;
   const fs::path cache_dir = options.cache_dir.empty() ? default_cache_dir() : options.cache_dir;
@@ -208,7 +241,13 @@ StatusOr<RunResult> run_pipeline(Scene scene, const RunOptions& options, const L
   auto t_probe = std::chrono::steady_clock::now();
   uint64_t previous_estimate = UINT64_MAX;
   // The rays are traced once; coarsening only selects coarser cuts from them.
-  RAYLOD_ASSIGN_OR_RETURN(const ProbeTrace trace, trace_probe(scene, stores.probe_stores, stores.objects, probe));
+  bool repaired = false;  // a store found corrupt is rebuilt once per run, then the stage retried
+  auto traced = trace_probe(scene, stores.probe_stores, stores.objects, probe);
+  if (!traced.is_ok()) {
+    RAYLOD_ASSIGN_OR_RETURN(bool retry, repair_corrupt_stores(stores, store_options, "probe", repaired, log));
+    if (retry) traced = trace_probe(scene, stores.probe_stores, stores.objects, probe);
+  }
+  RAYLOD_ASSIGN_OR_RETURN(const ProbeTrace trace, std::move(traced));
   for (;;) {
     RAYLOD_ASSIGN_OR_RETURN(result.probe, select_cuts(trace, scene, stores.probe_stores, stores.objects, probe));
     uint64_t estimate = 0;
@@ -255,7 +294,6 @@ StatusOr<RunResult> run_pipeline(Scene scene, const RunOptions& options, const L
     ~RemoveScratch() { for (const auto& f : files) { std::error_code ec; fs::remove(f, ec); } }
   } remove_scratch{scratch_files};
   for (size_t i = 0; i < stores.stores.size(); ++i) {
-    const OctreeStore& store = *stores.stores[i];
     const Cut& cut = result.cuts[i];
     SimplifiedMesh sm;
     if (cache) {
@@ -267,7 +305,7 @@ StatusOr<RunResult> run_pipeline(Scene scene, const RunOptions& options, const L
       } else {
         if (!note.empty()) say(log, note);
         std::string why;
-        entry = cache->find_reusable(cut, draco_error_bound(cut, store), &why, scene.crease_angle_deg);
+        entry = cache->find_reusable(cut, draco_error_bound(cut, *stores.stores[i]), &why, scene.crease_angle_deg);
         if (entry) note = "reusing " + entry->key + ": " + why;
       }
       if (entry) {
@@ -288,9 +326,16 @@ StatusOr<RunResult> run_pipeline(Scene scene, const RunOptions& options, const L
       AtomicOutput tmp(scratch / ("simplified-" + std::to_string(::getpid()) + "-" + std::to_string(i) + ".drc"));
       fs::path staged = tmp.temp_path();
       staged += ".drc";
-      RAYLOD_ASSIGN_OR_RETURN(sm, simplify_cut_to_draco(store, cut, staged, memory_limit,
-                                                              shading_normal_tolerance(scene), options.progress,
-                                                              nullptr, scene.crease_angle_deg));
+      auto simplify_store = [&] {
+        return simplify_cut_to_draco(*stores.stores[i], cut, staged, memory_limit, shading_normal_tolerance(scene),
+                                     options.progress, nullptr, scene.crease_angle_deg);
+      };
+      auto simplified = simplify_store();
+      if (!simplified.is_ok()) {
+        RAYLOD_ASSIGN_OR_RETURN(bool retry, repair_corrupt_stores(stores, store_options, "simplify", repaired, log));
+        if (retry) simplified = simplify_store();
+      }
+      RAYLOD_ASSIGN_OR_RETURN(sm, std::move(simplified));
       // Rendered from the staged file, which lives until after rendering.
       scratch_files.push_back(staged);
       sm.cache_note = "simplified (cache disabled)";
@@ -304,7 +349,7 @@ StatusOr<RunResult> run_pipeline(Scene scene, const RunOptions& options, const L
     std::error_code ec;
     sm.drc_bytes = fs::file_size(sm.drc, ec);
     result.triangles_out += sm.triangles;
-    say(log, stores.meshes[i].filename().string() + ": " + std::to_string(store.header().triangle_count) + " -> " +
+    say(log, stores.meshes[i].filename().string() + ": " + std::to_string(stores.stores[i]->header().triangle_count) + " -> " +
                  std::to_string(sm.triangles) + " triangles; " + sm.cache_note);
     result.meshes.push_back(sm);
   }

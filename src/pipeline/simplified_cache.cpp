@@ -204,7 +204,11 @@ std::optional<CacheEntry> SimplifiedCache::find_reusable(const Cut& wanted, doub
     if (e.store_hash != wanted.store_hash || e.max_position_error > max_position_error * (1 + 1e-9)) continue;
     if (!(e.crease_angle_deg == crease_angle_deg)) continue;  // another normal rule (or an old entry)
     auto cut = read_cut(e.cut);
-    if (!cut.is_ok() || !cut_is_at_least_as_fine(*cut, wanted)) continue;
+    if (!cut.is_ok()) {  // corrupt or missing: the entry can never be reused
+      remove_entry_files(dir_ / "simplified", e.key);
+      continue;
+    }
+    if (!cut_is_at_least_as_fine(*cut, wanted)) continue;
     fine.push_back({e, cut->cells.size()});
   }
   std::sort(fine.begin(), fine.end(), [](const auto& a, const auto& b) { return a.first.triangles < b.first.triangles; });

@@ -60,7 +60,8 @@ class PageCache {
   explicit PageCache(uint64_t capacity_bytes);
 
   // The page, from memory or read from the store (checksummed by the store;
-  // a corrupt page is an error naming the store and the page, never traced).
+  // a corrupt page is an error naming the store and the page, never traced,
+  // and OctreeStore::read_page records it in STORE.corrupt for the next build).
   StatusOr<std::shared_ptr<const Page>> get(const OctreeStore& store, uint32_t page);
 
   PageCacheCounters counters() const;
