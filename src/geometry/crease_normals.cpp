@@ -10,6 +10,7 @@ namespace raylod {
 namespace {
 
 const double kCosMerge = std::cos(kClusterMergeAngleRad);
+const double kCosOverflow = std::cos(10.0 * M_PI / 180.0);
 
 Vec3d unit_or_zero(const Vec3d& v) {
   const double len = glm::length(v);
@@ -33,18 +34,31 @@ double corner_angle(const Vec3& a, const Vec3& b, const Vec3& c, int k) {
 
 void NormalClusterPool::add(uint32_t v, const Vec3d& n, double w, uint32_t max_clusters) {
   if (!(w > 0)) return;
-  uint32_t best = kNoCluster, count = 0, last = kNoCluster;
+  uint32_t best = kNoCluster, count = 0, last = kNoCluster, leftover = kNoCluster;
   double best_cos = -2;
   for (uint32_t c = heads_[v]; c != kNoCluster; c = pool_[c].next) {
-    const double cs = glm::dot(unit_or_zero(Vec3d(pool_[c].sum)), n);
+    last = c;
+    if (pool_[c].seed == Vec3(0)) { leftover = c; continue; }
+    const double cs = glm::dot(Vec3d(pool_[c].seed), n);
     if (cs >= kCosMerge) { pool_[c].sum += Vec3(w * n); return; }
     if (cs > best_cos) { best_cos = cs; best = c; }
-    last = c;
     ++count;
   }
-  if (count >= max_clusters && best != kNoCluster) { pool_[best].sum += Vec3(w * n); return; }
+  if (count >= max_clusters && best != kNoCluster) {
+    // Full: into the nearest seed if it is close enough to stand for this
+    // direction. A direction no seed is near goes to the vertex's leftover
+    // sum, which only the smooth-everything rule (crease angle 180) and the
+    // fallback mean use: summed into an unrelated cluster it could tilt a
+    // flat face by the leftovers of a whole bore.
+    if (best_cos >= kCosOverflow) { pool_[best].sum += Vec3(w * n); return; }
+    if (leftover != kNoCluster) { pool_[leftover].sum += Vec3(w * n); return; }
+    const uint32_t id = uint32_t(pool_.size());
+    pool_.push_back(NormalCluster{Vec3(w * n), Vec3(0), kNoCluster});
+    pool_[last].next = id;
+    return;
+  }
   const uint32_t id = uint32_t(pool_.size());
-  pool_.push_back(NormalCluster{Vec3(w * n), kNoCluster});
+  pool_.push_back(NormalCluster{Vec3(w * n), Vec3(n), kNoCluster});
   // Appended at the tail, so that clusters keep their order of creation.
   if (last == kNoCluster) heads_[v] = id;
   else pool_[last].next = id;
@@ -52,9 +66,10 @@ void NormalClusterPool::add(uint32_t v, const Vec3d& n, double w, uint32_t max_c
 
 Vec3d NormalClusterPool::resolve(uint32_t v, const Vec3d& key, double cos_crease) const {
   Vec3d sum(0);
+  const bool everything = cos_crease <= -1.0 + 1e-12;
   for (uint32_t c = heads_[v]; c != kNoCluster; c = pool_[c].next) {
     const Vec3d s(pool_[c].sum);
-    if (glm::dot(unit_or_zero(s), key) >= cos_crease) sum += s;
+    if (pool_[c].seed == Vec3(0) ? everything : glm::dot(unit_or_zero(s), key) >= cos_crease) sum += s;
   }
   return unit_or_zero(sum);
 }

@@ -41,11 +41,15 @@ inline constexpr double kDefaultCreaseAngleDeg = 30.0;
 // Two normals within this angle fall into one cluster.
 inline constexpr double kClusterMergeAngleRad = 0.5 * 3.14159265358979323846 / 180.0;
 
-// One cluster: the weighted sum of its members' unit normals, linked to the
-// next cluster of the same vertex (kNoCluster ends the list).
+// One cluster: the weighted sum of its members' unit normals and the first
+// member's normal (its seed: membership is decided against the seed, so a
+// cluster cannot drift, and a full list of clusters cannot smear opposite
+// normals into one sum), linked to the next cluster of the same vertex
+// (kNoCluster ends the list).
 inline constexpr uint32_t kNoCluster = 0xffffffffu;
 struct NormalCluster {
   Vec3 sum{0};
+  Vec3 seed{0};
   uint32_t next = kNoCluster;
 };
 
@@ -57,8 +61,10 @@ class NormalClusterPool {
   void add_vertex() { heads_.push_back(kNoCluster); }
   size_t vertices() const { return heads_.size(); }
   // Adds unit normal n with weight w > 0 to vertex v: into the first cluster
-  // whose mean is within the merge angle, else a new one; once the vertex
-  // has max_clusters, into the nearest.
+  // whose seed is within the merge angle, else a new one; once the vertex
+  // has max_clusters, into the one with the nearest seed if that is within
+  // 10 degrees, else into the vertex's leftover sum (seed zero), which only
+  // a crease angle of 180 degrees and mean() include.
   void add(uint32_t v, const Vec3d& n, double w, uint32_t max_clusters);
   // The rule for a corner whose own (face) normal is `key`: the normalised sum
   // of v's clusters within the crease angle (cos_crease) of key; zero if

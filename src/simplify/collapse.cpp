@@ -141,9 +141,11 @@ uint32_t CutLookup::find_code(uint64_t code) const {
 // ---------------------------------------------------------- CollapseBuilder
 
 // Clusters a representative keeps: enough for the sides of a cell that
-// spans creases (a box corner has 3) and the spread of a curved patch; more
-// merge into the nearest.
-constexpr uint32_t kRepresentativeClusters = 12;
+// spans creases (a box corner has 3) and the spread of a curved patch (a
+// cell around a whole small bore sees normals all around); more merge into
+// the one with the nearest seed, at most about 15 degrees away when 64
+// seeds cover the directions.
+constexpr uint32_t kRepresentativeClusters = 64;
 
 CollapseBuilder::CollapseBuilder(std::span<const Representative> reps, bool input_has_normals,
                                  double crease_angle_deg)

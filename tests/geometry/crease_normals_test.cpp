@@ -70,15 +70,42 @@ TEST(CreaseNormals, ClusterPoolResolvesByKeyAndCapsClusters) {
   pool.add(0, Vec3d(0, 0, 1), 1, 2);
   pool.add(0, Vec3d(0, 0, 1), 3, 2);           // merges
   pool.add(0, Vec3d(1, 0, 0), 1, 2);           // a second cluster
-  const Vec3d tilted = glm::normalize(Vec3d(0, 1, 1));
-  pool.add(0, tilted, 1, 2);                   // over the cap: into the nearest (+z)
+  const Vec3d tilted = glm::normalize(Vec3d(0, 0.1, 1));  // 5.7 degrees off +z
+  pool.add(0, tilted, 1, 2);                   // over the cap: into the nearest seed (+z)
+  pool.add(0, glm::normalize(Vec3d(0, 1, 1)), 1, 2);  // over the cap, 45 degrees from every seed: leftover
   const double c30 = crease_cosine(30);
   EXPECT_NEAR(glm::distance(pool.resolve(0, Vec3d(1, 0, 0), c30), Vec3d(1, 0, 0)), 0.0, 1e-6);
   const Vec3d z = pool.resolve(0, Vec3d(0, 0, 1), c30);
   EXPECT_NEAR(glm::distance(z, glm::normalize(Vec3d(0, 0, 4) + tilted)), 0.0, 1e-6);
   EXPECT_EQ(glm::length(pool.resolve(0, Vec3d(0, -1, 0), c30)), 0.0);  // nothing within 30 degrees
+  // Crease angle 180 (smooth everything) sums every normal, the leftover too.
+  const Vec3d all = pool.resolve(0, Vec3d(0, -1, 0), crease_cosine(180));
+  EXPECT_NEAR(glm::distance(all, glm::normalize(Vec3d(0, 0, 4) + Vec3d(1, 0, 0) + tilted +
+                                                glm::normalize(Vec3d(0, 1, 1)))), 0.0, 1e-6);
   EXPECT_EQ(crease_cosine(-5), 1.0);
   EXPECT_NEAR(crease_cosine(500), -1.0, 1e-12);
+}
+
+TEST(CreaseNormals, AFullClusterListNeverSmearsAroundACylinder) {
+  // A cell holding a flat ring face and the whole bore through it: normals
+  // all around the bore, far more than the cluster cap. Merging by a drifting
+  // mean used to sum opposite bore normals into a cluster pointing anywhere,
+  // which then passed the crease test of the flat face and tilted it by
+  // 20 degrees (star-shaped wedges on OpenCASCADE ring faces).
+  // The bore's normals arrive in order around it, so the cap fills up on
+  // one side before the other side is seen.
+  NormalClusterPool pool(1);
+  pool.add(0, Vec3d(0, 0, 1), 0.3, 12);
+  for (int i = 0; i < 360; ++i) {
+    const double a = 2 * M_PI * i / 360.0;
+    pool.add(0, Vec3d(std::cos(a), std::sin(a), 0), 1.0, 12);
+  }
+  const Vec3d flat = pool.resolve(0, Vec3d(0, 0, 1), crease_cosine(30));
+  EXPECT_NEAR(glm::distance(flat, Vec3d(0, 0, 1)), 0.0, 1e-6);
+  // A bore corner still gets the bore's nearby normals only.
+  const Vec3d side = pool.resolve(0, Vec3d(1, 0, 0), crease_cosine(30));
+  EXPECT_GT(side.x, 0.95);
+  EXPECT_NEAR(side.z, 0.0, 1e-6);
 }
 
 TEST(CreaseNormalsProperty, MatchesThePairwiseRuleOnRandomBumpyGrids) {
