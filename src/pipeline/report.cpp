@@ -182,8 +182,12 @@ Status write_report_files(const ReportResult& result, const ReportConfig& cfg, c
         ".drc + BVH build + trace); a baseline's total is loading the full mesh (" << fmt("%.2f s", load_seconds)
      << ") + simplifying it in memory + BVH build + trace. Memory: for the full mesh and raylod, the mesh and BVH "
         "the renderer holds; for the baselines, the loaded mesh plus the simplifier's peak allocations.\n\n";
-  md << "The default footprint scale is K = " << label_number(cfg.default_scale) << " with " << cfg.default_rays
-     << " test rays.\n\n";
+  md << "raylod collapses a cell when the surface deviation the collapse causes (its quadric's chord error) stays "
+        "under " << label_number(kDefaultTolerancePx) << " pixel of the footprint of the rays that see it, and its "
+        "diagonal under K footprints (the deviation criterion; the default K = " << label_number(cfg.default_scale)
+     << ", " << cfg.default_rays << " test rays). Rows \"raylod (diagonal)\" use the paper's test alone "
+        "(diagonal < K footprints) for comparison. The rays are traced once per ray count and every K selects its cut "
+        "from that trace; a row's probe time is the trace plus its own selection.\n\n";
   md << "Each view's noise floor is the error of the full mesh rendered at the next seed (same samples per pixel) "
         "against the reference: the difference sampling alone makes. A row whose PSNR is at or above the floor is "
         "\"indistinguishable\" from the full mesh at this sample count; otherwise the table says how many dB below "
@@ -208,7 +212,7 @@ Status write_report_files(const ReportResult& result, const ReportConfig& cfg, c
     md << "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|\n";
     for (const auto& r : result.rows) {
       if (r.scene != scene) continue;
-      const bool ray = r.method == "raylod";
+      const bool ray = r.method.rfind("raylod", 0) == 0;
       md << "| " << r.method << " | " << (ray ? label_number(r.footprint_scale) : "") << " | "
          << (ray ? std::to_string(r.rays) : "") << " | " << r.triangles << " | " << (ray ? fmt("%.2f", r.probe_s) : "")
          << " | " << (r.method == "full mesh" ? "" : fmt("%.2f", r.simplify_s)) << " | " << fmt("%.2f", r.render_s)
@@ -378,23 +382,39 @@ StatusOr<ReportResult> run_report(const Scene& input_scene, const std::optional<
         std::to_string(noise_floor_seed(full.noise_floor.seed)) + " against " + std::to_string(full.noise_floor.seed) +
         ") PSNR " + fmt("%.2f dB", full.noise_floor.psnr()) + ", SSIM " + fmt("%.4f", full.noise_floor.error.ssim));
 
-    // raylod: the K sweep at the default ray count, then the ray sweep at the default K.
-    std::vector<std::pair<double, uint64_t>> variants;
-    for (double k : cfg.footprint_scales) variants.push_back({k, cfg.default_rays});
+    // raylod: the K sweep at the default ray count (deviation criterion, then
+    // the paper's diagonal test), then the ray sweep at the default K. Rays
+    // are traced once per ray count; each variant selects its cut from that
+    // trace, and its probe time is the trace plus its own selection.
+    struct Variant { double k; uint64_t rays; CutCriterion criterion; };
+    std::vector<Variant> variants;
+    for (double k : cfg.footprint_scales) variants.push_back({k, cfg.default_rays, CutCriterion::Deviation});
+    for (double k : cfg.diagonal_scales) variants.push_back({k, cfg.default_rays, CutCriterion::Diagonal});
     for (uint64_t n : cfg.ray_counts)
-      if (n != cfg.default_rays) variants.push_back({cfg.default_scale, n});
+      if (n != cfg.default_rays) variants.push_back({cfg.default_scale, n, CutCriterion::Deviation});
+    std::map<uint64_t, ProbeTrace> traces;
     std::vector<uint64_t> targets;
-    for (auto [k, n] : variants) {
+    for (const Variant& variant : variants) {
+      const double k = variant.k;
+      const uint64_t n = variant.rays;
+      const bool diagonal = variant.criterion == CutCriterion::Diagonal;
       ReportRow row;
       row.scene = run.label;
-      row.method = "raylod";
+      row.method = diagonal ? "raylod (diagonal)" : "raylod";
       row.footprint_scale = k;
       row.rays = n;
-      auto t0 = std::chrono::steady_clock::now();
       RAYLOD_ASSIGN_OR_RETURN(ProbeConfig pc, make_probe_config(run.scene, n, k, cfg.threads, memory_limit, false));
-      RAYLOD_ASSIGN_OR_RETURN(ProbeResult probe, run_probe(run.scene, stores.probe_stores, stores.objects, pc));
-      row.probe_s = seconds_since(t0);
-      const std::string name = tag + "-raylod-K" + label_number(k) + "-rays" + std::to_string(n);
+      pc.criterion = variant.criterion;
+      if (!traces.count(n)) {
+        RAYLOD_ASSIGN_OR_RETURN(ProbeTrace t, trace_probe(run.scene, stores.probe_stores, stores.objects, pc));
+        traces.emplace(n, std::move(t));
+      }
+      const ProbeTrace& trace = traces.at(n);
+      auto t0 = std::chrono::steady_clock::now();
+      RAYLOD_ASSIGN_OR_RETURN(ProbeResult probe, select_cuts(trace, run.scene, stores.probe_stores, stores.objects, pc));
+      row.probe_s = trace.trace_seconds + seconds_since(t0);
+      const std::string name =
+          tag + (diagonal ? "-raylod-diagonal-K" : "-raylod-K") + label_number(k) + "-rays" + std::to_string(n);
       fs::path drc = scratch / (name + ".drc");
       RAYLOD_ASSIGN_OR_RETURN(SimplifiedMesh sm,
                               simplify_cut_to_draco(store, probe.cuts[0], drc, memory_limit,
@@ -409,7 +429,7 @@ StatusOr<ReportResult> run_report(const Scene& input_scene, const std::optional<
       row.total_s = row.probe_s + row.simplify_s + row.render_s;
       row.memory_bytes = img.stats.mesh_bytes + img.stats.bvh_bytes;
       RAYLOD_ASSIGN_OR_RETURN(row.error, compare_images(img.color, reference.color));
-      const bool is_default = k == cfg.default_scale && n == cfg.default_rays;
+      const bool is_default = !diagonal && k == cfg.default_scale && n == cfg.default_rays;
       if (is_default || n == cfg.default_rays) {
         row.image = name + ".png";
         row.diff_image = name + ".diff.png";
@@ -426,8 +446,8 @@ StatusOr<ReportResult> run_report(const Scene& input_scene, const std::optional<
         RAYLOD_ASSIGN_OR_RETURN(RenderResult wire, render(run.scene, w));
         RAYLOD_RETURN_IF_ERROR(write_image(cfg.out_dir / (tag + "-raylod-wireframe.png"), wire.color));
       }
-      if (n == cfg.default_rays) targets.push_back(row.triangles);
-      say(run.label + ": raylod K=" + label_number(k) + " rays=" + std::to_string(n) + ": " +
+      if (n == cfg.default_rays && !diagonal) targets.push_back(row.triangles);
+      say(run.label + ": " + row.method + " K=" + label_number(k) + " rays=" + std::to_string(n) + ": " +
           std::to_string(row.triangles) + " triangles, PSNR " + fmt("%.2f dB", row.error.psnr) + " (" +
           describe_against_noise_floor(row.error, full.noise_floor) + "), total " + fmt("%.2f s", row.total_s));
       result.rows.push_back(row);

@@ -21,10 +21,11 @@
 namespace raylod {
 
 struct ReportConfig {
-  std::vector<double> footprint_scales{1, 2, 4, 8, 16};  // swept at default_rays
-  std::vector<uint64_t> ray_counts{500, 5000, 50000};    // swept at default_scale
+  std::vector<double> footprint_scales{4, 8, 16, 32, 64};  // deviation criterion, swept at default_rays
+  std::vector<double> diagonal_scales{4, 10};              // the paper's diagonal criterion, for comparison
+  std::vector<uint64_t> ray_counts{500, 5000, 50000};      // swept at default_scale
   uint64_t default_rays = 5000;
-  double default_scale = 10;
+  double default_scale = kDefaultFootprintScale;
   bool baselines = true;
   bool closeup = true;         // add a close-up view of the same mesh
   int spp = 0;                 // 0 = the scene's
@@ -38,7 +39,7 @@ struct ReportConfig {
 
 struct ReportRow {
   std::string scene;           // "default", "close-up"
-  std::string method;          // "raylod", "vertex clustering", "edge collapse", "full mesh"
+  std::string method;          // "raylod", "raylod (diagonal)", "vertex clustering", "edge collapse", "full mesh"
   double footprint_scale = 0;  // raylod only
   uint64_t rays = 0;           // raylod only
   uint64_t triangles = 0;
