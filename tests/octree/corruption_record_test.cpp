@@ -7,6 +7,8 @@
 
 #include <gtest/gtest.h>
 
+#include "file_damage.h"
+
 #include "core/progress.h"
 #include "octree/octree_test_util.h"
 #include "streaming/octree_store.h"
@@ -36,15 +38,7 @@ void write_ascii_ply(const fs::path& path, const testing::SoupMesh& m) {
   for (size_t t = 0; t < m.size(); ++t) out << "3 " << 3 * t << ' ' << 3 * t + 1 << ' ' << 3 * t + 2 << '\n';
 }
 
-void flip_byte(const fs::path& path, uint64_t offset) {
-  std::fstream f(path, std::ios::in | std::ios::out | std::ios::binary);
-  f.seekg(std::streamoff(offset));
-  char c = 0;
-  f.read(&c, 1);
-  c = char(c ^ 0x5a);
-  f.seekp(std::streamoff(offset));
-  f.write(&c, 1);
-}
+using test::flip_byte;
 
 struct Fixture {
   Scratch scratch;

@@ -3,6 +3,8 @@
 // writes that leave nothing behind on failure.
 #include <fcntl.h>
 #include <gtest/gtest.h>
+
+#include "file_damage.h"
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -40,15 +42,7 @@ std::vector<Tri> triangles_of(const SoupMesh& m) {
   return out;
 }
 
-void flip_byte(const std::filesystem::path& p, uint64_t offset) {
-  std::fstream f(p, std::ios::in | std::ios::out | std::ios::binary);
-  f.seekg(std::streamoff(offset));
-  char c = 0;
-  f.read(&c, 1);
-  c = char(c ^ 0x20);
-  f.seekp(std::streamoff(offset));
-  f.write(&c, 1);
-}
+void flip_byte(const std::filesystem::path& p, uint64_t offset) { test::flip_byte(p, offset, 0x20); }
 
 void expect_error_contains(const Status& s, const std::vector<std::string>& parts) {
   ASSERT_FALSE(s.is_ok()) << "expected an error";

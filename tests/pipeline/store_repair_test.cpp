@@ -10,6 +10,8 @@
 
 #include <gtest/gtest.h>
 
+#include "file_damage.h"
+
 #include "core/progress.h"
 #include "pipeline/pipeline.h"
 #include "pipeline/simplified_cache.h"
@@ -65,15 +67,7 @@ struct Log {
   }
 };
 
-void flip_byte(const fs::path& path, uint64_t offset) {
-  std::fstream f(path, std::ios::in | std::ios::out | std::ios::binary);
-  f.seekg(std::streamoff(offset));
-  char c = 0;
-  f.read(&c, 1);
-  c = char(c ^ 0x5a);
-  f.seekp(std::streamoff(offset));
-  f.write(&c, 1);
-}
+using test::flip_byte;
 
 // Builds the scene's store in `cache`, returns its path.
 fs::path prepare(const fs::path& cache) {
