@@ -32,12 +32,12 @@ int cmd_probe(int argc, char** argv) {
                   {"--memory-limit", "", "memory limit (default: a quarter of physical memory)", true, "SIZE"},
                   {"--output", "-o", "cut file to write (single-mesh scenes)", true, "CUT"}}));
   if (Status s = args.parse(argc, argv); !s) return cli::fail("probe", s);
-  auto cut_opts = cli::cut_options_from_args(args);
-  if (!cut_opts) return cli::fail("probe", cut_opts.status());
   if (args.help_requested()) {
     std::printf("%s", args.help_text().c_str());
     return 0;
   }
+  auto cut_opts = cli::cut_options_from_args(args);
+  if (!cut_opts) return cli::fail("probe", cut_opts.status());
   auto scene_or = cli::scene_from_args(args);
   if (!scene_or) return cli::fail("probe", scene_or.status());
   Scene scene = std::move(scene_or.value());

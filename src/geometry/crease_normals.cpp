@@ -106,7 +106,7 @@ std::vector<Vec3> crease_corner_normals(std::span<const Vec3> positions, std::sp
   tbb::parallel_for(tbb::blocked_range<size_t>(0, nv, 1 << 12), [&](const auto& r) {
     NormalClusterPool local(1);
     for (size_t v = r.begin(); v != r.end(); ++v) {
-      local = NormalClusterPool(1);
+      local.clear();
       for (uint32_t j = start[v]; j < start[v + 1]; ++j) {
         const uint32_t corner = corners[j], t = corner / 3;
         const uint32_t* f = &indices[3 * size_t(t)];

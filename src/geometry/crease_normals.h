@@ -23,6 +23,7 @@
 // gets one normal per side, and a flat side gets exactly that side's normal.
 #pragma once
 
+#include <algorithm>
 #include <cstdint>
 #include <span>
 #include <vector>
@@ -59,6 +60,11 @@ class NormalClusterPool {
   NormalClusterPool() = default;
   explicit NormalClusterPool(size_t vertices) { heads_.assign(vertices, kNoCluster); }
   void add_vertex() { heads_.push_back(kNoCluster); }
+  // Empties every vertex's list and the pool, keeping the allocations.
+  void clear() {
+    std::fill(heads_.begin(), heads_.end(), kNoCluster);
+    pool_.clear();
+  }
   size_t vertices() const { return heads_.size(); }
   // Adds unit normal n with weight w > 0 to vertex v: into the first cluster
   // whose seed is within the merge angle, else a new one; once the vertex

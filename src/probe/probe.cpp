@@ -453,8 +453,10 @@ StatusOr<ProbeTrace> trace_probe(const Scene& scene, std::span<const ProbeStore>
   result.counters["cache_misses"] = cc.misses;
   result.counters["cache_evictions"] = cc.evictions;
   result.counters["cache_peak_bytes"] = cc.peak_bytes;
-  for (RayOutcome& o : outcomes)
-    for (HitRecord& h : o.hits) result.hits.push_back(h);
+  size_t hits = 0;
+  for (const RayOutcome& o : outcomes) hits += o.hits.size();
+  result.hits.reserve(hits);
+  for (const RayOutcome& o : outcomes) result.hits.insert(result.hits.end(), o.hits.begin(), o.hits.end());
   result.rays = config.rays;
   result.seed = config.seed;
 
