@@ -7,17 +7,40 @@
 
 #include <cstdlib>
 #include <filesystem>
+#include <set>
 #include <string>
 
 namespace raylod::test {
 
-// $RAYLOD_TEST_TMP (set by ctest to build/test-tmp) or the system temp dir,
-// then "<name>-<pid>"; created if missing, kept (not emptied) if present.
+// The scratch directories this process made, removed when it exits (after
+// every test has run, pass or fail), and the default root with them if it is
+// left empty.
+struct ScratchRegistry {
+  std::set<std::filesystem::path> dirs;
+  std::filesystem::path default_root;
+  ~ScratchRegistry() {
+    std::error_code ec;
+    for (const auto& d : dirs) std::filesystem::remove_all(d, ec);
+    if (!default_root.empty()) std::filesystem::remove(default_root, ec);  // only if empty
+  }
+};
+inline ScratchRegistry& scratch_registry() {
+  static ScratchRegistry registry;
+  return registry;
+}
+
+// $RAYLOD_TEST_TMP (set by ctest to build/test-tmp) or the system temp dir's
+// raylod-test, then "<name>-<pid>"; created if missing, kept (not emptied)
+// if present, and removed when the process exits.
 inline std::filesystem::path scratch_dir(const std::string& name) {
   const char* env = std::getenv("RAYLOD_TEST_TMP");
-  std::filesystem::path root = env && *env ? std::filesystem::path(env) : std::filesystem::temp_directory_path() / "raylod-test";
+  const bool own_root = !(env && *env);
+  std::filesystem::path root = own_root ? std::filesystem::temp_directory_path() / "raylod-test" : std::filesystem::path(env);
   std::filesystem::path dir = root / (name + "-" + std::to_string(::getpid()));
   std::filesystem::create_directories(dir);
+  ScratchRegistry& registry = scratch_registry();
+  registry.dirs.insert(dir);
+  if (own_root) registry.default_root = root;
   return dir;
 }
 

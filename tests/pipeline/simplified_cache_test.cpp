@@ -8,6 +8,7 @@
 #include <fstream>
 
 #include "pipeline/simplified_cache.h"
+#include "test_tmp.h"
 
 namespace raylod {
 namespace {
@@ -15,7 +16,7 @@ namespace {
 namespace fs = std::filesystem;
 
 fs::path fresh_dir(const std::string& name) {
-  fs::path d = fs::temp_directory_path() / ("raylod-cache-test-" + std::to_string(::getpid())) / name;
+  fs::path d = test::scratch_dir("cache-test") / name;
   fs::remove_all(d);
   fs::create_directories(d);
   return d;

@@ -22,28 +22,15 @@
 #include "streaming/mesh_writer.h"
 #include "streaming/octree_store.h"
 #include "test_scenes.h"
+#include "test_tmp.h"
 
 namespace raylod {
 namespace {
 
 namespace fs = std::filesystem;
 
-// Removes the scratch directory when the test process exits.
-struct ScratchDir {
-  fs::path path;
-  ~ScratchDir() {
-    std::error_code ec;
-    fs::remove_all(path, ec);
-  }
-};
-
-fs::path tmp_dir() {
-  // Per process: ctest runs the cases in parallel processes.
-  static const ScratchDir dir{fs::path(std::getenv("RAYLOD_TEST_TMP") ? std::getenv("RAYLOD_TEST_TMP") : "/tmp") /
-                              ("probe-" + std::to_string(::getpid()))};
-  fs::create_directories(dir.path);
-  return dir.path;
-}
+// Per process (ctest runs the cases in parallel processes), removed at exit.
+fs::path tmp_dir() { return test::scratch_dir("probe"); }
 
 fs::path write_ply(const test::TestMesh& m, const std::string& name) {
   const fs::path path = tmp_dir() / name;

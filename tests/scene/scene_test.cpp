@@ -6,17 +6,14 @@
 #include <fstream>
 
 #include "scene/scene.h"
+#include "test_tmp.h"
 
 namespace raylod {
 namespace {
 
 namespace fs = std::filesystem;
 
-fs::path temp_dir() {
-  fs::path d = fs::temp_directory_path() / ("raylod-scene-test-" + std::to_string(::getpid()));
-  fs::create_directories(d);
-  return d;
-}
+fs::path temp_dir() { return test::scratch_dir("scene-test"); }
 
 const char* kMinimal = R"({
   "camera": {"eye": [0, 1, 5], "look_at": [0, 0, 0], "fov_y": 40, "width": 64, "height": 48},
