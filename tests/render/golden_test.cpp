@@ -30,6 +30,16 @@ using namespace raylod::testing;
 
 std::filesystem::path golden_dir() { return std::filesystem::path(RAYLOD_TEST_DIR) / "render" / "golden"; }
 
+// Where a failing golden test leaves its images: $RAYLOD_TEST_TMP (build/test-tmp
+// under ctest) or the system temp dir's raylod-test, then render-golden.
+// Only failures write here, so passing runs leave nothing behind.
+std::filesystem::path golden_failure_dir() {
+  const char* env = std::getenv("RAYLOD_TEST_TMP");
+  const std::filesystem::path root =
+      env && *env ? std::filesystem::path(env) : std::filesystem::temp_directory_path() / "raylod-test";
+  return root / "render-golden";
+}
+
 // PNG round trip of the linear image, as 8-bit sRGB codes 0..255.
 std::vector<int> png_codes(const Image& linear, const std::filesystem::path& path) {
   EXPECT_TRUE(write_image(path, linear).is_ok());
@@ -44,8 +54,6 @@ std::vector<int> png_codes(const Image& linear, const std::filesystem::path& pat
 }
 
 void expect_golden(const std::string& name, const Image& actual) {
-  const auto out_dir = test_tmp("render-golden");
-  const auto actual_path = out_dir / (name + ".actual.png");
   const auto reference_path = golden_dir() / (name + ".png");
   const char* update = std::getenv("RAYLOD_UPDATE_GOLDEN");
   if (update && std::string(update) == "1") {
@@ -59,8 +67,12 @@ void expect_golden(const std::string& name, const Image& actual) {
   ASSERT_EQ(reference->width, actual.width);
   ASSERT_EQ(reference->height, actual.height);
   ASSERT_EQ(reference->channels, actual.channels);
-  const std::vector<int> a = png_codes(actual, actual_path);
-  const std::vector<int> r = png_codes(*reference, out_dir / (name + ".reference.png"));
+  // The PNG round trips go to this process's own scratch folder (ctest runs
+  // the golden tests two at a time; a folder shared between them could be
+  // removed by one while the other writes into it).
+  const auto work = raylod::test::scratch_dir("render-golden-work");
+  const std::vector<int> a = png_codes(actual, work / (name + ".actual.png"));
+  const std::vector<int> r = png_codes(*reference, work / (name + ".reference.png"));
   size_t large = 0;
   double sum = 0;
   Image diff(actual.width, actual.height, actual.channels);
@@ -72,15 +84,13 @@ void expect_golden(const std::string& name, const Image& actual) {
   }
   const double mean = sum / double(a.size());
   const bool ok = large <= a.size() / 100 && mean < 1.0;
+  const auto out_dir = golden_failure_dir();
   if (!ok) {
+    // Kept for a person to look at: the fixed, documented folder.
+    std::filesystem::create_directories(out_dir);
+    EXPECT_TRUE(write_image(out_dir / (name + ".actual.png"), actual).is_ok());
+    EXPECT_TRUE(write_image(out_dir / (name + ".reference.png"), *reference).is_ok());
     EXPECT_TRUE(write_image(out_dir / (name + ".diff.png"), diff).is_ok());
-  } else {
-    // Passed: nothing to look at, nothing left behind (the folder goes too
-    // once it is empty).
-    std::error_code ec;
-    std::filesystem::remove(out_dir / (name + ".reference.png"), ec);
-    std::filesystem::remove(actual_path, ec);
-    std::filesystem::remove(out_dir, ec);
   }
   EXPECT_TRUE(ok) << name << ": " << large << " of " << a.size() << " channel values differ by more than 8/255, mean "
                   << mean << "/255; see " << out_dir;
@@ -222,7 +232,10 @@ TEST(Golden, WireframeShowsTriangleDensity) {
   // More, smaller triangles -> more pixels near an edge -> darker.
   EXPECT_LT(fine, coarse * 0.9);
   if (!(fine < coarse * 0.9))
-    EXPECT_TRUE(write_image(test_tmp("render-golden") / "wireframe_fine_sphere.actual.png", fine_img).is_ok());
+  {
+    std::filesystem::create_directories(golden_failure_dir());
+    EXPECT_TRUE(write_image(golden_failure_dir() / "wireframe_fine_sphere.actual.png", fine_img).is_ok());
+  }
   expect_golden("wireframe_coarse_sphere", coarse_img);
 }
 

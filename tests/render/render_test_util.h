@@ -13,19 +13,8 @@
 
 namespace raylod::testing {
 
-// RAYLOD_TEST_TMP (set by ctest) or the system temp dir, plus a sub folder.
-inline std::filesystem::path test_tmp(const std::string& sub) {
-  // Golden-image failures go to a fixed place (documented in golden_test.cpp);
-  // their file names are per test, so processes do not collide there.
-  if (sub == "render-golden") {
-    const char* env = std::getenv("RAYLOD_TEST_TMP");
-    std::filesystem::path p = env && *env ? std::filesystem::path(env) : std::filesystem::temp_directory_path() / "raylod-test";
-    p /= sub;
-    std::filesystem::create_directories(p);
-    return p;
-  }
-  return test::scratch_dir(sub);
-}
+// This process's own scratch folder (see test_tmp.h), removed when it exits.
+inline std::filesystem::path test_tmp(const std::string& sub) { return test::scratch_dir(sub); }
 
 // Orients every triangle of a convex solid outward (away from the centroid of
 // its vertices); the soup is then welded.
