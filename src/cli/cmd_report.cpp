@@ -30,7 +30,16 @@ Status parse_list(const std::string& text, const char* what, std::vector<T>& out
   return {};
 }
 
+// "4,8,16" from a list, as the help text shows defaults.
+template <typename T>
+std::string join_list(const std::vector<T>& values) {
+  std::ostringstream out;
+  for (size_t i = 0; i < values.size(); ++i) out << (i ? "," : "") << values[i];
+  return out.str();
+}
+
 Status run_report_cmd(int argc, char** argv) {
+  const ReportConfig defaults;
   Args args("report", "[SCENE] [-o DIR] [options]",
             "Shows what accuracy costs in time: renders the full-resolution mesh as the reference,\n"
             "then raylod at a sweep of footprint scales K and test-ray counts, and the uniform\n"
@@ -39,10 +48,17 @@ Status run_report_cmd(int argc, char** argv) {
             "the table, accuracy-versus-time plots, difference images and pictures of the cut.",
             {{"--output", "-o", "report directory (default raylod-report)", true, "DIR"},
              {"--mesh", "", "mesh to use in place of the scene's first object's mesh", true, "FILE"},
-             {"--scales", "", "footprint scales K to sweep (default 1,2,4,8,16)", true, "LIST"},
-             {"--rays", "", "test-ray counts to sweep (default 500,5000,50000)", true, "LIST"},
-             {"--default-scale", "", "K of the ray sweep and the headline figures (default 10)", true, "K"},
-             {"--default-rays", "", "test rays of the K sweep (default 5000)", true, "N"},
+             {"--scales", "",
+              "footprint scales K to sweep with the deviation criterion (default " +
+                  join_list(defaults.footprint_scales) + "; the diagonal criterion at " +
+                  join_list(defaults.diagonal_scales) + " beside them)",
+              true, "LIST"},
+             {"--rays", "", "test-ray counts to sweep (default " + join_list(defaults.ray_counts) + ")", true, "LIST"},
+             {"--default-scale", "",
+              "K of the ray sweep and the headline figures (default " + join_list(std::vector{defaults.default_scale}) + ")",
+              true, "K"},
+             {"--default-rays", "",
+              "test rays of the K sweep (default " + std::to_string(defaults.default_rays) + ")", true, "N"},
              {"--no-closeup", "", "skip the close-up view", false, ""},
              {"--no-baselines", "", "skip the meshoptimizer baselines", false, ""},
              {"--spp", "", "samples per pixel (default: the scene's)", true, "N"},
