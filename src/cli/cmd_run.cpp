@@ -75,6 +75,7 @@ Status run_run(int argc, char** argv, bool& help) {
 
   RAYLOD_ASSIGN_OR_RETURN(RunResult r, run_pipeline(scene, opts, log));
   RAYLOD_RETURN_IF_ERROR(write_image(output, r.render.color));
+  for (const std::string& w : r.warnings) std::fprintf(stderr, "raylod run: warning: %s\n", w.c_str());
 
   std::printf("raylod run: %s\n", args.positionals().empty() ? "embedded default scene" : args.positionals()[0].c_str());
   std::printf("  triangles  %llu -> %llu (%.1fx fewer)\n", (unsigned long long)r.triangles_in,
@@ -97,9 +98,31 @@ Status run_run(int argc, char** argv, bool& help) {
     RenderOptions ro;
     ro.spp = opts.spp;
     ro.threads = opts.threads;
-    ro.memory_limit = opts.memory_limit;
+    // The comparison runs after the run's own render has been freed, so it
+    // gets the whole memory limit to itself.
+    StoreOptions limit_of;
+    limit_of.memory_limit = opts.memory_limit;
+    ro.memory_limit = resolved_memory_limit(limit_of);
     ro.progress = opts.progress;
+    ro.over_limit_hint.clear();
     if (opts.mesh_override) ro.mesh_override = {*opts.mesh_override};
+    RAYLOD_ASSIGN_OR_RETURN(uint64_t full_triangles, declared_scene_triangles(scene, ro));
+    const uint64_t full_need = estimate_render_memory(full_triangles, bvh_for_memory_limit(full_triangles, ro.memory_limit));
+    if (full_need > ro.memory_limit) {
+      // The run itself succeeded: keep its image and statistics, and say why
+      // there is no comparison.
+      const std::string why = "the full mesh (" + std::to_string(full_triangles) + " triangles) needs about " +
+                              format_bytes(full_need) + " to render, over the memory limit of " +
+                              format_bytes(ro.memory_limit) + "; raise --memory-limit to compare";
+      std::fprintf(stderr, "raylod run: warning: --compare skipped: %s\n", why.c_str());
+      std::printf("  error      not measured (--compare skipped: %s)\n", why.c_str());
+      auto j = nlohmann::json::parse(stats);
+      j["comparison_skipped"] = why;
+      stats = j.dump(2) + "\n";
+      std::printf("  wrote      %s\n", output.string().c_str());
+      if (args.has("--stats-json")) RAYLOD_RETURN_IF_ERROR(write_file_atomic(args.get("--stats-json"), stats));
+      return {};
+    }
     RAYLOD_ASSIGN_OR_RETURN(FullRender fr, render_full_with_noise_floor(scene, ro));
     const RenderResult& full = fr.reference;
     const NoiseFloor& floor = fr.noise_floor;

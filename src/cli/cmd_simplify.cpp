@@ -102,7 +102,8 @@ int run_simplify(int argc, char** argv) {
   if (!result) return fail("simplify", result.status().with_context(store_path.string()));
   const SimplifyResult& r = *result;
   if (r.mesh.triangle_count() == 0)
-    return fail("simplify", Status::error("the simplified mesh has no triangles; nothing was written"));
+    return fail("simplify", Status::error((*store)->header().source_path + ": " + why_simplified_mesh_is_empty(r, *cut) +
+                                          "; nothing was written"));
 
   const auto t_write = Clock::now();
   uint64_t bytes = 0;

@@ -61,8 +61,9 @@ StatusOr<FullRender> render_full_with_noise_floor(const Scene& scene, const Rend
   std::optional<tbb::global_control> threads;
   if (options.threads > 0) threads.emplace(tbb::global_control::max_allowed_parallelism, size_t(options.threads));
   RenderStats load_stats;
-  RAYLOD_ASSIGN_OR_RETURN(auto meshes, load_scene_meshes(scene, options, load_stats));
-  RAYLOD_ASSIGN_OR_RETURN(auto geometry, EmbreeScene::build(std::move(meshes), options.bvh));
+  BvhConfig bvh;
+  RAYLOD_ASSIGN_OR_RETURN(auto meshes, load_scene_meshes(scene, options, load_stats, &bvh));
+  RAYLOD_ASSIGN_OR_RETURN(auto geometry, EmbreeScene::build(std::move(meshes), bvh));
   FullRender out;
   out.reference = render_embree_scene(*geometry, scene, options);
   out.reference.stats.load_seconds = load_stats.load_seconds;

@@ -117,6 +117,12 @@ StatusOr<SimplifiedMesh> simplify_cut_to_draco(const OctreeStore& store, const C
   sc.memory_limit = memory_limit;
   sc.progress = progress;
   RAYLOD_ASSIGN_OR_RETURN(SimplifyResult simplified, simplify(store, cut, sc));
+  if (simplified.mesh.triangle_count() == 0) {
+    SimplifiedMesh empty;
+    empty.empty_reason = why_simplified_mesh_is_empty(simplified, cut);
+    if (seconds) *seconds = seconds_since(t0);
+    return empty;
+  }
   DracoOptions dopt;
   dopt.max_position_error = draco_error_bound(cut, store);
   dopt.normal_bits = 0;
@@ -250,10 +256,17 @@ StatusOr<RunResult> run_pipeline(Scene scene, const RunOptions& options, const L
   RAYLOD_ASSIGN_OR_RETURN(const ProbeTrace trace, std::move(traced));
   for (;;) {
     RAYLOD_ASSIGN_OR_RETURN(result.probe, select_cuts(trace, scene, stores.probe_stores, stores.objects, probe));
-    uint64_t estimate = 0;
-    for (size_t i = 0; i < stores.stores.size(); ++i)
-      estimate += estimate_simplify(*stores.stores[i], result.probe.cuts[i]).triangles;
-    uint64_t need = estimate_render_memory(estimate + 2);
+    // What the later stages need: simplifying one store at a time (its mesh
+    // under construction), then rendering all the simplified meshes.
+    uint64_t estimate = 0, simplify_need = 0;
+    for (size_t i = 0; i < stores.stores.size(); ++i) {
+      const SimplifyEstimate e = estimate_simplify(*stores.stores[i], result.probe.cuts[i]);
+      estimate += e.triangles;
+      simplify_need = std::max(simplify_need, e.bytes);
+    }
+    const uint64_t scene_triangles = estimate + 2;  // and the ground's two
+    const uint64_t need = std::max(
+        simplify_need, estimate_render_memory(scene_triangles, bvh_for_memory_limit(scene_triangles, memory_limit)));
     if (need <= memory_limit) break;
     // Stop once coarsening no longer helps (the estimate bottoms out at the
     // renderer's fixed overhead) or after max_coarsening_steps doublings.
@@ -283,8 +296,9 @@ StatusOr<RunResult> run_pipeline(Scene scene, const RunOptions& options, const L
   auto t_simplify = std::chrono::steady_clock::now();
   std::optional<SimplifiedCache> cache;
   if (options.use_cache) {
-    RAYLOD_ASSIGN_OR_RETURN(SimplifiedCache c, SimplifiedCache::open(cache_dir, options.cache_limit));
-    cache.emplace(std::move(c));
+    auto c = SimplifiedCache::open(cache_dir, options.cache_limit);
+    if (c.is_ok()) cache.emplace(std::move(c.value()));
+    else result.warnings.push_back("cannot use the cache (" + c.status().message() + "); rendering without caching");
   }
   fs::path scratch = cache ? cache->dir() / "simplified" : fs::temp_directory_path();
   result.cache_hit = true;
@@ -323,27 +337,53 @@ StatusOr<RunResult> run_pipeline(Scene scene, const RunOptions& options, const L
     }
     if (!sm.cache_hit) {
       result.cache_hit = false;
-      AtomicOutput tmp(scratch / ("simplified-" + std::to_string(::getpid()) + "-" + std::to_string(i) + ".drc"));
-      fs::path staged = tmp.temp_path();
-      staged += ".drc";
+      auto staged_in = [&](const fs::path& dir) {
+        AtomicOutput tmp(dir / ("simplified-" + std::to_string(::getpid()) + "-" + std::to_string(i) + ".drc"));
+        fs::path staged = tmp.temp_path();
+        staged += ".drc";
+        scratch_files.push_back(staged);  // removed after rendering, or after a failed write
+        return staged;
+      };
+      fs::path staged = staged_in(scratch);
       auto simplify_store = [&] {
         return simplify_cut_to_draco(*stores.stores[i], cut, staged, memory_limit, shading_normal_tolerance(scene),
                                      options.progress, nullptr, scene.crease_angle_deg);
       };
       auto simplified = simplify_store();
+      if (!simplified.is_ok() && cache && simplified.status().message().find(staged.string()) != std::string::npos) {
+        // The cache's disk refused the file (full, read-only): render from
+        // the system's temporary folder, without caching.
+        result.warnings.push_back("cannot write into the cache (" + simplified.status().message() +
+                                  "); rendering without caching");
+        cache.reset();
+        staged = staged_in(fs::temp_directory_path());
+        simplified = simplify_store();
+      }
       if (!simplified.is_ok()) {
         RAYLOD_ASSIGN_OR_RETURN(bool retry, repair_corrupt_stores(stores, store_options, "simplify", repaired, log));
         if (retry) simplified = simplify_store();
       }
       RAYLOD_ASSIGN_OR_RETURN(sm, std::move(simplified));
+      if (sm.triangles == 0) {
+        // Nothing to cache or render: the object is left out, and the user told why.
+        sm.cache_note = "not cached (no triangles)";
+        result.warnings.push_back(stores.meshes[i].string() + ": " + sm.empty_reason + "; it is left out of the image");
+        result.meshes.push_back(sm);
+        continue;
+      }
       // Rendered from the staged file, which lives until after rendering.
-      scratch_files.push_back(staged);
-      sm.cache_note = "simplified (cache disabled)";
+      sm.cache_note = options.use_cache ? "simplified; not cached" : "simplified (cache disabled)";
       if (cache) {
-        RAYLOD_ASSIGN_OR_RETURN(CacheEntry entry, cache->insert(cut, staged, sm.triangles, sm.max_position_error, scene.crease_angle_deg));
-        std::error_code ec;
-        sm.cache_note = fs::is_regular_file(entry.mesh, ec) ? "simplified and cached as " + entry.key
-                                                            : "simplified; not cached (larger than the cache limit)";
+        auto entry = cache->insert(cut, staged, sm.triangles, sm.max_position_error, scene.crease_angle_deg);
+        if (!entry.is_ok()) {
+          // A full cache disk costs the reuse, not the image.
+          result.warnings.push_back("cannot cache the simplified mesh (" + entry.status().message() +
+                                    "); rendering without caching");
+        } else {
+          std::error_code ec;
+          sm.cache_note = fs::is_regular_file(entry->mesh, ec) ? "simplified and cached as " + entry->key
+                                                               : "simplified; not cached (larger than the cache limit)";
+        }
       }
     }
     std::error_code ec;
@@ -363,7 +403,11 @@ StatusOr<RunResult> run_pipeline(Scene scene, const RunOptions& options, const L
   ro.memory_limit = memory_limit;
   ro.progress = options.progress;
   ro.log = log;
-  for (const auto& obj : stores.objects) ro.mesh_override.push_back(result.meshes[obj.store].drc);
+  for (const auto& obj : stores.objects) {
+    const SimplifiedMesh& sm = result.meshes[obj.store];
+    ro.mesh_override.push_back(sm.drc);
+    ro.omit_object.push_back(sm.triangles == 0);
+  }
   auto t_render = std::chrono::steady_clock::now();
   RAYLOD_ASSIGN_OR_RETURN(result.render, render(scene, ro));
   result.seconds.render = seconds_since(t_render);
@@ -391,6 +435,7 @@ std::string run_stats_json(const RunResult& r, const RunOptions& options) {
                       {"cache_hit", m.cache_hit}, {"cache_note", m.cache_note}});
   j["meshes"] = meshes;
   j["probe_counters"] = r.probe.counters;
+  j["warnings"] = r.warnings;
   j["render"] = nlohmann::json::parse(render_stats_json(r.render.stats));
   return j.dump(2) + "\n";
 }

@@ -65,8 +65,9 @@ struct StageTimes {
 };
 
 struct SimplifiedMesh {
-  std::filesystem::path drc;          // the mesh rendered (in the cache or a temporary)
+  std::filesystem::path drc;          // the mesh rendered (in the cache or a temporary); empty if no triangles
   uint64_t triangles = 0;
+  std::string empty_reason;           // why there are no triangles (why_simplified_mesh_is_empty)
   uint64_t drc_bytes = 0;
   int position_bits = 0;
   double max_position_error = 0;
@@ -85,6 +86,7 @@ struct RunResult {
   int coarsening_steps = 0;
   bool cache_hit = false;             // every simplified mesh came from the cache
   uint64_t peak_rss = 0;
+  std::vector<std::string> warnings;  // printed whatever the log level (meshes left out, ...)
 };
 
 StatusOr<RunResult> run_pipeline(Scene scene, const RunOptions& options, const LogFn& log);
@@ -101,7 +103,9 @@ StatusOr<ProbeConfig> make_probe_config(const Scene& scene, uint64_t rays, doubl
 
 // Simplifies the cut of a store and writes it Draco-compressed to `out`
 // (position quantisation from draco_error_bound, normal quantisation from
-// max_normal_error); fills triangles, bytes and bits.
+// max_normal_error); fills triangles, bytes and bits. A simplified mesh with
+// no triangles is not an error here: nothing is written, drc stays empty and
+// empty_reason says why (the caller decides: `run` leaves the object out).
 StatusOr<SimplifiedMesh> simplify_cut_to_draco(const OctreeStore& store, const Cut& cut, const std::filesystem::path& out,
                                                uint64_t memory_limit, double max_normal_error, bool progress,
                                                double* seconds = nullptr,

@@ -253,16 +253,30 @@ StatusOr<CacheEntry> SimplifiedCache::insert(const Cut& cut, const fs::path& drc
   RAYLOD_ASSIGN_OR_RETURN(e.content_hash, hash_file(drc_file));
   {
     CacheLock lock(dir_);
-    // Mesh and cut first, metadata last: an entry exists only once its .json does.
-    RAYLOD_RETURN_IF_ERROR(write_cut(e.cut, cut));
-    std::error_code ec;
+    // Mesh and cut first, metadata last: an entry exists only once its .json
+    // does. A failed insert (a full disk) removes whatever it wrote.
     fs::path staged = e.mesh;
     staged += ".tmp-insert";
+    bool done = false;
+    struct Undo {
+      const bool& done;
+      const fs::path &dir, &staged;
+      const std::string& key;
+      ~Undo() {
+        if (done) return;
+        std::error_code ec;
+        fs::remove(staged, ec);
+        remove_entry_files(dir, key);
+      }
+    } undo{done, dir, staged, e.key};
+    RAYLOD_RETURN_IF_ERROR(write_cut(e.cut, cut));
+    std::error_code ec;
     fs::copy_file(drc_file, staged, fs::copy_options::overwrite_existing, ec);
     if (ec) return Status::error(e.mesh.string() + ": cannot copy into cache: " + ec.message());
     fs::rename(staged, e.mesh, ec);
     if (ec) return Status::error(e.mesh.string() + ": cannot rename into cache: " + ec.message());
     RAYLOD_RETURN_IF_ERROR(write_meta(dir, e));
+    done = true;
   }
   evict();
   if (auto fresh = read_meta(dir / (e.key + ".json"))) return *fresh;

@@ -149,38 +149,57 @@ uint64_t estimate_render_memory(uint64_t triangles, const BvhConfig& config) {
   return uint64_t(16ull << 20) + uint64_t(double(triangles) * (mesh + bvh));
 }
 
-uint64_t triangles_that_fit(uint64_t bytes, const BvhConfig& config) {
-  // The estimate is linear within each BVH layout's range of triangle counts
-  // (and drops where the compact layout starts), so take the largest count
-  // that fits within any of the ranges.
-  const uint64_t ranges[3][2] = {{0, config.high_quality_below},
-                                 {config.high_quality_below, config.compact_from},
-                                 {config.compact_from, uint64_t(1) << 40}};
-  uint64_t best = 0;
-  for (const auto& r : ranges) {
-    if (r[0] >= r[1]) continue;
-    // Bisect for the largest n in [r0, r1) with estimate(n) <= bytes.
-    if (estimate_render_memory(r[0], config) > bytes) continue;
-    uint64_t lo = r[0], hi = r[1] - 1;
-    while (lo < hi) {
-      const uint64_t mid = lo + (hi - lo + 1) / 2;
-      if (estimate_render_memory(mid, config) <= bytes) lo = mid;
-      else hi = mid - 1;
-    }
-    best = std::max(best, lo);
-  }
-  return best;
+BvhConfig bvh_for_memory_limit(uint64_t triangles, uint64_t limit, BvhConfig config) {
+  if (limit == 0 || estimate_render_memory(triangles, config) <= limit) return config;
+  BvhConfig compact = config;
+  compact.high_quality_below = 0;
+  compact.compact_from = 0;
+  return estimate_render_memory(triangles, compact) <= limit ? compact : config;
 }
 
-StatusOr<std::vector<TriangleMesh>> load_scene_meshes(const Scene& scene, const RenderOptions& options,
-                                                      RenderStats& stats) {
-  const auto start = std::chrono::steady_clock::now();
+uint64_t triangles_that_fit(uint64_t bytes, const BvhConfig& config) {
+  // With the layout bvh_for_memory_limit picks, the estimate grows with the
+  // count, so bisect for the largest count that fits.
+  auto fits = [&](uint64_t n) { return estimate_render_memory(n, bvh_for_memory_limit(n, bytes, config)) <= bytes; };
+  if (!fits(0)) return 0;
+  uint64_t lo = 0, hi = uint64_t(1) << 40;
+  while (lo < hi) {
+    const uint64_t mid = lo + (hi - lo + 1) / 2;
+    if (fits(mid)) lo = mid;
+    else hi = mid - 1;
+  }
+  return lo;
+}
+
+namespace {
+
+// Whether any triangle has a non-zero area (stops at the first).
+bool has_area(const TriangleMesh& m) {
+  for (size_t t = 0; t + 2 < m.indices.size(); t += 3) {
+    const Vec3d a(m.positions[m.indices[t]]), b(m.positions[m.indices[t + 1]]), c(m.positions[m.indices[t + 2]]);
+    { const Vec3d n = glm::cross(b - a, c - a); if (glm::dot(n, n) > 0) return true; }
+  }
+  return false;
+}
+
+// The mesh file of each object (empty for objects left out), and the
+// triangles the files declare, the ground's included.
+struct ScenePaths {
+  std::vector<std::filesystem::path> paths;
+  uint64_t declared = 0;
+};
+
+StatusOr<ScenePaths> scene_mesh_paths(const Scene& scene, const RenderOptions& options) {
   if (options.mesh_override.size() > scene.objects.size())
     return Status::error(std::to_string(options.mesh_override.size()) + " replacement meshes given, but the scene has " +
                          std::to_string(scene.objects.size()) + " object(s)");
-  std::vector<std::filesystem::path> paths;
-  uint64_t declared = scene.ground ? 2 : 0;
+  ScenePaths out;
+  out.declared = scene.ground ? 2 : 0;
   for (size_t i = 0; i < scene.objects.size(); ++i) {
+    if (i < options.omit_object.size() && options.omit_object[i]) {
+      out.paths.emplace_back();
+      continue;
+    }
     std::filesystem::path p = scene.objects[i].mesh;
     if (i < options.mesh_override.size() && !options.mesh_override[i].empty()) p = options.mesh_override[i];
     if (p.empty()) {
@@ -190,17 +209,39 @@ StatusOr<std::vector<TriangleMesh>> load_scene_meshes(const Scene& scene, const 
                            " has not been generated yet (resolve_generated_meshes)");
     }
     RAYLOD_ASSIGN_OR_RETURN(uint64_t n, declared_triangle_count(p));
-    declared += n;
-    paths.push_back(p);
+    out.declared += n;
+    out.paths.push_back(p);
   }
-  stats.estimated_bytes = estimate_render_memory(declared, options.bvh);
+  return out;
+}
+
+}  // namespace
+
+StatusOr<uint64_t> declared_scene_triangles(const Scene& scene, const RenderOptions& options) {
+  RAYLOD_ASSIGN_OR_RETURN(ScenePaths sp, scene_mesh_paths(scene, options));
+  return sp.declared;
+}
+
+StatusOr<std::vector<TriangleMesh>> load_scene_meshes(const Scene& scene, const RenderOptions& options,
+                                                      RenderStats& stats, BvhConfig* bvh) {
+  const auto start = std::chrono::steady_clock::now();
+  RAYLOD_ASSIGN_OR_RETURN(ScenePaths sp, scene_mesh_paths(scene, options));
+  const std::vector<std::filesystem::path>& paths = sp.paths;
+  const uint64_t declared = sp.declared;
+  auto omitted = [&](size_t i) { return paths[i].empty(); };
+  const BvhConfig chosen = bvh_for_memory_limit(declared, options.memory_limit, options.bvh);
+  if (bvh) *bvh = chosen;
+  stats.estimated_bytes = estimate_render_memory(declared, chosen);
   if (options.memory_limit > 0 && stats.estimated_bytes > options.memory_limit) {
     return Status::error("the scene has " + std::to_string(declared) + " triangles, which need about " +
-                         format_bytes(stats.estimated_bytes) + " for the mesh and its BVH, more than the memory limit of " +
+                         format_bytes(stats.estimated_bytes) +
+                         " for the mesh and its BVH (compact layout), more than the memory limit of " +
                          format_bytes(options.memory_limit) + "; about " +
-                         std::to_string(triangles_that_fit(options.memory_limit, options.bvh)) +
-                         " triangles would fit. Use `raylod run`, which simplifies the mesh first.");
+                         std::to_string(triangles_that_fit(options.memory_limit, options.bvh)) + " triangles would fit." +
+                         (options.over_limit_hint.empty() ? std::string() : " " + options.over_limit_hint));
   }
+  if (options.log && chosen.compact_from != options.bvh.compact_from && declared < options.bvh.compact_from)
+    options.log("the compact BVH layout is used to fit the memory limit of " + format_bytes(options.memory_limit));
 
   if (options.log && options.memory_limit == 0 && stats.estimated_bytes > physical_memory_bytes())
     options.log("warning: the scene needs about " + format_bytes(stats.estimated_bytes) + " for " +
@@ -210,9 +251,19 @@ StatusOr<std::vector<TriangleMesh>> load_scene_meshes(const Scene& scene, const 
   std::optional<Progress> progress;
   if (options.progress) progress.emplace("load", declared, "triangles");
   for (size_t i = 0; i < paths.size(); ++i) {
+    if (omitted(i)) {
+      TriangleMesh none;
+      none.material = scene.objects[i].material;
+      none.name = "objects[" + std::to_string(i) + "] (left out)";
+      meshes.push_back(std::move(none));
+      continue;
+    }
     auto mesh = load_triangle_mesh(paths[i], scene.objects[i].transform, scene.objects[i].material, scene.crease_angle_deg,
                                    [&](uint64_t n) { if (progress) progress->advance(n); });
     if (!mesh) return mesh.status();
+    if (options.log && !has_area(*mesh))
+      options.log("warning: " + paths[i].string() + ": all " + std::to_string(mesh->triangle_count()) +
+                  " triangles are degenerate (zero area or repeated corners); nothing of it is rendered");
     meshes.push_back(std::move(mesh.value()));
   }
   if (progress) progress->finish();
@@ -313,11 +364,12 @@ StatusOr<RenderResult> render(const Scene& scene, const RenderOptions& options) 
   auto log = [&](const std::string& m) { if (options.log) options.log(m); };
 
   RenderStats load_stats;
-  RAYLOD_ASSIGN_OR_RETURN(auto meshes, load_scene_meshes(scene, options, load_stats));
+  BvhConfig bvh;
+  RAYLOD_ASSIGN_OR_RETURN(auto meshes, load_scene_meshes(scene, options, load_stats, &bvh));
   uint64_t tris = 0;
   for (const auto& m : meshes) tris += m.triangle_count();
   log("loaded " + std::to_string(tris) + " triangles in " + std::to_string(load_stats.load_seconds) + " s");
-  RAYLOD_ASSIGN_OR_RETURN(auto geometry, EmbreeScene::build(std::move(meshes), options.bvh));
+  RAYLOD_ASSIGN_OR_RETURN(auto geometry, EmbreeScene::build(std::move(meshes), bvh));
   const BvhInfo& info = geometry->info();
   log("BVH (" + info.quality + " quality): " + format_bytes(info.bvh_bytes) + ", built in " +
       std::to_string(info.build_seconds) + " s; mesh arrays " + format_bytes(info.mesh_bytes));

@@ -34,6 +34,11 @@ struct RenderOptions {
   uint64_t memory_limit = 0;    // bytes for meshes + BVH; 0 = no limit
   // mesh_override[i] replaces the mesh of scene.objects[i] (empty path = keep).
   std::vector<std::filesystem::path> mesh_override;
+  // omit_object[i] != 0 leaves scene.objects[i] out (its simplified mesh is
+  // empty); its mesh file is not read.
+  std::vector<char> omit_object;
+  // Appended to the error when the scene does not fit memory_limit.
+  std::string over_limit_hint = "Use `raylod run`, which simplifies the mesh first.";
   bool wireframe = false;       // darken pixels near triangle edges (triangle density)
   bool aov_depth = false;       // camera-ray hit distance, 1 channel (0 where nothing is hit)
   bool aov_normal = false;      // shading normal facing the camera, 3 channels
@@ -75,14 +80,26 @@ struct RenderResult {
 // welded mesh arrays plus the Embree BVH (with the layout BvhConfig picks),
 // measured on the teapot meshes (tools/bench_render) and rounded up.
 uint64_t estimate_render_memory(uint64_t triangles, const BvhConfig& config = {});
-// The largest triangle count whose estimate fits in bytes.
+// The BVH configuration for a scene of this many triangles under a memory
+// limit (0 = none): `config`, switched to the compact layout (medium builder,
+// index-only leaves) when only that fits, whatever the scene's size.
+BvhConfig bvh_for_memory_limit(uint64_t triangles, uint64_t limit, BvhConfig config = {});
+// The largest triangle count that fits in bytes with the layout
+// bvh_for_memory_limit would pick.
 uint64_t triangles_that_fit(uint64_t bytes, const BvhConfig& config = {});
+
+// The triangles the scene's mesh files (or their overrides) declare, the
+// ground's two included, read from the files' headers: what
+// load_scene_meshes checks against the memory limit.
+StatusOr<uint64_t> declared_scene_triangles(const Scene& scene, const RenderOptions& options);
 
 // Loads every object's mesh (or its override) into world space, plus the
 // ground plane; checks the memory estimate against options.memory_limit
-// before reading any triangle. Fills the load part of stats.
+// before reading any triangle. Fills the load part of stats, and `bvh` (if
+// given) with the configuration to build with (bvh_for_memory_limit).
+// Warns through options.log about a mesh whose every triangle is degenerate.
 StatusOr<std::vector<TriangleMesh>> load_scene_meshes(const Scene& scene, const RenderOptions& options,
-                                                      RenderStats& stats);
+                                                      RenderStats& stats, BvhConfig* bvh = nullptr);
 
 // Renders a prebuilt scene (for reuse across renders, tests and benchmarks).
 // Geometry material indices refer to scene.materials; the camera, lights,

@@ -416,4 +416,15 @@ StatusOr<SimplifyResult> simplify(const OctreeStore& store, const Cut& cut, cons
   return result;
 }
 
+std::string why_simplified_mesh_is_empty(const SimplifyResult& result, const Cut& cut) {
+  if (result.mesh.triangle_count() > 0) return {};
+  const CollapseStats& s = result.stats;
+  const std::string n = std::to_string(s.input_triangles);
+  if (s.input_triangles == 0) return "the store holds no triangles";
+  if (cut.cells.empty() || s.dropped_zero_area == s.input_triangles)
+    return "all " + n + " triangles are degenerate (zero area or repeated corners)";
+  return "all " + n + " triangles collapsed: the cut merged every vertex into " + std::to_string(result.cut_cells) +
+         " cell(s) finer than the view resolves (the whole mesh is about a pixel or less here)";
+}
+
 }  // namespace raylod

@@ -177,4 +177,10 @@ struct SimplifyResult {
 // the mesh under construction does.
 StatusOr<SimplifyResult> simplify(const OctreeStore& store, const Cut& cut, const SimplifyConfig& config = {});
 
+// Why a simplified mesh came out empty, for messages that name the input:
+// every input triangle degenerate (when the cut collapses nothing), or every
+// triangle collapsed by the cut (the whole mesh is finer than the view
+// resolves). Empty string if `result` has triangles.
+std::string why_simplified_mesh_is_empty(const SimplifyResult& result, const Cut& cut);
+
 }  // namespace raylod

@@ -4,11 +4,13 @@
 
 #include <unistd.h>
 
+#include <array>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <map>
 #include <sstream>
+#include <vector>
 
 #include <nlohmann/json.hpp>
 
@@ -146,19 +148,29 @@ TEST(Run, CorruptCacheEntryIsRebuiltNotRendered) {
 }
 
 TEST(Run, MemoryLimitBelowTheFullMeshCoarsensTheCut) {
-  // A 2.5M-triangle teapot at 640 x 480: the renderer's estimate for the full
-  // mesh (16 MiB + about 150 bytes per triangle) is over 300 MiB, and at
-  // K = 1 the cut keeps most triangles (they are about pixel-sized).
-  fs::path scene = write_scene("tight.json", 1.0, 640, 480, 2500000);
+  // A 3.6M-triangle teapot at 640 x 480: the renderer's estimate for the full
+  // mesh (16 MiB + about 90 bytes per triangle even with the compact BVH
+  // layout) is over 300 MiB, and at K = 1 the cut keeps most triangles (they
+  // are about pixel-sized).
+  fs::path scene = write_scene("tight.json", 1.0, 640, 480, 3600000);
   std::string out;
   ASSERT_NE(raylod("render '" + scene.string() + "' -o '" + (work_dir() / "t-full.png").string() +
                    "' --memory-limit 300M", &out), 0);
   EXPECT_NE(out.find("raylod run"), std::string::npos) << out;
-  // ...and run still produces an image by coarsening the cut.
+  EXPECT_NE(out.find("compact layout"), std::string::npos) << out;
+  // ...and run still produces an image by coarsening the cut. The comparison
+  // cannot fit the full mesh either: it is skipped with a warning, and the
+  // run succeeds with its statistics written.
   ASSERT_EQ(raylod("run '" + scene.string() + "' --no-cache --memory-limit 300M --footprint-scale 1 --rays 500 -o '" +
-                   (work_dir() / "t.png").string() + "' --stats-json '" + (work_dir() / "t.json").string() + "'", &out), 0)
+                   (work_dir() / "t.png").string() + "' --compare --stats-json '" + (work_dir() / "t.json").string() + "'",
+                   &out), 0)
       << out;
+  EXPECT_NE(out.find("warning: --compare skipped: the full mesh (3"), std::string::npos) << out;
+  EXPECT_EQ(out.find("Use `raylod run`"), std::string::npos) << out;
+  EXPECT_FALSE(fs::exists(work_dir() / "t.full.png"));
   auto t = stats(work_dir() / "t.json");
+  EXPECT_TRUE(t.contains("comparison_skipped")) << t.dump(2);
+  EXPECT_FALSE(t.contains("psnr")) << t.dump(2);
   EXPECT_GT(t["coarsening_steps"].get<int>(), 0) << out;
   EXPECT_GT(t["footprint_scale"].get<double>(), 1.0) << out;
   EXPECT_NE(out.find("coarsening the cut"), std::string::npos) << out;
@@ -200,6 +212,76 @@ TEST(Run, CompareReportsTheNoiseFloor) {
   EXPECT_NE(out.find(within ? ": indistinguishable" : "below the noise floor of"), std::string::npos) << out;
   EXPECT_TRUE(fs::exists(work_dir() / "cmp.full.png"));
   EXPECT_TRUE(fs::exists(work_dir() / "cmp.diff.png"));
+}
+
+// Writes a binary STL of the given triangles (9 floats each).
+void write_stl(const fs::path& p, const std::vector<std::array<float, 9>>& tris) {
+  std::ofstream out(p, std::ios::binary);
+  const std::string header(80, ' ');
+  out.write(header.data(), 80);
+  const uint32_t n = uint32_t(tris.size());
+  out.write(reinterpret_cast<const char*>(&n), 4);
+  for (const auto& t : tris) {
+    const float normal[3] = {0, 0, 1};
+    out.write(reinterpret_cast<const char*>(normal), 12);
+    out.write(reinterpret_cast<const char*>(t.data()), 36);
+    const uint16_t attr = 0;
+    out.write(reinterpret_cast<const char*>(&attr), 2);
+  }
+}
+
+TEST(Run, MeshThatCollapsesToNothingIsLeftOutWithTheReason) {
+  // Every triangle degenerate, and a mesh far below a pixel (one cell): each
+  // simplifies to nothing. The run renders the rest of the scene, names the
+  // input and the reason (never a cache temporary), and caches nothing.
+  write_stl(work_dir() / "flat.stl", {{0, 0, 0, 1, 1, 1, 2, 2, 2}, {0, 0, 0, 0, 0, 0, 1, 0, 0}});
+  write_stl(work_dir() / "speck.stl", {{0, 1, 0, 1e-6f, 1, 0, 0, 1 + 1e-6f, 0}, {1e-6f, 1, 0, 1e-6f, 1 + 1e-6f, 0, 0, 1 + 1e-6f, 0}});
+  const std::map<std::string, std::string> reasons = {{"flat", "triangles are degenerate"}, {"speck", "triangles collapsed"}};
+  for (const auto& [name, reason] : reasons) {
+    fs::path scene = work_dir() / (name + ".json");
+    std::ofstream(scene) << R"({"camera": {"eye": [0, 1, 5], "look_at": [0, 1, 0], "fov_y": 30, "width": 48, "height": 32},
+      "materials": {"m": {"type": "diffuse", "color": [0.7, 0.7, 0.7]}},
+      "objects": [{"mesh": ")" << name << R"(.stl", "material": "m"}],
+      "ground": {"height": -0.5, "size": 20, "material": "m"},
+      "lights": [{"type": "point", "position": [2, 5, 3], "intensity": 40}], "spp": 1})";
+    const fs::path cache = work_dir() / ("cache-" + name);
+    std::string out;
+    ASSERT_EQ(raylod("run '" + scene.string() + "' -q --cache '" + cache.string() + "' -o '" +
+                     (work_dir() / (name + ".png")).string() + "' --stats-json '" +
+                     (work_dir() / (name + ".stats.json")).string() + "'", &out), 0)
+        << out;
+    EXPECT_NE(out.find("warning: " + (work_dir() / (name + ".stl")).string() + ": all 2 " + reason), std::string::npos) << out;
+    EXPECT_NE(out.find("left out of the image"), std::string::npos) << out;
+    EXPECT_EQ(out.find(".tmp-"), std::string::npos) << out;
+    auto j = stats(work_dir() / (name + ".stats.json"));
+    EXPECT_EQ(j["triangles_out"].get<uint64_t>(), 0u);
+    ASSERT_EQ(j["warnings"].size(), 1u) << j.dump(2);
+    EXPECT_TRUE(fs::exists(work_dir() / (name + ".png")));
+    size_t cached = 0;
+    std::error_code ec;
+    for (auto it = fs::recursive_directory_iterator(cache, ec); it != fs::recursive_directory_iterator(); ++it)
+      cached += it->path().extension() == ".drc";
+    EXPECT_EQ(cached, 0u);
+  }
+}
+
+TEST(Run, UnusableCacheRendersWithoutCaching) {
+  // The cache folder cannot be used (its "simplified" folder is a file, as a
+  // full or read-only cache disk would refuse it): the run still renders,
+  // warns, and leaves the cache alone.
+  fs::path scene = write_scene("nocache.json", 1.0, 48, 36, 5000);
+  const fs::path cache = work_dir() / "cache-unusable";
+  fs::create_directories(cache);
+  std::ofstream(cache / "simplified") << "not a folder";
+  std::string out;
+  // The generated teapot is made (once) in the test's own cache.
+  ASSERT_EQ(raylod("run '" + scene.string() + "' -q --rays 300 --cache '" + cache.string() + "' -o '" +
+                   (work_dir() / "nocache.png").string() + "'", &out), 0)
+      << out;
+  EXPECT_NE(out.find("warning: cannot use the cache"), std::string::npos) << out;
+  EXPECT_NE(out.find("rendering without caching"), std::string::npos) << out;
+  EXPECT_TRUE(fs::exists(work_dir() / "nocache.png"));
+  EXPECT_TRUE(fs::is_regular_file(cache / "simplified"));
 }
 
 TEST(Run, BadSceneIsAClearError) {

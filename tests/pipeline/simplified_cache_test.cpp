@@ -81,6 +81,27 @@ TEST(SimplifiedCache, InsertThenExactHit) {
   EXPECT_TRUE(fs::exists(hit->mesh));
 }
 
+TEST(SimplifiedCache, FailedInsertLeavesNoPartialEntry) {
+  // The copy of the mesh into the cache fails after the cut was written (as
+  // on a full disk): the insert reports it and removes what it wrote.
+  fs::path dir = fresh_dir("failed-insert");
+  auto cache = SimplifiedCache::open(dir, 1 << 20);
+  ASSERT_TRUE(cache.is_ok());
+  Cut cut = make_cut(42, {{2, 1}});
+  const std::string key = SimplifiedCache::key_for(cut);
+  const fs::path blocker = dir / "simplified" / (key + ".drc.tmp-insert");
+  fs::create_directories(blocker / "in-the-way");
+  auto entry = cache->insert(cut, write_file(dir / "staged.drc", 1000, 'a'), 5, 0.001);
+  ASSERT_FALSE(entry.is_ok());
+  EXPECT_NE(entry.status().message().find(key), std::string::npos) << entry.status().message();
+  for (const char* ext : {".cut", ".json", ".drc"}) EXPECT_FALSE(fs::exists(dir / "simplified" / (key + ext))) << ext;
+  EXPECT_FALSE(cache->find_exact(key).has_value());
+  // Once the disk has room again (the obstacle gone), the same insert works.
+  fs::remove_all(blocker);
+  EXPECT_TRUE(cache->insert(cut, dir / "staged.drc", 5, 0.001).is_ok());
+  EXPECT_TRUE(cache->find_exact(key).has_value());
+}
+
 TEST(SimplifiedCache, CorruptEntryIsRemovedNotReturned) {
   fs::path dir = fresh_dir("corrupt");
   auto cache = SimplifiedCache::open(dir, 1 << 20);

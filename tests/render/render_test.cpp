@@ -454,15 +454,26 @@ TEST(SceneFiles, MemoryLimitStopsBeforeLoadingAndSaysWhatFits) {
   EXPECT_NE(msg.find("raylod run"), std::string::npos) << msg;
   o.memory_limit = estimate_render_memory(4);
   EXPECT_TRUE(render(*scene, o).is_ok());
-  // The advertised count is consistent with the estimate, also where the
-  // compact BVH layout makes a larger scene cheaper than a smaller one.
+  // The advertised count is consistent with the estimate of the layout the
+  // renderer would pick (the compact one where only that fits).
   for (uint64_t budget : {uint64_t(64) << 20, uint64_t(1) << 30, uint64_t(2) << 30, uint64_t(8) << 30}) {
     const uint64_t fit = triangles_that_fit(budget);
-    EXPECT_LE(estimate_render_memory(fit), budget);
-    EXPECT_GT(estimate_render_memory(fit + 1), budget);
-    for (uint64_t n = fit + 1; n < fit * 4; n += fit / 16 + 1) EXPECT_GT(estimate_render_memory(n), budget) << n;
+    auto need = [&](uint64_t n) { return estimate_render_memory(n, bvh_for_memory_limit(n, budget)); };
+    EXPECT_LE(need(fit), budget);
+    EXPECT_GT(need(fit + 1), budget);
+    for (uint64_t n = fit + 1; n < fit * 4; n += fit / 16 + 1) EXPECT_GT(need(n), budget) << n;
   }
   EXPECT_GE(triangles_that_fit(uint64_t(2) << 30), BvhConfig{}.compact_from);
+  // A limit that only the compact layout meets: the render switches to it
+  // instead of failing, and says so.
+  BvhConfig compact;
+  compact.high_quality_below = compact.compact_from = 0;
+  o.memory_limit = estimate_render_memory(4, compact);
+  ASSERT_LT(o.memory_limit, estimate_render_memory(4));
+  std::string said;
+  o.log = [&](const std::string& m) { said += m + "\n"; };
+  EXPECT_TRUE(render(*scene, o).is_ok());
+  EXPECT_NE(said.find("compact BVH layout"), std::string::npos) << said;
 }
 
 TEST(SceneFiles, RendersADracoMeshInPlaceOfTheSceneMesh) {
