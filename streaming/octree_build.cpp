@@ -38,6 +38,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <tuple>
 #include <cerrno>
 #include <chrono>
 #include <cmath>
@@ -383,8 +384,76 @@ struct Plan {
   uint64_t max_nodes = 0;      // leaf nodes the global table may hold
   uint64_t run_triangles = 0;  // triangles per sorted run
   uint64_t budget_bytes = 0;   // what the plan expects to be resident at most
+  uint64_t overhead = 0;       // bytes resident besides the node table and the runs
+  int max_depth = 0;           // --max-depth, capped
+  double vertices = 0;         // estimated distinct vertices
   std::vector<double> est_nodes;
 };
+
+// The memory plan reserves room for this many batches in flight whatever the
+// thread count (fewer threads use fewer), so the store does not depend on it.
+constexpr size_t kPlanTokens = 8;
+
+// Leaf nodes the global table may hold under a memory limit: half of what the
+// limit leaves after `overhead`, at least a tenth of the limit.
+uint64_t max_nodes_for(uint64_t memory_limit, uint64_t overhead) {
+  const double avail = memory_limit > overhead ? double(memory_limit - overhead) : 0.0;
+  const uint64_t node_budget = uint64_t(std::max(0.5 * avail, 0.1 * double(memory_limit)));
+  return std::max<uint64_t>(64, node_budget / kBytesPerLeafNode);
+}
+
+// The plan's quadric depth for a node cap: the deepest level whose estimated
+// node table fits with a 25% margin and whose parent level still merges
+// vertices (below the level where cells hold about two vertices on average,
+// levels add nodes but little clustering; Luebke and Erikson stop splitting
+// at a single vertex). Both conditions hold for a prefix of levels.
+bool level_fits(const Plan& plan, int level, uint64_t max_nodes) {
+  return plan.est_nodes[size_t(level)] * 1.25 <= double(max_nodes) &&
+         plan.est_nodes[size_t(level) - 1] < 0.5 * plan.vertices;
+}
+int plan_depth_for(const Plan& plan, uint64_t max_nodes) {
+  int depth = 0;
+  for (int l = 1; l <= plan.max_depth; ++l)
+    if (level_fits(plan, l, max_nodes)) depth = l;
+  return depth;
+}
+
+// The smallest memory limit whose node cap reaches `nodes` (max_nodes_for is
+// non-decreasing in the limit).
+uint64_t limit_for_nodes(uint64_t nodes, uint64_t overhead) {
+  if (max_nodes_for(1, overhead) >= nodes) return 1;
+  uint64_t lo = 1, hi = uint64_t(1) << 62;
+  if (max_nodes_for(hi, overhead) < nodes) return UINT64_MAX;
+  while (hi - lo > 1) {
+    const uint64_t mid = lo + (hi - lo) / 2;
+    (max_nodes_for(mid, overhead) >= nodes ? hi : lo) = mid;
+  }
+  return hi;
+}
+
+// The memory limits under which a fresh build makes the same store as this
+// one, built under `memory_limit` (StoreHeader::reuse_limit_lo/hi): the plan
+// picks the same depth and binning never coarsens (which happens once the
+// table holds max_nodes and another node arrives, so max_nodes must exceed
+// the final count). A store coarsened while binning is reused only under its
+// own limit.
+std::pair<uint64_t, uint64_t> reuse_limits(const Plan& plan, int depth, uint64_t leaf_nodes, uint64_t memory_limit) {
+  if (depth != plan.quadric_depth) return {memory_limit, memory_limit};
+  uint64_t need = leaf_nodes + 1;
+  if (depth > 0) need = std::max(need, uint64_t(std::ceil(plan.est_nodes[size_t(depth)] * 1.25)));
+  uint64_t lo = std::min(limit_for_nodes(need, plan.overhead), memory_limit);
+  uint64_t hi = UINT64_MAX;
+  const int next = depth + 1;
+  if (next <= plan.max_depth && plan.est_nodes[size_t(depth)] < 0.5 * plan.vertices) {
+    // The next level would qualify once its estimate fits.
+    const uint64_t deeper = uint64_t(std::ceil(plan.est_nodes[size_t(next)] * 1.25));
+    const uint64_t at = limit_for_nodes(deeper, plan.overhead);
+    hi = at == UINT64_MAX ? UINT64_MAX : std::max(at - 1, memory_limit);
+  }
+  // Guard against rounding at the edges: the build's own limit is inside.
+  lo = std::min(lo, memory_limit);
+  return {lo, hi};
+}
 
 // Estimated occupied cells per level from sampled points: exact where the
 // sample is the whole input; else trusted while cells hold >= 8 sampled
@@ -438,19 +507,15 @@ Plan make_plan(const Scan& scan, const StoreOptions& options, uint64_t memory_li
   // come first; of the rest, half goes to the node table and a quarter to
   // the run buffer, leaving a margin for the allocator and the sample.
   const uint64_t token_bytes = 3 * 65536 * (triangle_bytes(scan.has_normals) + 8);
-  const uint64_t overhead = scan.reader_bytes + (48ull << 20) + ntokens * token_bytes;
+  (void)ntokens;  // the plan reserves kPlanTokens whatever the thread count
+  const uint64_t overhead = scan.reader_bytes + (48ull << 20) + kPlanTokens * token_bytes;
   const double avail = memory_limit > overhead ? double(memory_limit - overhead) : 0.0;
   const uint64_t node_budget = uint64_t(std::max(0.5 * avail, 0.1 * double(memory_limit)));
-  plan.max_nodes = std::max<uint64_t>(64, node_budget / kBytesPerLeafNode);
-  const int max_depth = std::min(options.max_depth, int(kMaxLevel));
-  // Below the level where cells hold about two vertices on average, levels
-  // add nodes but little clustering (Luebke and Erikson stop splitting at a
-  // single vertex), so they are not worth their memory.
-  const double vertices = plan.est_nodes[kMaxLevel];
-  plan.quadric_depth = 0;
-  for (int l = 1; l <= max_depth; ++l)
-    if (plan.est_nodes[size_t(l)] * 1.25 <= double(plan.max_nodes) && plan.est_nodes[size_t(l) - 1] < 0.5 * vertices)
-      plan.quadric_depth = l;
+  plan.overhead = overhead;
+  plan.max_nodes = max_nodes_for(memory_limit, overhead);
+  plan.max_depth = std::min(options.max_depth, int(kMaxLevel));
+  plan.vertices = plan.est_nodes[kMaxLevel];
+  plan.quadric_depth = plan_depth_for(plan, plan.max_nodes);
   plan.page_level = 0;
   for (int l = 1; l <= int(kMaxLevel); ++l)
     if (double(scan.triangles) / est_pages[size_t(l)] >= double(std::max<uint32_t>(1, options.page_triangles)))
@@ -876,6 +941,8 @@ StatusOr<BuildReport> build_store_from_stream(const MeshStreamOpener& open, cons
   header.page_level = plan.page_level;
   header.bounds = scan.bounds;
   header.coarsened = binned.depth < plan.quadric_depth;
+  std::tie(header.reuse_limit_lo, header.reuse_limit_hi) =
+      reuse_limits(plan, binned.depth, levels[size_t(binned.depth)].size(), memory_limit);
 
   Layout layout;
   uint64_t nodes = 0;

@@ -109,10 +109,16 @@ bool store_is_current(const std::filesystem::path& mesh, const std::filesystem::
   if (h.source_bytes != fp->bytes)
     return say("the mesh changed size (" + std::to_string(h.source_bytes) + " -> " + std::to_string(fp->bytes) + " bytes)");
   if (h.source_mtime_ns != fp->mtime_ns) return say("the mesh's modification time changed");
-  if (h.options.memory_limit != resolved_memory_limit(options) || h.options.max_depth != options.max_depth ||
-      h.options.page_triangles != options.page_triangles)
-    return say("the store was built with other options (--memory-limit " + format_bytes(h.options.memory_limit) +
-               " --max-depth " + std::to_string(h.options.max_depth) + ")");
+  // A store is reused under any memory limit for which a fresh build would
+  // make the same store (reuse_limit_lo/hi), so the output never depends on
+  // which limit built it.
+  const uint64_t limit = resolved_memory_limit(options);
+  if (h.options.max_depth != options.max_depth || h.options.page_triangles != options.page_triangles)
+    return say("the store was built with other options (--max-depth " + std::to_string(h.options.max_depth) + ")");
+  if (limit < h.reuse_limit_lo || limit > h.reuse_limit_hi)
+    return say("the store was built under --memory-limit " + format_bytes(h.options.memory_limit) +
+               ", and a build under " + format_bytes(limit) + " makes a " +
+               (limit < h.reuse_limit_lo ? "coarser" : "finer") + " one");
   auto hashed = fingerprint_file(mesh, true);
   if (!hashed.is_ok()) return say(hashed.status().message());
   if (hashed->hash != h.source_hash) return say("the mesh's content changed (content hash differs)");

@@ -37,7 +37,9 @@ static_assert(offsetof(PageInfo, triangle_count) == 16 && offsetof(PageInfo, che
               offsetof(PageInfo, bounds) == 24);
 
 inline constexpr char kMagic[8] = {'R', 'L', 'O', 'D', 'S', 'T', 'O', 'R'};
-inline constexpr uint32_t kVersion = 1;
+// 2: the header records the memory limits a store is reused under
+// (StoreHeader::reuse_limit_lo/hi).
+inline constexpr uint32_t kVersion = 2;
 inline constexpr uint32_t kMaxLevel = 21;  // Morton codes hold 3 x 21 bits
 
 struct Layout {

@@ -77,6 +77,7 @@ std::string encode_header(const StoreHeader& h, const Layout& l) {
   blob.put(l.node_table_offset); blob.put(l.node_table_crc);
   blob.put(l.page_count); blob.put(l.page_table_offset); blob.put(l.page_table_crc);
   blob.put(l.data_offset); blob.put(l.data_bytes); blob.put(l.file_bytes);
+  blob.put(h.reuse_limit_lo); blob.put(h.reuse_limit_hi);
 
   ByteWriter out;
   out.out.append(kMagic, 8);
@@ -155,7 +156,7 @@ Status read_header(int fd, const std::filesystem::path& path, StoreHeader& h, La
   }
   ok = ok && r.get(l.node_table_offset) && r.get(l.node_table_crc) && r.get(l.page_count) &&
        r.get(l.page_table_offset) && r.get(l.page_table_crc) && r.get(l.data_offset) && r.get(l.data_bytes) &&
-       r.get(l.file_bytes) && r.at_end();
+       r.get(l.file_bytes) && r.get(h.reuse_limit_lo) && r.get(h.reuse_limit_hi) && r.at_end();
   if (!ok || pl < 0 || pl > int(kMaxLevel) || !(h.root_size > 0))
     return Status::error(name + ": malformed store header");
   h.options.max_depth = max_depth;
@@ -429,6 +430,9 @@ Status print_store_info(const std::filesystem::path& path, std::FILE* out) {
                format_bytes(h.source_bytes).c_str(), h.source_hash);
   std::fprintf(out, "  build options --memory-limit %s --max-depth %d (page target %u triangles)\n",
                format_bytes(h.options.memory_limit).c_str(), h.options.max_depth, h.options.page_triangles);
+  std::fprintf(out, "  reused under  --memory-limit %s to %s (a build under any limit in between makes this store)\n",
+               format_bytes(h.reuse_limit_lo).c_str(),
+               h.reuse_limit_hi == UINT64_MAX ? "any larger" : format_bytes(h.reuse_limit_hi).c_str());
   std::fprintf(out, "  triangles     %" PRIu64 "%s\n", h.triangle_count, h.has_normals ? " (with vertex normals)" : "");
   std::fprintf(out, "  bounds        [%.9g %.9g %.9g] - [%.9g %.9g %.9g]\n", h.bounds.lo.x, h.bounds.lo.y,
                h.bounds.lo.z, h.bounds.hi.x, h.bounds.hi.y, h.bounds.hi.z);

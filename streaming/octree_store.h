@@ -112,6 +112,11 @@ struct StoreHeader {
   uint64_t node_table_bytes = 0;  // all levels' NodeRecords
   uint64_t page_data_bytes = 0;   // all pages
   bool coarsened = false;         // quadric_depth was lowered during the build to fit memory_limit
+  // The memory limits under which a fresh build of the same mesh and options
+  // makes this very store (same depth, same quadrics): a store is reused
+  // under any limit in [lo, hi] and rebuilt under any other, so the output
+  // never depends on the limit an earlier build happened to use.
+  uint64_t reuse_limit_lo = 0, reuse_limit_hi = 0;
 };
 
 class OctreeStore {

@@ -159,17 +159,11 @@ StatusOr<SceneStores> prepare_scene_stores(Scene& scene, const std::optional<fs:
     if (fresh) out.meshes.push_back(mesh);
     out.objects.push_back(ProbeObject{it->second, obj.transform, obj.material});
   }
-  const uint64_t limit = resolved_memory_limit(store_options);
   for (const auto& mesh : out.meshes) {
     fs::path store_path = default_store_path(mesh);
-    // An existing store built under a memory limit no larger than this one
-    // (same depth cap) is judged by its own options: it still fits, and a
-    // different --memory-limit alone is no reason to rebuild.
-    StoreOptions options = store_options;
-    if (auto existing = OctreeStore::open(store_path); existing.is_ok()) {
-      const StoreOptions& built = (*existing)->header().options;
-      if (built.memory_limit <= limit && built.max_depth == store_options.max_depth) options = built;
-    }
+    // An existing store is reused under this memory limit only if a fresh
+    // build under it would make the same store (store_is_current).
+    const StoreOptions& options = store_options;
     std::string reason;
     if (!store_is_current(mesh, store_path, options, &reason))
       say(log, "building store " + store_path.string() + " (" + reason + ")");

@@ -3,6 +3,8 @@
 // and determinism across thread counts.
 #include <gtest/gtest.h>
 
+#include <cstring>
+
 #include <fstream>
 #include <iterator>
 #include <map>
@@ -357,6 +359,44 @@ TEST(OctreeBuild, FarFromTheOriginKeepsPrecision) {
     ++single;
   }
   EXPECT_GT(single, 100u);
+}
+
+// Same depth, node tables and pages (the header records the build's own limit).
+bool same_content(const OctreeStore& a, const OctreeStore& b) {
+  if (a.header().quadric_depth != b.header().quadric_depth) return false;
+  for (int l = 0; l <= a.header().quadric_depth; ++l) {
+    const auto x = a.level(l), y = b.level(l);
+    if (x.size() != y.size() || std::memcmp(x.data(), y.data(), x.size_bytes()) != 0) return false;
+  }
+  const auto p = a.pages(), q = b.pages();
+  return p.size() == q.size() && std::memcmp(p.data(), q.data(), p.size_bytes()) == 0;
+}
+
+TEST(OctreeBuild, ReusedUnderExactlyTheLimitsThatMakeTheSameStore) {
+  // A store records the memory limits under which a fresh build makes the
+  // same store; run and build reuse it under those and rebuild under any
+  // other, so the output never depends on the limit of an earlier build.
+  auto m = testing::soup(60000, 5, true);
+  auto dir = testing::scratch_dir("reuse-limits");
+  StoreOptions base;
+  base.page_triangles = 512;
+  base.memory_limit = 6 << 20;  // a memory-limited depth
+  auto store = build(m, dir / "base.raylod", base, 4096);
+  ASSERT_TRUE(store);
+  const uint64_t lo = store->header().reuse_limit_lo, hi = store->header().reuse_limit_hi;
+  ASSERT_LE(lo, base.memory_limit);
+  ASSERT_GE(hi, base.memory_limit);
+  ASSERT_GT(lo, uint64_t(1) << 20) << "the test needs a limit below the interval";
+  ASSERT_LT(hi, uint64_t(1) << 40) << "the test needs a limit above the interval";
+  const std::pair<uint64_t, bool> cases[] = {{lo, true}, {hi, true}, {lo + (hi - lo) / 3, true}, {lo - 1, false},
+                                             {hi + 1, false}};
+  for (auto [limit, same] : cases) {
+    StoreOptions o = base;
+    o.memory_limit = limit;
+    auto fresh = build(m, dir / ("l" + std::to_string(limit) + ".raylod"), o, 4096);
+    ASSERT_TRUE(fresh);
+    EXPECT_EQ(same_content(*store, *fresh), same) << "limit " << limit << " in [" << lo << ", " << hi << "]";
+  }
 }
 
 TEST(OctreeBuild, SameStoreBytesForOneAndTwoThreads) {

@@ -284,6 +284,36 @@ TEST(Run, UnusableCacheRendersWithoutCaching) {
   EXPECT_TRUE(fs::is_regular_file(cache / "simplified"));
 }
 
+TEST(Run, OutputDoesNotDependOnTheLimitAnEarlierBuildUsed) {
+  // A store built under a small limit is shallower; a later run under a
+  // larger limit must not reuse it (it used to, and gave a coarser cut than
+  // the same command on a fresh mesh), and a store that a fresh build would
+  // make identically is reused.
+  const fs::path a = work_dir() / "history-a.ply", b = work_dir() / "history-b.ply";
+  std::string out;
+  ASSERT_EQ(raylod("gen teapot --triangles 200000 -q -o '" + a.string() + "'", &out), 0) << out;
+  fs::copy_file(a, b);
+  ASSERT_EQ(raylod("build '" + a.string() + "' -q --memory-limit 100M", &out), 0) << out;
+  const fs::path scene = write_scene("history.json", 1.0, 96, 72);
+  auto run = [&](const fs::path& mesh, const std::string& tag) {
+    const int rc = raylod("run '" + scene.string() + "' --mesh '" + mesh.string() +
+                              "' --no-cache --rays 800 --memory-limit 1G -o '" + (work_dir() / (tag + ".png")).string() +
+                              "' --stats-json '" + (work_dir() / (tag + ".json")).string() + "'",
+                          &out);
+    EXPECT_EQ(rc, 0) << out;
+    return out;
+  };
+  const std::string first = run(a, "history-a");
+  EXPECT_NE(first.find("building store"), std::string::npos) << first;
+  EXPECT_NE(first.find("a build under 1.00 GiB makes a finer one"), std::string::npos) << first;
+  run(b, "history-b");
+  EXPECT_EQ(stats(work_dir() / "history-a.json")["triangles_out"], stats(work_dir() / "history-b.json")["triangles_out"]);
+  EXPECT_EQ(read(work_dir() / "history-a.png"), read(work_dir() / "history-b.png"));
+  // 2G builds the same store as 1G here: reused.
+  ASSERT_EQ(raylod("build '" + a.string() + "' --memory-limit 2G", &out), 0) << out;
+  EXPECT_NE(out.find("up to date"), std::string::npos) << out;
+}
+
 TEST(Run, BadSceneIsAClearError) {
   fs::path bad = work_dir() / "bad.json";
   std::ofstream(bad) << "{\"camera\": 3}";
