@@ -13,6 +13,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "core/fault_point.h"
 #include "core/system.h"
 
 namespace raylod {
@@ -262,6 +263,7 @@ StatusOr<CacheEntry> SimplifiedCache::insert(const Cut& cut, const fs::path& drc
     if (ec) return Status::error(e.mesh.string() + ": cannot copy into cache: " + ec.message());
     fs::rename(staged, e.mesh, ec);
     if (ec) return Status::error(e.mesh.string() + ": cannot rename into cache: " + ec.message());
+    fault_point("cache.before_meta");
     RAYLOD_RETURN_IF_ERROR(write_meta(dir, e));
   }
   evict();
