@@ -19,6 +19,7 @@
 #include <set>
 #include <sstream>
 
+#include "core/fault_point.h"
 #include "core/system.h"
 
 namespace raylod {
@@ -108,6 +109,7 @@ Status write_cut(const std::filesystem::path& path, const Cut& cut) {
     f.flush();
     if (!f) return Status::error(path.string() + ": write failed (disk full?)");
   }
+  fault_point("cut.before_rename");
   return out.commit().with_context(path.string());
 }
 

@@ -23,6 +23,7 @@
 #include <draco/compression/encode.h>
 #include <draco/mesh/mesh.h>
 
+#include "core/fault_point.h"
 #include "core/system.h"
 
 namespace raylod {
@@ -177,7 +178,12 @@ StatusOr<DracoWriteReport> write_draco(const std::filesystem::path& path, const 
   {
     std::ofstream f(out.temp_path(), std::ios::binary);
     if (!f) return Status::error(path.string() + ": cannot create output file");
-    f.write(buffer.data(), std::streamsize(buffer.size()));
+    // In two halves, with a fault point between them (core/fault_point.h).
+    const size_t half = buffer.size() / 2;
+    f.write(buffer.data(), std::streamsize(half));
+    f.flush();
+    fault_point("draco.partial");
+    f.write(buffer.data() + half, std::streamsize(buffer.size() - half));
     f.flush();
     if (!f) return Status::error(path.string() + ": write failed (disk full?)");
   }

@@ -53,6 +53,7 @@
 #include <tbb/parallel_pipeline.h>
 
 #include "core/progress.h"
+#include "core/fault_point.h"
 #include "core/system.h"
 #include "streaming/octree_format.h"
 #include "streaming/octree_store.h"
@@ -870,6 +871,7 @@ Status write_pages(int fd, const std::filesystem::path& out_path, RunFile& runs,
     info.checksum = crc;
     info.bounds = Bbox{Vec3d(lo), Vec3d(hi)};
     pages.push_back(info);
+    if (pages.size() == std::max<size_t>(1, num_pages / 2)) fault_point("build.pages");
   }
   progress.finish();
   return {};
@@ -919,6 +921,7 @@ StatusOr<BuildReport> build_store_from_stream(const MeshStreamOpener& open, cons
   }
   const auto levels = build_levels(std::move(binned.leaves), binned.depth);
   report.bin_seconds = since(t1);
+  fault_point("build.binned");
   auto t2 = now();
 
   StoreHeader header;
@@ -989,6 +992,7 @@ StatusOr<BuildReport> build_store_from_stream(const MeshStreamOpener& open, cons
     return Status::error(store_path.string() + ": cannot size the store: " + std::strerror(errno));
   report.write_seconds = since(t2);
   auto t3 = now();
+  fault_point("build.before_rename");
   RAYLOD_RETURN_IF_ERROR(output.commit());
   report.commit_seconds = since(t3);
 

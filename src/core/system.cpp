@@ -100,6 +100,25 @@ std::string format_bytes(uint64_t bytes) {
   return buf;
 }
 
+namespace {
+
+// True if `rest` (what follows ".tmp-" in a temporary's name) starts with
+// "PID-" for a process that no longer exists (not this one).
+bool pid_prefix_is_dead(const std::string& rest) {
+  const size_t dash = rest.find('-');
+  if (dash == 0 || dash == std::string::npos || rest.find_first_not_of("0123456789") != dash) return false;
+  const long pid = std::strtol(rest.substr(0, dash).c_str(), nullptr, 10);
+  if (pid <= 0 || pid == long(getpid())) return false;
+  return ::kill(pid_t(pid), 0) != 0 && errno == ESRCH;  // alive, or not ours to judge: false
+}
+
+}  // namespace
+
+bool is_dead_process_temporary(const std::string& filename) {
+  const size_t at = filename.find(".tmp-");
+  return at != std::string::npos && at > 0 && pid_prefix_is_dead(filename.substr(at + 5));
+}
+
 size_t remove_stale_temporaries(const std::filesystem::path& destination) {
   // Temporaries are named DEST.tmp-PID-N-R; one whose process is gone (a
   // kill -9 during a write, a crash) is never renamed and can be removed.
@@ -111,12 +130,7 @@ size_t remove_stale_temporaries(const std::filesystem::path& destination) {
   for (std::filesystem::directory_iterator it(dir, ec), end; !ec && it != end; it.increment(ec)) {
     const std::string name = it->path().filename().string();
     if (name.size() <= prefix.size() || name.compare(0, prefix.size(), prefix) != 0) continue;
-    const std::string rest = name.substr(prefix.size());
-    const size_t dash = rest.find('-');
-    if (dash == 0 || dash == std::string::npos || rest.find_first_not_of("0123456789") != dash) continue;
-    const long pid = std::strtol(rest.substr(0, dash).c_str(), nullptr, 10);
-    if (pid <= 0 || pid == long(getpid())) continue;
-    if (::kill(pid_t(pid), 0) == 0 || errno != ESRCH) continue;  // alive, or not ours to judge
+    if (!pid_prefix_is_dead(name.substr(prefix.size()))) continue;
     std::error_code rm;
     if (std::filesystem::remove(it->path(), rm)) ++removed;
   }

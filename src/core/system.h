@@ -41,6 +41,9 @@ std::string not_regular_file_text(unsigned mode);
 // kill -9 during an atomic write); returns how many. AtomicOutput calls it
 // for its destination.
 size_t remove_stale_temporaries(const std::filesystem::path& destination);
+// True if `filename` is an atomic write's temporary (NAME.tmp-PID-...,
+// nested ones included) whose process no longer exists.
+bool is_dead_process_temporary(const std::string& filename);
 
 class AtomicOutput {
  public:

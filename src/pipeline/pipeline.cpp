@@ -9,6 +9,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "core/fault_point.h"
 #include "core/system.h"
 #include "gen/generate.h"
 #include "pipeline/simplified_cache.h"
@@ -403,6 +404,7 @@ StatusOr<RunResult> run_pipeline(Scene scene, const RunOptions& options, const L
     ro.omit_object.push_back(sm.triangles == 0);
   }
   auto t_render = std::chrono::steady_clock::now();
+  fault_point("run.render");
   RAYLOD_ASSIGN_OR_RETURN(result.render, render(scene, ro));
   result.seconds.render = seconds_since(t_render);
   result.peak_rss = peak_rss_bytes();

@@ -13,6 +13,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "core/fault_point.h"
 #include "core/system.h"
 
 namespace raylod {
@@ -154,6 +155,18 @@ StatusOr<SimplifiedCache> SimplifiedCache::open(const fs::path& dir, uint64_t si
   std::error_code ec;
   fs::create_directories(dir / "simplified", ec);
   if (ec) return Status::error(dir.string() + ": cannot create cache directory: " + ec.message());
+  // Leftovers of killed runs (kill -9, a crash) go now, not an hour later
+  // (evict): temporaries of processes that no longer exist (staged
+  // simplified meshes, half-written .drc, .cut and .json files), and an
+  // insert's staged copy, which is made and renamed under the lock, so one
+  // seen under the lock was left by a dead process.
+  CacheLock lock(dir);
+  for (const auto& f : fs::directory_iterator(dir / "simplified", ec)) {
+    const std::string name = f.path().filename().string();
+    const bool insert_copy = name.size() > 11 && name.compare(name.size() - 11, 11, ".tmp-insert") == 0;
+    std::error_code rm;
+    if (insert_copy || is_dead_process_temporary(name)) fs::remove(f.path(), rm);
+  }
   return SimplifiedCache(dir, size_limit);
 }
 
@@ -275,6 +288,7 @@ StatusOr<CacheEntry> SimplifiedCache::insert(const Cut& cut, const fs::path& drc
     if (ec) return Status::error(e.mesh.string() + ": cannot copy into cache: " + ec.message());
     fs::rename(staged, e.mesh, ec);
     if (ec) return Status::error(e.mesh.string() + ": cannot rename into cache: " + ec.message());
+    fault_point("cache.before_meta");
     RAYLOD_RETURN_IF_ERROR(write_meta(dir, e));
     done = true;
   }

@@ -18,6 +18,7 @@
 #include <tbb/global_control.h>
 #include <tbb/parallel_for.h>
 
+#include "core/fault_point.h"
 #include "core/progress.h"
 #include "core/random.h"
 #include "core/system.h"
@@ -109,6 +110,7 @@ Status write_pixels(const std::filesystem::path& path, const OIIO::ImageSpec& sp
     in->close();
     if (!read) return Status::error(path.string() + ": the written image is truncated (disk full?): " + in->geterror());
   }
+  fault_point("image.before_rename");
   return atomic.commit();
 }
 

@@ -44,5 +44,19 @@ TEST(StaleTemporaries, DeadProcessesTemporariesAreRemovedLiveOnesKept) {
   std::filesystem::remove_all(dir);
 }
 
+TEST(StaleTemporaries, DeadProcessTemporaryByName) {
+  const std::string dead = std::to_string(dead_pid());
+  const std::string live = std::to_string(::getppid());
+  EXPECT_TRUE(is_dead_process_temporary("k.cut.tmp-" + dead + "-0-12"));
+  // A staged file and the Draco writer's temporary of it: the first .tmp- names the process.
+  EXPECT_TRUE(is_dead_process_temporary("simplified-" + dead + "-0.drc.tmp-" + dead + "-1-7.drc"));
+  EXPECT_TRUE(is_dead_process_temporary("simplified-" + dead + "-0.drc.tmp-" + dead + "-1-7.drc.tmp-" + dead + "-2-9"));
+  EXPECT_FALSE(is_dead_process_temporary("k.cut.tmp-" + live + "-0-12"));
+  EXPECT_FALSE(is_dead_process_temporary("k.cut.tmp-" + std::to_string(::getpid()) + "-0-12"));
+  EXPECT_FALSE(is_dead_process_temporary("k.drc.tmp-insert"));
+  EXPECT_FALSE(is_dead_process_temporary("k.drc"));
+  EXPECT_FALSE(is_dead_process_temporary(".tmp-" + dead + "-0-1"));
+}
+
 }  // namespace
 }  // namespace raylod
