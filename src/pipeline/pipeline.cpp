@@ -184,6 +184,19 @@ StatusOr<SceneStores> prepare_scene_stores(Scene& scene, const std::optional<fs:
 
 namespace {
 
+// Simplified meshes staged in the system temp folder (--no-cache, or a cache
+// that refused them) by runs that were killed: nobody else removes them.
+void remove_dead_staged_meshes(const fs::path& dir) {
+  std::error_code ec;
+  for (auto it = fs::directory_iterator(dir, ec); !ec && it != fs::directory_iterator(); it.increment(ec)) {
+    const std::string name = it->path().filename().string();
+    if (name.rfind("simplified-", 0) == 0 && is_dead_process_temporary(name)) {
+      std::error_code rm;
+      fs::remove(it->path(), rm);
+    }
+  }
+}
+
 // After a probe or simplify failure: every store in which a reader found a
 // corrupt page (it recorded that in STORE.corrupt) is rebuilt and reopened in
 // place, at most once per run (`repaired`). True if the caller should retry;
@@ -296,6 +309,7 @@ StatusOr<RunResult> run_pipeline(Scene scene, const RunOptions& options, const L
     else result.warnings.push_back("cannot use the cache (" + c.status().message() + "); rendering without caching");
   }
   fs::path scratch = cache ? cache->dir() / "simplified" : fs::temp_directory_path();
+  remove_dead_staged_meshes(fs::temp_directory_path());
   result.cache_hit = true;
   std::vector<fs::path> scratch_files;  // staged .drc files, removed after rendering
   struct RemoveScratch {

@@ -5,6 +5,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <string>
@@ -56,6 +57,33 @@ TEST(StaleTemporaries, DeadProcessTemporaryByName) {
   EXPECT_FALSE(is_dead_process_temporary("k.drc.tmp-insert"));
   EXPECT_FALSE(is_dead_process_temporary("k.drc"));
   EXPECT_FALSE(is_dead_process_temporary(".tmp-" + dead + "-0-1"));
+}
+
+TEST(StaleTemporaries, RunRemovesMeshesStagedInTheTempFolderByKilledRuns) {
+  // run --no-cache stages its simplified mesh in the system temp folder; a
+  // run killed before it removed it leaves it there, and the next run clears
+  // it (never a live process's).
+  const std::filesystem::path dir = test::scratch_dir("staged-in-tmp");
+  const std::filesystem::path tmp = dir / "tmp";
+  std::filesystem::create_directories(tmp);
+  const std::string dead = std::to_string(dead_pid()), live = std::to_string(::getppid());
+  const std::string dead_file = "simplified-" + dead + "-0.drc.tmp-" + dead + "-1-7.drc";
+  const std::string live_file = "simplified-" + live + "-0.drc.tmp-" + live + "-1-7.drc";
+  for (const std::string& f : {dead_file, live_file}) std::ofstream(tmp / f) << "partial";
+  std::ofstream(dir / "tetra.ply") << "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\n"
+                                      "property float z\nelement face 4\nproperty list uchar int vertex_indices\n"
+                                      "end_header\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n3 0 2 1\n3 0 1 3\n3 0 3 2\n3 1 2 3\n";
+  std::ofstream(dir / "scene.json")
+      << R"({"camera": {"eye": [2, 1.5, 3], "look_at": [0.3, 0.3, 0.3], "fov_y": 40, "width": 32, "height": 24},
+           "materials": {"m": {"type": "diffuse"}}, "objects": [{"mesh": "tetra.ply", "material": "m"}],
+           "lights": [{"type": "point", "position": [3, 4, 2], "intensity": 30}], "spp": 1})";
+  const std::string cmd = "TMPDIR='" + tmp.string() + "' '" + std::string(RAYLOD_EXE) + "' run '" +
+                          (dir / "scene.json").string() + "' --no-cache -q --rays 100 -o '" + (dir / "x.png").string() +
+                          "' > /dev/null 2>&1";
+  ASSERT_EQ(std::system(cmd.c_str()), 0);
+  EXPECT_FALSE(std::filesystem::exists(tmp / dead_file));
+  EXPECT_TRUE(std::filesystem::exists(tmp / live_file));
+  std::filesystem::remove_all(dir);
 }
 
 }  // namespace
