@@ -4,6 +4,7 @@
 #include "cli/cli.h"
 #include "core/progress.h"
 #include "core/system.h"
+#include "pipeline/pipeline.h"
 #include "streaming/octree_store.h"
 
 namespace raylod::cli {
@@ -38,8 +39,6 @@ int run_build(int argc, char** argv) {
   }
   if (args.positionals().size() != 1) return fail("build", Status::error("expected one MESH (see raylod build --help)"));
   const std::filesystem::path mesh = args.positionals()[0];
-  const std::filesystem::path store = args.has("--output") ? std::filesystem::path(args.get("--output"))
-                                                           : default_store_path(mesh);
   StoreOptions options;
   auto limit = args.get_size("--memory-limit", 0);
   if (!limit) return fail("build", limit.status());
@@ -54,6 +53,11 @@ int run_build(int argc, char** argv) {
   if (!page) return fail("build", page.status());
   options.page_triangles = uint32_t(*page);
   if (args.has("--quiet")) Progress::set_enabled(false);
+  // Beside the mesh, or in the cache for a mesh in a read-only folder (as run finds it).
+  std::string where;
+  const std::filesystem::path store = args.has("--output") ? std::filesystem::path(args.get("--output"))
+                                                           : store_path_for(mesh, default_cache_dir(), options, &where);
+  if (!where.empty()) std::fprintf(stderr, "raylod build: %s\n", where.c_str());
   // --force replaces the old store atomically; it stays in place if the build fails.
   auto built = build_store(mesh, store, options, args.has("--force"), args.has("--verify"));
   if (!built) return fail("build", built.status());

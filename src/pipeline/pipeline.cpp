@@ -1,6 +1,10 @@
 #include "pipeline/pipeline.h"
 
+#include <fcntl.h>
+#include <unistd.h>
+
 #include <algorithm>
+#include <cerrno>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -139,6 +143,35 @@ StatusOr<SimplifiedMesh> simplify_cut_to_draco(const OctreeStore& store, const C
   return sm;
 }
 
+namespace {
+
+// Whether this process can create files in `dir` (a probe file, removed at once).
+bool folder_is_writable(const fs::path& dir) {
+  const fs::path probe = dir / (".raylod-write-test-" + std::to_string(::getpid()));
+  const int fd = ::open(probe.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0600);
+  if (fd < 0) return errno == EEXIST;  // a leftover of this pid's: the folder takes files
+  ::close(fd);
+  ::unlink(probe.c_str());
+  return true;
+}
+
+}  // namespace
+
+fs::path store_path_for(const fs::path& mesh, const fs::path& cache_dir, const StoreOptions& options,
+                        std::string* note) {
+  const fs::path beside = default_store_path(mesh);
+  const fs::path folder = fs::absolute(mesh).parent_path();
+  if (folder_is_writable(folder) || store_is_current(mesh, beside, options)) return beside;
+  const std::string absolute = fs::absolute(mesh).lexically_normal().string();
+  char hash[17];
+  std::snprintf(hash, sizeof hash, "%016llx", static_cast<unsigned long long>(fnv1a64(absolute.data(), absolute.size())));
+  const fs::path in_cache = cache_dir / "stores" / (std::string(hash) + "-" + mesh.filename().string() + ".raylod");
+  if (note) *note = folder.string() + " is not writable: the store goes to " + in_cache.string();
+  std::error_code ec;
+  fs::create_directories(in_cache.parent_path(), ec);
+  return in_cache;
+}
+
 StatusOr<SceneStores> prepare_scene_stores(Scene& scene, const std::optional<fs::path>& mesh_override,
                                            const StoreOptions& store_options, const fs::path& cache_dir,
                                            const LogFn& log) {
@@ -161,7 +194,9 @@ StatusOr<SceneStores> prepare_scene_stores(Scene& scene, const std::optional<fs:
     out.objects.push_back(ProbeObject{it->second, obj.transform, obj.material});
   }
   for (const auto& mesh : out.meshes) {
-    fs::path store_path = default_store_path(mesh);
+    std::string where;
+    fs::path store_path = store_path_for(mesh, cache_dir, store_options, &where);
+    if (!where.empty()) say(log, where);
     // An existing store is reused under this memory limit only if a fresh
     // build under it would make the same store (store_is_current).
     const StoreOptions& options = store_options;

@@ -89,6 +89,13 @@ struct RunResult {
   std::vector<std::string> warnings;  // printed whatever the log level (meshes left out, ...)
 };
 
+// Where the store of `mesh` lives: beside it (MESH.raylod) when that store is
+// current or the mesh's folder is writable; otherwise, for a mesh in a
+// read-only folder, under cache_dir/stores/ (named by a hash of the mesh's
+// absolute path and its file name). *note says why the cache was chosen.
+std::filesystem::path store_path_for(const std::filesystem::path& mesh, const std::filesystem::path& cache_dir,
+                                     const StoreOptions& options, std::string* note = nullptr);
+
 StatusOr<RunResult> run_pipeline(Scene scene, const RunOptions& options, const LogFn& log);
 
 // JSON for --stats-json: triangles_in, triangles_out, seconds per stage,

@@ -314,6 +314,46 @@ TEST(Run, OutputDoesNotDependOnTheLimitAnEarlierBuildUsed) {
   EXPECT_NE(out.find("up to date"), std::string::npos) << out;
 }
 
+TEST(Run, MeshInAReadOnlyFolderGetsItsStoreInTheCache) {
+  // The store normally sits beside the mesh; a mesh in a folder this user
+  // cannot write to gets it under the cache folder instead. Root writes
+  // anywhere, so as root the run drops to user nobody (setpriv); otherwise
+  // the folder is made read-only.
+  const fs::path base = work_dir() / "read-only";
+  const fs::path meshes = base / "meshes", writable = base / "writable";
+  fs::create_directories(meshes);
+  fs::create_directories(writable);
+  std::string out;
+  ASSERT_EQ(raylod("gen teapot --triangles 4000 -q -o '" + (meshes / "t.ply").string() + "'", &out), 0) << out;
+  const fs::path scene = write_scene("read-only.json", 1.0, 48, 36);
+  std::string prefix;
+  const bool root = ::geteuid() == 0;
+  if (root) {
+    if (std::system("command -v setpriv > /dev/null 2>&1") != 0) GTEST_SKIP() << "running as root without setpriv";
+    // nobody must reach the executable, the scene and the writable folder.
+    for (fs::path p = work_dir(); p.has_relative_path() && p != p.root_path(); p = p.parent_path())
+      if (((fs::status(p).permissions() & fs::perms::others_exec) == fs::perms::none))
+        GTEST_SKIP() << p << " is not searchable by other users";
+    fs::permissions(writable, fs::perms::all);
+    prefix = "setpriv --reuid=65534 --regid=65534 --clear-groups env HOME='" + writable.string() + "' ";
+  } else {
+    fs::permissions(meshes, fs::perms::owner_read | fs::perms::owner_exec);
+  }
+  const fs::path cache = writable / "cache";
+  const std::string cmd = prefix + "'" RAYLOD_EXE "' run '" + scene.string() + "' --mesh '" + (meshes / "t.ply").string() +
+                          "' --rays 300 --cache '" + cache.string() + "' -o '" + (writable / "x.png").string() + "'";
+  const int rc = std::system((cmd + " > '" + (base / "log").string() + "' 2>&1").c_str());
+  out = read(base / "log");
+  if (!root) fs::permissions(meshes, fs::perms::owner_all);
+  ASSERT_TRUE(WIFEXITED(rc) && WEXITSTATUS(rc) == 0) << out;
+  EXPECT_NE(out.find("is not writable: the store goes to " + (cache / "stores").string()), std::string::npos) << out;
+  EXPECT_FALSE(fs::exists(meshes / "t.ply.raylod"));
+  size_t stores = 0;
+  for (const auto& e : fs::directory_iterator(cache / "stores")) stores += e.path().extension() == ".raylod";
+  EXPECT_EQ(stores, 1u);
+  EXPECT_TRUE(fs::exists(writable / "x.png"));
+}
+
 TEST(Run, BadSceneIsAClearError) {
   fs::path bad = work_dir() / "bad.json";
   std::ofstream(bad) << "{\"camera\": 3}";
