@@ -50,8 +50,9 @@ int cmd_probe(int argc, char** argv) {
     if (!s) return cli::fail("probe", s);
 
   // One store per distinct mesh, built first if missing or stale (saying so).
+  const MemoryBudget budget = MemoryBudget::resolve(*limit);
   StoreOptions store_options;
-  store_options.memory_limit = *limit;
+  store_options.memory_limit = budget.total;
   store_options.threads = int(*threads);
   std::optional<std::filesystem::path> mesh_override;
   if (args.has("--mesh")) mesh_override = std::filesystem::path(args.get("--mesh"));
@@ -66,8 +67,7 @@ int cmd_probe(int argc, char** argv) {
     return cli::fail("probe", Status::error("-o names one cut, but the scene has " + std::to_string(meshes.size()) +
                                             " meshes; omit -o to write one cut beside each store"));
 
-  auto config_or = make_probe_config(scene, uint64_t(*rays), cut_opts->footprint_scale, int(*threads), resolved_memory_limit(store_options),
-                                     true);
+  auto config_or = make_probe_config(scene, uint64_t(*rays), cut_opts->footprint_scale, int(*threads), budget, true);
   if (!config_or) return cli::fail("probe", config_or.status());
   ProbeConfig config = *config_or;
   config.seed = uint64_t(*seed);

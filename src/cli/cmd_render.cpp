@@ -22,7 +22,7 @@ Status run_render(int argc, char** argv, bool& help) {
              {"--mesh", "", "mesh to render in place of the first object's (.drc, .ply, .stl, .obj)", true, "FILE"},
              {"--spp", "", "samples per pixel (default: the scene's)", true, "N"},
              {"--threads", "", "worker threads (default: all cores)", true, "T"},
-             {"--memory-limit", "", "refuse scenes whose mesh + BVH would exceed SIZE (e.g. 4G)", true, "SIZE"},
+             {"--memory-limit", "", "refuse scenes whose mesh + BVH would exceed SIZE, e.g. 4G (default: no limit)", true, "SIZE"},
              {"--aov", "", "extra EXR images next to IMAGE: depth,normal,triangle-id", true, "LIST"},
              {"--wireframe", "", "darken pixels near triangle edges (shows triangle density)", false, ""},
              {"--width", "", "image width (default: the scene camera's)", true, "W"},

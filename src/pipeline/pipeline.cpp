@@ -2,6 +2,9 @@
 
 #include <fcntl.h>
 #include <unistd.h>
+#if defined(__GLIBC__)
+#include <malloc.h>
+#endif
 
 #include <algorithm>
 #include <cerrno>
@@ -81,23 +84,23 @@ double draco_error_bound(const Cut& cut, const OctreeStore& store) {
 }
 
 StatusOr<ProbeConfig> make_probe_config(const Scene& scene, uint64_t rays, double footprint_scale, int threads,
-                                        uint64_t memory_limit, bool progress) {
+                                        const MemoryBudget& budget, bool progress) {
   ProbeConfig probe;
   probe.rays = rays;
   probe.seed = scene.seed;
   probe.footprint_scale = footprint_scale;
   probe.threads = threads;
   probe.progress = progress;
-  // The page cache gets what the limit leaves after what is already resident
-  // (the stores' node tables) and a reserve for the test rays' hit records;
-  // half of that, since malloc fragmentation from evicted pages and the pages
-  // in flight (one per thread) must fit in the rest.
+  // The page cache's share (memory_budget.h): half of what the limit leaves
+  // after what is already resident (the stores' node tables) and a reserve
+  // for the test rays' hit records.
   const uint64_t rss = current_rss_bytes();
   const uint64_t reserve = rays * 64 * uint64_t(std::max(1, scene.max_depth + 1)) + (uint64_t(32) << 20);
-  if (memory_limit <= rss + reserve)
-    return Status::error("the memory limit of " + format_bytes(memory_limit) +
-                         " is below what the stores' node tables already take (" + format_bytes(rss) + " resident)");
-  probe.cache_bytes = (memory_limit - rss - reserve) / 2;
+  probe.cache_bytes = budget.page_cache(rss, reserve);
+  if (probe.cache_bytes == 0)
+    return Status::error("the memory limit of " + format_bytes(budget.total) + " leaves nothing for the probe's pages: " +
+                         format_bytes(rss) + " is already resident (the stores' node tables and the program) and the " +
+                         "test rays need " + format_bytes(reserve) + "; raise --memory-limit");
   return probe;
 }
 
@@ -266,10 +269,13 @@ StatusOr<bool> repair_corrupt_stores(SceneStores& stores, const StoreOptions& st
 StatusOr<RunResult> run_pipeline(Scene scene, const RunOptions& options, const LogFn& log) {
   RunResult result;
   const fs::path cache_dir = options.cache_dir.empty() ? default_cache_dir() : options.cache_dir;
+  // One budget for the whole run (memory_budget.h): the build plans within
+  // its total; simplify and render share what the program itself leaves.
+  const MemoryBudget budget = MemoryBudget::resolve(options.memory_limit);
   StoreOptions store_options;
-  store_options.memory_limit = options.memory_limit;
+  store_options.memory_limit = budget.total;
   store_options.threads = options.threads;
-  const uint64_t memory_limit = resolved_memory_limit(store_options);
+  const uint64_t memory_limit = budget.working();
 
   // A. Stores (method step A1), reused when current.
   say(log, "[1/4] build: octree stores");
@@ -284,7 +290,7 @@ StatusOr<RunResult> run_pipeline(Scene scene, const RunOptions& options, const L
   // limit, coarsen by doubling K until they do.
   say(log, "[2/4] probe: " + std::to_string(options.rays) + " test rays");
   RAYLOD_ASSIGN_OR_RETURN(ProbeConfig probe, make_probe_config(scene, options.rays, options.footprint_scale,
-                                                              options.threads, memory_limit, options.progress));
+                                                              options.threads, budget, options.progress));
   probe.criterion = options.criterion;
   probe.tolerance_px = options.tolerance_px;
   auto t_probe = std::chrono::steady_clock::now();
@@ -296,7 +302,7 @@ StatusOr<RunResult> run_pipeline(Scene scene, const RunOptions& options, const L
     RAYLOD_ASSIGN_OR_RETURN(bool retry, repair_corrupt_stores(stores, store_options, "probe", repaired, log));
     if (retry) traced = trace_probe(scene, stores.probe_stores, stores.objects, probe);
   }
-  RAYLOD_ASSIGN_OR_RETURN(const ProbeTrace trace, std::move(traced));
+  RAYLOD_ASSIGN_OR_RETURN(ProbeTrace trace, std::move(traced));
   for (;;) {
     RAYLOD_ASSIGN_OR_RETURN(result.probe, select_cuts(trace, scene, stores.probe_stores, stores.objects, probe));
     // What the later stages need: simplifying one store at a time (its mesh
@@ -315,13 +321,14 @@ StatusOr<RunResult> run_pipeline(Scene scene, const RunOptions& options, const L
     // renderer's fixed overhead) or after max_coarsening_steps doublings.
     if (result.coarsening_steps >= options.max_coarsening_steps || estimate >= previous_estimate)
       return Status::error("even at footprint scale " + fmt("%g", probe.footprint_scale) + " the simplified mesh (" +
-                           std::to_string(estimate) + " triangles, " + format_bytes(need) + ") does not fit in " +
-                           format_bytes(memory_limit));
+                           std::to_string(estimate) + " triangles, " + format_bytes(need) + ") does not fit in the " +
+                           format_bytes(memory_limit) + " the memory limit of " + format_bytes(budget.total) +
+                           " leaves after the program's own " + format_bytes(budget.baseline));
     previous_estimate = estimate;
     ++result.coarsening_steps;
     // Both limits double: under the deviation criterion K alone may not bind.
     say(log, "the simplified mesh would need " + format_bytes(need) + " (about " + std::to_string(estimate) +
-                 " triangles), over the memory limit of " + format_bytes(memory_limit) +
+                 " triangles), over the " + format_bytes(memory_limit) + " the memory limit leaves" +
                  ": coarsening the cut, footprint scale " + fmt("%g", probe.footprint_scale) + " -> " +
                  fmt("%g", probe.footprint_scale * 2) +
                  (probe.criterion == CutCriterion::Deviation
@@ -439,7 +446,14 @@ StatusOr<RunResult> run_pipeline(Scene scene, const RunOptions& options, const L
   }
   result.seconds.simplify = seconds_since(t_simplify);
 
-  // D. Render the simplified meshes.
+  // D. Render the simplified meshes. The stores' node tables and the trace
+  // are not needed any more: the render gets their memory.
+  stores.probe_stores.clear();
+  stores.stores.clear();
+  trace = ProbeTrace{};
+#if defined(__GLIBC__)
+  malloc_trim(0);
+#endif
   say(log, "[4/4] render");
   RenderOptions ro;
   ro.spp = options.spp;

@@ -13,6 +13,7 @@
 #include <string>
 #include <vector>
 
+#include "core/memory_budget.h"
 #include "core/status.h"
 #include "probe/probe.h"
 #include "render/renderer.h"
@@ -102,11 +103,12 @@ StatusOr<RunResult> run_pipeline(Scene scene, const RunOptions& options, const L
 // peak memory, cache hit, and the render's own statistics.
 std::string run_stats_json(const RunResult& result, const RunOptions& options);
 
-// The probe configuration for a memory limit: the page cache gets half of
-// what the limit leaves after the resident node tables and the rays' hit
-// records; an error if nothing is left. Call after the stores are open.
+// The probe configuration within a memory budget: the page cache gets its
+// share (MemoryBudget::page_cache: half of what the limit leaves after what is
+// resident and the rays' hit records); an error if nothing is left. Call
+// after the stores are open.
 StatusOr<ProbeConfig> make_probe_config(const Scene& scene, uint64_t rays, double footprint_scale, int threads,
-                                        uint64_t memory_limit, bool progress);
+                                        const MemoryBudget& budget, bool progress);
 
 // Simplifies the cut of a store and writes it Draco-compressed to `out`
 // (position quantisation from draco_error_bound, normal quantisation from

@@ -324,10 +324,11 @@ StatusOr<ReportResult> run_report(const Scene& input_scene, const std::optional<
   Scene base = input_scene;
   if (cfg.width > 0) base.camera.width = cfg.width;
   if (cfg.height > 0) base.camera.height = cfg.height;
+  const MemoryBudget budget = MemoryBudget::resolve(cfg.memory_limit);
   StoreOptions store_options;
-  store_options.memory_limit = cfg.memory_limit;
+  store_options.memory_limit = budget.total;
   store_options.threads = cfg.threads;
-  const uint64_t memory_limit = resolved_memory_limit(store_options);
+  const uint64_t memory_limit = budget.working();
   RAYLOD_ASSIGN_OR_RETURN(SceneStores stores, prepare_scene_stores(base, mesh_override, store_options, cache_dir, log));
   const OctreeStore& store = *stores.stores[0];
   const fs::path mesh_path = stores.meshes[0];
@@ -403,7 +404,7 @@ StatusOr<ReportResult> run_report(const Scene& input_scene, const std::optional<
       row.method = diagonal ? "raylod (diagonal)" : "raylod";
       row.footprint_scale = k;
       row.rays = n;
-      RAYLOD_ASSIGN_OR_RETURN(ProbeConfig pc, make_probe_config(run.scene, n, k, cfg.threads, memory_limit, false));
+      RAYLOD_ASSIGN_OR_RETURN(ProbeConfig pc, make_probe_config(run.scene, n, k, cfg.threads, budget, false));
       pc.criterion = variant.criterion;
       if (!traces.count(n)) {
         RAYLOD_ASSIGN_OR_RETURN(ProbeTrace t, trace_probe(run.scene, stores.probe_stores, stores.objects, pc));
