@@ -378,6 +378,11 @@ TEST(Report, QuickWritesMarkdownPlotAndPictures) {
   EXPECT_NE(md.find("| vertex clustering |"), std::string::npos);
   EXPECT_NE(md.find("| edge collapse |"), std::string::npos);
   EXPECT_NE(md.find("close-up view"), std::string::npos);
+  // Each view in the layout of the paper's Table 1 (the paper's own columns
+  // only for its bottle scene, not this teapot).
+  EXPECT_NE(md.find("In the layout of the paper's Table 1"), std::string::npos) << md;
+  EXPECT_NE(md.find("| preprocessing s (probe + simplify) | none |"), std::string::npos) << md;
+  EXPECT_EQ(md.find("paper: method"), std::string::npos) << md;
   for (const char* f : {"default-accuracy-vs-time.png", "close-up-accuracy-vs-time.png", "default-cut.png",
                         "default-reference.png", "report.json"})
     EXPECT_TRUE(fs::exists(dir / f)) << f;
