@@ -17,7 +17,7 @@
 #include <string>
 #include <vector>
 
-#include "render/camera.h"
+#include "geometry/pinhole_camera.h"
 #include "render/embree_scene.h"
 #include "scene/scene.h"
 

@@ -19,8 +19,8 @@
 #pragma once
 
 #include "core/math.h"
-#include "probe/ray.h"
-#include "render/camera.h"
+#include "geometry/pinhole_camera.h"
+#include "geometry/ray.h"
 
 namespace raylod {
 

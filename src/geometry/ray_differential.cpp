@@ -1,7 +1,7 @@
 // Igehy, "Tracing Ray Differentials", SIGGRAPH 1999: transfer (eqs. 10-12),
 // reflection (13-15), refraction (16-18) and the interpolated-normal
 // derivative; see ray_differential.h for the formulas and the blow-up rule.
-#include "probe/ray_differential.h"
+#include "geometry/ray_differential.h"
 
 #include <algorithm>
 #include <cmath>
