@@ -1,7 +1,7 @@
 // Renderer unit tests: welding, Embree scene, specular chains (slab offset,
 // prism TIR), effect switches and ray counters, determinism across thread
-// counts, memory limit and errors, optics. The camera mapping is tested in
-// tests/geometry.
+// counts, memory limit and errors. The camera mapping and the optics are
+// tested in tests/geometry.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -20,30 +20,6 @@ namespace {
 
 using namespace raylod::testing;
 constexpr double kInf = std::numeric_limits<double>::infinity();
-
-TEST(Optics, FresnelAtNormalIncidenceAndSymmetry) {
-  EXPECT_NEAR(fresnel_dielectric(1.0, 1 / 1.5), 0.04, 1e-12);  // ((n-1)/(n+1))^2
-  EXPECT_NEAR(fresnel_dielectric(1.0, 1.5), 0.04, 1e-12);
-  // Reciprocity: the same interface seen from either side reflects the same.
-  const double ti = 0.6, eta = 1 / 1.5, tt = std::asin(std::sin(ti) * eta);
-  EXPECT_NEAR(fresnel_dielectric(std::cos(ti), eta), fresnel_dielectric(std::cos(tt), 1 / eta), 1e-12);
-  EXPECT_NEAR(fresnel_dielectric(0.0, eta), 1.0, 1e-12);  // grazing
-}
-
-TEST(Optics, TotalInternalReflectionBeyondTheCriticalAngle) {
-  const double crit = std::asin(1 / 1.5);
-  const Vec3d n(0, 1, 0);
-  for (double a : {crit - 1e-3, crit + 1e-3}) {
-    const Vec3d d(std::sin(a), -std::cos(a), 0);
-    Vec3d t;
-    const bool ok = refract(d, n, 1.5, t);
-    EXPECT_EQ(ok, a < crit);
-    EXPECT_EQ(fresnel_dielectric(std::cos(a), 1.5) == 1.0, a >= crit);
-    if (ok) {
-      EXPECT_NEAR(std::sin(std::acos(-t.y)), 1.5 * std::sin(a), 1e-9);  // Snell
-    }
-  }
-}
 
 TEST(Weld, SharedCornersBecomeOneVertexUnlessNormalsDiffer) {
   const std::vector<Vec3> soup = {{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 0, 0}, {1, 1, 0}, {0, 1, 0}};
