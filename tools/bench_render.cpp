@@ -28,7 +28,7 @@
 
 #include "core/progress.h"
 #include "core/system.h"
-#include "render/camera.h"
+#include "scene/scene_camera.h"
 #include "render/renderer.h"
 
 using namespace raylod;

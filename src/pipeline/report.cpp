@@ -15,7 +15,7 @@
 #include "gen/generate.h"
 #include "pipeline/baselines.h"
 #include "pipeline/plot.h"
-#include "render/camera.h"
+#include "scene/scene_camera.h"
 #include "render/embree_scene.h"
 #include "simplify/collapse.h"
 

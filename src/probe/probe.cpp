@@ -20,7 +20,7 @@
 #include "core/system.h"
 #include "geometry/collapse_deviation.h"
 #include "probe/store_tracer.h"
-#include "render/camera.h"
+#include "scene/scene_camera.h"
 
 namespace raylod {
 

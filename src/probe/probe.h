@@ -74,7 +74,7 @@
 
 #include "core/status.h"
 #include "probe/page_cache.h"
-#include "probe/ray_differential.h"
+#include "geometry/ray_differential.h"
 #include "scene/scene.h"
 #include "streaming/cut_file.h"
 #include "streaming/octree_store.h"

@@ -13,6 +13,7 @@
 #include <tbb/parallel_for.h>
 
 #include "geometry/crease_normals.h"
+#include "geometry/optics.h"
 #include "streaming/mesh_reader.h"
 
 namespace raylod {
@@ -339,7 +340,7 @@ SurfacePoint surface_point(const EmbreeScene& scene, const Hit& hit, bool with_e
   if (!m.normals.empty()) {
     const Vec3d n = w * Vec3d(m.normals[tri[0]]) + u * Vec3d(m.normals[tri[1]]) + v * Vec3d(m.normals[tri[2]]);
     const double len = glm::length(n);
-    if (len > 1e-12) sp.shading = n / len;
+    if (len > kMinShadingNormalLength) sp.shading = n / len;
     // The vertex normals say which side is outside; the winding may disagree
     // (CAD exports, and the reverse-wound twins a collapse keeps), so orient
     // the face normal by them, as the probe does: inside/outside for glass

@@ -14,7 +14,7 @@
 
 #include "core/math.h"
 #include "core/status.h"
-#include "render/camera.h"
+#include "geometry/ray.h"
 #include "scene/scene.h"
 
 namespace raylod {

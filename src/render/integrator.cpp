@@ -41,47 +41,16 @@ Effects effects_for(const Scene& scene, std::span<const int> used_materials) {
   return e;
 }
 
-Vec3d reflect(const Vec3d& d, const Vec3d& n) { return d - 2.0 * glm::dot(d, n) * n; }
-
-bool refract(const Vec3d& d, const Vec3d& n, double eta, Vec3d& out) {
-  const double cos_i = -glm::dot(d, n);
-  const double sin2_t = eta * eta * std::max(0.0, 1.0 - cos_i * cos_i);
-  if (sin2_t >= 1.0) return false;
-  const double cos_t = std::sqrt(1.0 - sin2_t);
-  out = glm::normalize(eta * d + (eta * cos_i - cos_t) * n);
-  return true;
-}
-
-double fresnel_dielectric(double cos_i, double eta) {
-  cos_i = std::clamp(cos_i, 0.0, 1.0);
-  const double sin2_t = eta * eta * (1.0 - cos_i * cos_i);
-  if (sin2_t >= 1.0) return 1.0;
-  const double cos_t = std::sqrt(1.0 - sin2_t);
-  // Fresnel equations divided through by n_t.
-  const double rs = (eta * cos_i - cos_t) / (eta * cos_i + cos_t);
-  const double rp = (cos_i - eta * cos_t) / (cos_i + eta * cos_t);
-  return 0.5 * (rs * rs + rp * rp);
-}
-
 double ray_offset(const Vec3d& p, double offset_scale) {
   return offset_scale * std::max({1.0, std::abs(p.x), std::abs(p.y), std::abs(p.z)});
 }
 
 SpecularScatter scatter_specular(const Material& m, const Vec3d& dir, const SurfacePoint& sp, double offset) {
   SpecularScatter s;
-  s.entering = glm::dot(dir, sp.geometric) < 0;
-  // Normals facing the incoming ray. An interpolated normal can face away
-  // from the ray at grazing angles on a coarse mesh; the face normal is used then.
-  const Vec3d ng = s.entering ? sp.geometric : -sp.geometric;
-  Vec3d ns = s.entering ? sp.shading : -sp.shading;
-  if (glm::dot(ns, dir) >= 0) ns = ng;
-  const Vec3d above = sp.position + offset * ng, below = sp.position - offset * ng;
-
-  // A direction bent by the shading normal may cross the true surface; fall
-  // back to the face normal so reflected rays stay outside and refracted rays inside.
-  Vec3d r = reflect(dir, ns);
-  if (glm::dot(r, ng) <= 0) r = reflect(dir, ng);
-  s.reflected = Ray{above, glm::normalize(r)};
+  const FacingNormals f = facing_normals(dir, sp.geometric, sp.shading);
+  s.entering = f.entering;
+  const Vec3d above = sp.position + offset * f.geometric, below = sp.position - offset * f.geometric;
+  s.reflected = Ray{above, specular_reflection(dir, f).direction};
 
   if (m.type == MaterialType::Mirror) {
     s.reflects = m.reflectance > 0;
@@ -90,25 +59,20 @@ SpecularScatter scatter_specular(const Material& m, const Vec3d& dir, const Surf
   }
   if (m.type != MaterialType::Glass) return s;
 
-  const double eta = s.entering ? 1.0 / m.ior : double(m.ior);
-  Vec3d n_used = ns, t;
-  bool ok = refract(dir, ns, eta, t);
-  if (ok && glm::dot(t, ng) >= 0) {
-    n_used = ng;
-    ok = refract(dir, ng, eta, t);
-  }
+  const double eta = dielectric_eta(s.entering, m.ior);
+  const SpecularRefraction t = specular_refraction(dir, f, eta);
   s.reflects = true;
-  if (!ok) {
+  if (!t.ok) {
     s.total_internal_reflection = true;
     s.reflect_weight = Vec3(1.0f);
     return s;
   }
-  const double f = fresnel_dielectric(-glm::dot(dir, n_used), eta);
-  s.reflect_weight = Vec3(float(f));
+  const double fr = fresnel_dielectric(-glm::dot(dir, t.normal), eta);
+  s.reflect_weight = Vec3(float(fr));
   s.refracts = true;
-  s.refracted = Ray{below, t};
+  s.refracted = Ray{below, t.direction};
   // The tint is applied once per pass through the glass, on the way in.
-  s.refract_weight = float(1.0 - f) * (s.entering ? m.tint : Vec3(1.0f));
+  s.refract_weight = float(1.0 - fr) * (s.entering ? m.tint : Vec3(1.0f));
   return s;
 }
 

@@ -17,7 +17,8 @@
 #include <string>
 #include <vector>
 
-#include "render/camera.h"
+#include "geometry/optics.h"
+#include "geometry/pinhole_camera.h"
 #include "render/embree_scene.h"
 #include "scene/scene.h"
 
@@ -74,20 +75,10 @@ struct CameraSample {
   uint64_t triangle = 0;     // global triangle id of the first hit
 };
 
-// --- Optics (exact, unit vectors) ---
-// Mirror direction of d about the unit normal n.
-Vec3d reflect(const Vec3d& d, const Vec3d& n);
-// Refracts unit d at unit normal n facing against d (d . n < 0), with
-// eta = n_incident / n_transmitted (Snell's law). False on total internal reflection.
-bool refract(const Vec3d& d, const Vec3d& n, double eta, Vec3d& out);
-// Unpolarised Fresnel reflectance of a dielectric interface (average of the
-// s and p terms), cos_i = cosine of the incidence angle, eta as above;
-// 1 under total internal reflection.
-double fresnel_dielectric(double cos_i, double eta);
-
 // The specular continuation at a mirror or glass hit, as the integrator
-// computes it: directions with spawn origins offset to the correct side of
-// the surface, and weights (Fresnel, reflectance, tint).
+// computes it: directions (geometry/optics.h, shared with the probe) with
+// spawn origins offset to the correct side of the surface, and weights
+// (Fresnel, reflectance, tint).
 struct SpecularScatter {
   bool reflects = false, refracts = false;
   bool total_internal_reflection = false;

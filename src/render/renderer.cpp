@@ -22,6 +22,7 @@
 #include "core/progress.h"
 #include "core/random.h"
 #include "core/system.h"
+#include "scene/scene_camera.h"
 
 namespace raylod {
 

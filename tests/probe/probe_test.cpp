@@ -18,6 +18,7 @@
 #include "geometry/collapse_deviation.h"
 #include "probe/probe.h"
 #include "probe/store_tracer.h"
+#include "scene/scene_camera.h"
 #include "streaming/cut_file.h"
 #include "streaming/mesh_writer.h"
 #include "streaming/octree_store.h"

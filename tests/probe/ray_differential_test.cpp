@@ -9,8 +9,8 @@
 #include <random>
 #include <string>
 
-#include "probe/ray_differential.h"
-#include "render/camera.h"
+#include "geometry/ray_differential.h"
+#include "scene/scene_camera.h"
 #include "test_scenes.h"
 
 namespace raylod {

@@ -10,7 +10,7 @@
 
 #include "gen/generate.h"
 #include "gen/grid_mesh.h"
-#include "probe/ray_differential.h"
+#include "geometry/ray_differential.h"
 #include "probe/store_tracer.h"
 
 namespace raylod::test {

@@ -1,6 +1,7 @@
-// Renderer unit tests: camera mapping, optics, welding, Embree scene,
-// specular chains (slab offset, prism TIR), effect switches and ray
-// counters, determinism across thread counts, memory limit and errors.
+// Renderer unit tests: welding, Embree scene, specular chains (slab offset,
+// prism TIR), effect switches and ray counters, determinism across thread
+// counts, memory limit and errors. The camera mapping and the optics are
+// tested in tests/geometry.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -9,7 +10,6 @@
 
 #include <tbb/global_control.h>
 
-#include "render/camera.h"
 #include "render/integrator.h"
 #include "render/renderer.h"
 #include "render_test_util.h"
@@ -20,73 +20,6 @@ namespace {
 
 using namespace raylod::testing;
 constexpr double kInf = std::numeric_limits<double>::infinity();
-
-Camera test_camera() {
-  Camera c;
-  c.eye = {1, 2, 3};
-  c.look_at = {0, 0.5, -1};
-  c.up = {0, 1, 0};
-  c.fov_y_deg = 50;
-  c.width = 64;
-  c.height = 48;
-  return c;
-}
-
-TEST(Camera, CentreRayLooksAtTheTarget) {
-  const Camera c = test_camera();
-  const PinholeCamera cam = make_pinhole_camera(c);
-  const Ray r = cam.generate(32, 24);
-  EXPECT_NEAR(glm::length(r.direction - glm::normalize(c.look_at - c.eye)), 0, 1e-12);
-  EXPECT_EQ(r.origin, c.eye);
-}
-
-TEST(Camera, RowZeroIsTheTopAndEdgesSpanTheFieldOfView) {
-  const PinholeCamera cam = make_pinhole_camera(test_camera());
-  const Ray top = cam.generate(32, 0), bottom = cam.generate(32, 48);
-  EXPECT_GT(glm::dot(top.direction, cam.up), 0);
-  EXPECT_LT(glm::dot(bottom.direction, cam.up), 0);
-  // The vertical angle between the top and bottom edge rays is fov_y.
-  EXPECT_NEAR(glm::degrees(std::acos(glm::dot(top.direction, bottom.direction))), 50.0, 1e-9);
-  const Ray left = cam.generate(0, 24);
-  EXPECT_LT(glm::dot(left.direction, cam.right), 0);
-}
-
-TEST(Camera, DerivativesMatchFiniteDifferences) {
-  const PinholeCamera cam = make_pinhole_camera(test_camera());
-  for (auto [px, py] : {std::pair{0.3, 0.7}, {31.5, 20.25}, {63.9, 47.1}}) {
-    const RayDerivatives d = cam.derivatives(px, py);
-    const double h = 1e-5;
-    const Vec3d fx = (cam.generate(px + h, py).direction - cam.generate(px - h, py).direction) / (2 * h);
-    const Vec3d fy = (cam.generate(px, py + h).direction - cam.generate(px, py - h).direction) / (2 * h);
-    EXPECT_NEAR(glm::length(d.dd_dx - fx), 0, 1e-8 * glm::length(fx));
-    EXPECT_NEAR(glm::length(d.dd_dy - fy), 0, 1e-8 * glm::length(fy));
-    EXPECT_EQ(glm::length(d.dp_dx), 0);
-  }
-}
-
-TEST(Optics, FresnelAtNormalIncidenceAndSymmetry) {
-  EXPECT_NEAR(fresnel_dielectric(1.0, 1 / 1.5), 0.04, 1e-12);  // ((n-1)/(n+1))^2
-  EXPECT_NEAR(fresnel_dielectric(1.0, 1.5), 0.04, 1e-12);
-  // Reciprocity: the same interface seen from either side reflects the same.
-  const double ti = 0.6, eta = 1 / 1.5, tt = std::asin(std::sin(ti) * eta);
-  EXPECT_NEAR(fresnel_dielectric(std::cos(ti), eta), fresnel_dielectric(std::cos(tt), 1 / eta), 1e-12);
-  EXPECT_NEAR(fresnel_dielectric(0.0, eta), 1.0, 1e-12);  // grazing
-}
-
-TEST(Optics, TotalInternalReflectionBeyondTheCriticalAngle) {
-  const double crit = std::asin(1 / 1.5);
-  const Vec3d n(0, 1, 0);
-  for (double a : {crit - 1e-3, crit + 1e-3}) {
-    const Vec3d d(std::sin(a), -std::cos(a), 0);
-    Vec3d t;
-    const bool ok = refract(d, n, 1.5, t);
-    EXPECT_EQ(ok, a < crit);
-    EXPECT_EQ(fresnel_dielectric(std::cos(a), 1.5) == 1.0, a >= crit);
-    if (ok) {
-      EXPECT_NEAR(std::sin(std::acos(-t.y)), 1.5 * std::sin(a), 1e-9);  // Snell
-    }
-  }
-}
 
 TEST(Weld, SharedCornersBecomeOneVertexUnlessNormalsDiffer) {
   const std::vector<Vec3> soup = {{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 0, 0}, {1, 1, 0}, {0, 1, 0}};

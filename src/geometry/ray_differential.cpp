@@ -1,10 +1,12 @@
 // Igehy, "Tracing Ray Differentials", SIGGRAPH 1999: transfer (eqs. 10-12),
 // reflection (13-15), refraction (16-18) and the interpolated-normal
 // derivative; see ray_differential.h for the formulas and the blow-up rule.
-#include "probe/ray_differential.h"
+#include "geometry/ray_differential.h"
 
 #include <algorithm>
 #include <cmath>
+
+#include "geometry/optics.h"
 
 namespace raylod {
 
@@ -66,22 +68,33 @@ void transfer(RayDifferential& r, double t, const Vec3d& plane_normal, const Dif
   check(r, limits);
 }
 
-Vec3d reflect_direction(const Vec3d& d, const Vec3d& n) { return d - 2.0 * glm::dot(d, n) * n; }
+Vec3d reflect_direction(const Vec3d& d, const Vec3d& n) { return reflect(d, n); }
 
-RayDifferential reflect(const RayDifferential& in, const HitSurface& s, const DifferentialLimits& limits) {
+namespace {
+
+// The normal the renderer's optics used (optics.h) and its derivative: the
+// shading normal's Jacobian, negated with the normal, or zero for the face
+// normal (constant over the triangle).
+Mat3d used_normal_jacobian(const HitSurface& s, const FacingNormals& f, bool geometric_fallback) {
+  if (geometric_fallback) return Mat3d(0.0);
+  return f.shading_flipped ? -s.normal_jacobian : s.normal_jacobian;
+}
+
+// Igehy eqs. 13-15 about the unit normal n with Jacobian jac; `direction` is
+// the reflected direction the optics chose (about n).
+RayDifferential reflect_about(const RayDifferential& in, const HitSurface& s, const Vec3d& n, const Mat3d& jac,
+                              const Vec3d& direction, const DifferentialLimits& limits) {
   RayDifferential out;
   const Vec3d d = in.ray.direction;
-  const Vec3d n = s.normal;
   const double dn = glm::dot(d, n);
   out.ray.origin = in.ray.origin;
-  out.ray.direction = glm::normalize(d - 2.0 * dn * n);  // Igehy eq. 13
+  out.ray.direction = direction;  // Igehy eq. 13: D - 2 (D.N) N, normalised
   out.dp_dx = in.dp_dx;
   out.dp_dy = in.dp_dy;
   out.has_differentials = in.has_differentials && !s.normal_degenerate;
   if (!out.has_differentials) { drop_differentials(out); return out; }
-  // The formula is invariant under N -> -N (with dN -> -dN), so N's side does not matter.
-  const Vec3d dndx = s.normal_jacobian * in.dp_dx;
-  const Vec3d dndy = s.normal_jacobian * in.dp_dy;
+  const Vec3d dndx = jac * in.dp_dx;
+  const Vec3d dndy = jac * in.dp_dy;
   const double ddn_dx = glm::dot(in.dd_dx, n) + glm::dot(d, dndx);  // d(D.N)/dx, Igehy eq. 15
   const double ddn_dy = glm::dot(in.dd_dy, n) + glm::dot(d, dndy);
   out.dd_dx = in.dd_dx - 2.0 * (dn * dndx + ddn_dx * n);             // Igehy eq. 14
@@ -90,27 +103,40 @@ RayDifferential reflect(const RayDifferential& in, const HitSurface& s, const Di
   return out;
 }
 
+RayDifferential reflect_facing(const RayDifferential& in, const HitSurface& s, const FacingNormals& f,
+                               const DifferentialLimits& limits) {
+  const SpecularReflection r = specular_reflection(in.ray.direction, f);
+  return reflect_about(in, s, r.normal, used_normal_jacobian(s, f, r.geometric_fallback), r.direction, limits);
+}
+
+}  // namespace
+
+RayDifferential reflect(const RayDifferential& in, const HitSurface& s, const DifferentialLimits& limits) {
+  return reflect_facing(in, s, facing_normals(in.ray.direction, s.geometric_normal, s.normal), limits);
+}
+
 Refraction refract(const RayDifferential& in, const HitSurface& s, double ior, const DifferentialLimits& limits) {
   Refraction result;
   const Vec3d d = in.ray.direction;
-  result.entering = glm::dot(d, s.geometric_normal) < 0;
-  // Orient N (and its derivative) against the incident ray: D.N < 0.
-  Vec3d n = s.normal;
-  Mat3d jac = s.normal_jacobian;
-  if (glm::dot(d, n) > 0) { n = -n; jac = -jac; }
-  const double eta = result.entering ? 1.0 / ior : ior;  // n_incident / n_transmitted
-  const double c = glm::dot(d, n);                       // <= 0
-  const double k = 1.0 - eta * eta * (1.0 - c * c);
-  if (k < 0) {  // total internal reflection
-    result.ray = reflect(in, s, limits);
+  // The renderer's normals and direction (optics.h): N faces the incident
+  // ray, D.N < 0, with the face normal where the shading normal fails.
+  const FacingNormals f = facing_normals(d, s.geometric_normal, s.normal);
+  result.entering = f.entering;
+  const double eta = dielectric_eta(f.entering, ior);  // n_incident / n_transmitted
+  const SpecularRefraction t = specular_refraction(d, f, eta);
+  if (!t.ok) {  // total internal reflection
+    result.ray = reflect_facing(in, s, f, limits);
     result.total_internal_reflection = true;
     return result;
   }
-  const double tn = -std::sqrt(k);  // T.N
+  const Vec3d n = t.normal;
+  const Mat3d jac = used_normal_jacobian(s, f, t.geometric_fallback);
+  const double c = glm::dot(d, n);  // <= 0
+  const double tn = -std::sqrt(1.0 - eta * eta * std::max(0.0, 1.0 - c * c));  // T.N, as refract() computes it
   const double mu = eta * c - tn;   // Igehy eq. 16
   RayDifferential& out = result.ray;
   out.ray.origin = in.ray.origin;
-  out.ray.direction = glm::normalize(eta * d - mu * n);
+  out.ray.direction = t.direction;  // eta D - mu N, normalised
   out.dp_dx = in.dp_dx;
   out.dp_dy = in.dp_dy;
   out.has_differentials = in.has_differentials && !s.normal_degenerate;
@@ -152,13 +178,18 @@ HitSurface triangle_surface_point(const Vec3d& p0, const Vec3d& p1, const Vec3d&
   const double b0 = 1.0 - b1 - b2;
   const Vec3d ni = b0 * n[0] + b1 * n[1] + b2 * n[2];
   const double len = glm::length(ni);
-  if (!(len >= limits.min_normal_length)) {
+  if (!(len > kMinShadingNormalLength)) {  // the renderer's rule (render/embree_scene.cpp)
     s.normal_degenerate = true;
     return s;
   }
   s.normal = ni / len;
   // CAD vertex normals are the reliable outward side; the winding may not be.
   if (glm::dot(s.geometric_normal, s.normal) < 0) s.geometric_normal = -s.geometric_normal;
+  // Normals that nearly cancel: the normal is still the renderer's, but dN/dx ~ 1/|n| is not usable.
+  if (!(len >= limits.min_normal_length)) {
+    s.normal_degenerate = true;
+    return s;
+  }
   // Gradients of the barycentrics b1, b2 in the triangle's plane: L1.e1 = 1,
   // L1.e2 = 0, L2.e1 = 0, L2.e2 = 1, both orthogonal to the normal.
   const Vec3d l1 = glm::cross(e2, g) / gg;

@@ -4,16 +4,9 @@
 #pragma once
 
 #include "core/math.h"
-#include "scene/scene.h"
+#include "geometry/ray.h"
 
 namespace raylod {
-
-// A ray with unit-length direction, in double (world units).
-struct Ray {
-  Vec3d origin{0};
-  Vec3d direction{0, 0, -1};
-  Vec3d at(double t) const { return origin + t * direction; }
-};
 
 // Derivatives of a camera ray with respect to the continuous pixel
 // coordinates: <dP/dx, dD/dx> and <dP/dy, dD/dy> of the paper's eq. (1), per
@@ -52,7 +45,11 @@ struct PinholeCamera {
   double pixel_angle() const { return 2.0 * tan_half_y / height; }
 };
 
-// Builds the camera from the scene's description (validated by parse_scene).
-PinholeCamera make_pinhole_camera(const Camera& camera);
+// Builds the camera looking from eye towards look_at, with up the rough up
+// direction and fov_y_deg the vertical field of view in degrees, for an image
+// of width x height pixels (values validated by the caller, e.g. parse_scene;
+// the scene's Camera goes through scene/scene_camera.h).
+PinholeCamera make_pinhole_camera(const Vec3d& eye, const Vec3d& look_at, const Vec3d& up, double fov_y_deg, int width,
+                                  int height);
 
 }  // namespace raylod

@@ -16,11 +16,16 @@
 // A dropped differential stays dropped along the rest of the path; the probe
 // then estimates that hit's footprint conservatively (probe.h).
 // Total internal reflection is treated as a reflection (with differentials).
+//
+// Directions and the normals they are taken about are the renderer's
+// (geometry/optics.h): the same Snell refraction and TIR test, and the same
+// fallbacks to the face normal; the differentials follow the normal used
+// (the face normal's derivative is zero).
 #pragma once
 
 #include "core/math.h"
-#include "probe/ray.h"
-#include "render/camera.h"
+#include "geometry/pinhole_camera.h"
+#include "geometry/ray.h"
 
 namespace raylod {
 
@@ -38,7 +43,10 @@ struct HitSurface {
   // dN = normal_jacobian * dP for dP in the tangent plane: the derivative of the
   // unit shading normal with respect to the hit position (zero for flat shading).
   Mat3d normal_jacobian{0.0};
-  bool normal_degenerate = false;   // shading normal fell back to the geometric one
+  // The interpolated vertex normal (nearly) cancelled, |n| < min_normal_length:
+  // dN is unusable and reflection/refraction drop the differentials; below
+  // kMinShadingNormalLength (optics.h) the shading normal is the geometric one.
+  bool normal_degenerate = false;
 };
 
 // The camera ray through continuous pixel (px, py) with its differentials
@@ -54,7 +62,8 @@ void transfer(RayDifferential& ray, double t, const Vec3d& plane_normal, const D
 Vec3d reflect_direction(const Vec3d& d, const Vec3d& n);
 
 // Reflection at the (already transferred) hit s (Igehy eqs. 13-15):
-//   R = D - 2 (D.N) N,  dR/dx = dD/dx - 2 [(D.N) dN/dx + d(D.N)/dx N].
+//   R = D - 2 (D.N) N,  dR/dx = dD/dx - 2 [(D.N) dN/dx + d(D.N)/dx N],
+// with R and N those of specular_reflection (optics.h).
 RayDifferential reflect(const RayDifferential& incident, const HitSurface& s, const DifferentialLimits& limits = {});
 
 struct Refraction {
@@ -65,11 +74,11 @@ struct Refraction {
 // Refraction at the (already transferred) hit s of a dielectric with index
 // `ior` surrounded by vacuum/air (Igehy eqs. 16-18). Entering or leaving is
 // decided by the geometric normal (outward for a closed, consistently
-// oriented mesh): entering uses eta = 1/ior, leaving eta = ior, and N is
-// flipped to face the incident ray so that D.N < 0:
+// oriented mesh): entering uses eta = 1/ior, leaving eta = ior, and N faces
+// the incident ray, D.N < 0 (facing_normals and specular_refraction, optics.h):
 //   T = eta D - mu N,  mu = eta (D.N) - T.N,  T.N = -sqrt(1 - eta^2 (1 - (D.N)^2)),
 //   dT/dx = eta dD/dx - (mu dN/dx + dmu/dx N),  dmu/dx = (eta - eta^2 (D.N)/(T.N)) d(D.N)/dx.
-// When 1 - eta^2 (1 - (D.N)^2) < 0 there is no transmitted ray: total internal
+// When eta^2 (1 - (D.N)^2) >= 1 there is no transmitted ray: total internal
 // reflection, returned as reflect().
 Refraction refract(const RayDifferential& incident, const HitSurface& s, double ior,
                    const DifferentialLimits& limits = {});

@@ -1,20 +1,21 @@
-// Pinhole camera mapping; see camera.h for the formulas.
-#include "render/camera.h"
+// Pinhole camera mapping; see pinhole_camera.h for the formulas.
+#include "geometry/pinhole_camera.h"
 
 #include <cmath>
 
 namespace raylod {
 
-PinholeCamera make_pinhole_camera(const Camera& c) {
+PinholeCamera make_pinhole_camera(const Vec3d& eye, const Vec3d& look_at, const Vec3d& up, double fov_y_deg, int width,
+                                  int height) {
   PinholeCamera cam;
-  cam.eye = c.eye;
-  cam.forward = glm::normalize(c.look_at - c.eye);
-  cam.right = glm::normalize(glm::cross(cam.forward, c.up));
+  cam.eye = eye;
+  cam.forward = glm::normalize(look_at - eye);
+  cam.right = glm::normalize(glm::cross(cam.forward, up));
   cam.up = glm::cross(cam.right, cam.forward);
-  cam.width = c.width;
-  cam.height = c.height;
-  cam.tan_half_y = std::tan(glm::radians(c.fov_y_deg) * 0.5);
-  cam.tan_half_x = cam.tan_half_y * double(c.width) / double(c.height);
+  cam.width = width;
+  cam.height = height;
+  cam.tan_half_y = std::tan(glm::radians(fov_y_deg) * 0.5);
+  cam.tan_half_x = cam.tan_half_y * double(width) / double(height);
   return cam;
 }
 
