@@ -139,6 +139,14 @@ StatusOr<Cut> read_cut(const std::filesystem::path& path) {
     return Status::error(name + ": cut file version " + std::to_string(version) + " is not supported (expected " +
                          std::to_string(kVersion) + "); run raylod probe again");
   if (size > kMaxPayload) return Status::error(name + ": corrupt cut file (payload size " + std::to_string(size) + ")");
+  // Check the claimed size against the file before allocating it: a damaged
+  // header must not make a small file cost gigabytes of memory.
+  std::error_code ec;
+  const uint64_t file_bytes = std::filesystem::file_size(path, ec);
+  if (ec) return Status::error(name + ": cannot read the cut file's size: " + ec.message());
+  if (file_bytes < kHeaderBytes || size > file_bytes - kHeaderBytes)
+    return Status::error(name + ": truncated cut file (expected " + std::to_string(size) + " payload bytes, the file has " +
+                         std::to_string(file_bytes - kHeaderBytes) + ")");
   std::string payload(size, '\0');
   if (!f.read(payload.data(), std::streamsize(size)))
     return Status::error(name + ": truncated cut file (expected " + std::to_string(size) + " payload bytes)");

@@ -166,8 +166,14 @@ Status read_header(int fd, const std::filesystem::path& path, StoreHeader& h, La
   h.quadric_depth = qd;
   h.page_level = pl;
   h.file_bytes = l.file_bytes;
+  // Counts and offsets are bounded by the file size before any product or
+  // sum, so a header with a valid CRC but absurd numbers cannot wrap past the
+  // checks below (and then make load_tables allocate from them).
   uint64_t nodes = 0;
-  for (uint64_t c : l.level_counts) nodes += c;
+  for (uint64_t c : l.level_counts) {
+    if (c > size / sizeof(NodeRecord) - nodes) return Status::error(name + ": malformed store header (node counts)");
+    nodes += c;
+  }
   h.node_table_bytes = nodes * sizeof(NodeRecord);
   h.page_data_bytes = l.data_bytes;
   if (size < l.file_bytes)
@@ -176,8 +182,10 @@ Status read_header(int fd, const std::filesystem::path& path, StoreHeader& h, La
   if (size > l.file_bytes)
     return Status::error(name + ": store has " + std::to_string(size) + " bytes but its header says " +
                          std::to_string(l.file_bytes) + " (corrupt)");
-  if (l.node_table_offset + h.node_table_bytes > l.file_bytes ||
-      l.page_table_offset + l.page_count * sizeof(PageInfo) > l.file_bytes || l.data_offset + l.data_bytes != l.file_bytes)
+  auto outside = [&](uint64_t offset, uint64_t length) { return offset > l.file_bytes || length > l.file_bytes - offset; };
+  if (l.page_count > l.file_bytes / sizeof(PageInfo) || outside(l.node_table_offset, h.node_table_bytes) ||
+      outside(l.page_table_offset, l.page_count * sizeof(PageInfo)) || outside(l.data_offset, l.data_bytes) ||
+      l.data_offset + l.data_bytes != l.file_bytes)
     return Status::error(name + ": malformed store header (tables outside the file)");
   return {};
 }

@@ -235,7 +235,10 @@ Status PlyReader::skip_binary_record(const PlyElement& e, size_t& pos, uint64_t 
       continue;
     }
     const size_t cs = scalar_size(p.count_type);
-    if (pos + cs > size) break;
+    if (pos + cs > size) {  // the file ends before this list's count
+      pos = size + 1;
+      break;
+    }
     const int64_t n = load_integer(file_.data() + pos, p.count_type, swap_);
     if (n < 0)
       return error(e.name + " " + std::to_string(record) + ": negative list length " + std::to_string(n));
@@ -256,6 +259,9 @@ Status PlyReader::skip_binary_element(const PlyElement& e, size_t& pos) const {
     pos += e.count * e.record_size;
     return Status::ok();
   }
+  // An element without properties takes no bytes, however many records it declares.
+  if (e.props.empty()) return Status::ok();
+  // Every record now takes at least one byte (a list count), so this ends within the file.
   for (uint64_t r = 0; r < e.count; ++r) RAYLOD_RETURN_IF_ERROR(skip_binary_record(e, pos, r));
   return Status::ok();
 }

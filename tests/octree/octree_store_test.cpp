@@ -15,6 +15,7 @@
 
 #include "core/progress.h"
 #include "octree/octree_test_util.h"
+#include "streaming/octree_format.h"
 
 namespace raylod {
 namespace {
@@ -146,6 +147,35 @@ TEST(OctreeStore, RefusesCorruptTruncatedAndForeignFiles) {
     EXPECT_FALSE(is_store_file(p));
   }
   expect_error_contains(OctreeStore::open(dir / "missing.raylod").status(), {"missing.raylod"});
+}
+
+// Found by tests/fuzz/fuzz_store: a header whose CRC matches but whose node
+// count makes count x 144 bytes wrap to 0 passed the "tables outside the file"
+// check, and open() then threw std::length_error sizing the node table.
+TEST(OctreeStore, RefusesAHeaderWhoseCountsWrapAroundWithAValidChecksum) {
+  auto m = testing::soup(500, 2, true);
+  auto dir = testing::scratch_dir("wrap");
+  const auto p = dir / "wrap.raylod";
+  ASSERT_TRUE(build_memory(m, p).is_ok());
+  const int fd = ::open(p.c_str(), O_RDWR | O_CLOEXEC);
+  ASSERT_GE(fd, 0);
+  StoreHeader h;
+  store_format::Layout l;
+  ASSERT_TRUE(store_format::read_header(fd, p, h, l).is_ok());
+  const std::string before = store_format::encode_header(h, l);
+  for (auto [level_count, page_count] : {std::pair<uint64_t, uint64_t>{uint64_t(1) << 60, l.page_count},
+                                         std::pair<uint64_t, uint64_t>{l.level_counts[0], (uint64_t(1) << 61) / 9}}) {
+    store_format::Layout bad = l;
+    bad.level_counts[0] = level_count;  // 2^60 x sizeof(NodeRecord) = 9 x 2^64
+    bad.page_count = page_count;        // offset + 2^61 / 9 x sizeof(PageInfo) wraps past 2^64
+    const std::string header = store_format::encode_header(h, bad);
+    ASSERT_EQ(header.size(), before.size());
+    ASSERT_TRUE(store_format::pwrite_all(fd, header.data(), header.size(), 0, p).is_ok());
+    StatusOr<std::unique_ptr<OctreeStore>> opened = Status::error("not opened");
+    ASSERT_NO_THROW(opened = OctreeStore::open(p));
+    expect_error_contains(opened.status(), {p.string(), "malformed store header"});
+  }
+  ::close(fd);
 }
 
 TEST(OctreeStore, FailedBuildLeavesTheOldStoreAndNoTemporaries) {

@@ -5,10 +5,12 @@
 #include <gtest/gtest.h>
 
 #include <cstdlib>
+#include <cstring>
 #include <fstream>
 #include <random>
 #include <set>
 
+#include <sys/resource.h>
 #include <unistd.h>
 
 #include <glm/gtc/matrix_transform.hpp>
@@ -227,6 +229,39 @@ TEST(CutFile, RoundTripAndCorruption) {
   bad = read_cut(path);
   ASSERT_FALSE(bad);
   EXPECT_NE(bad.status().message().find("inside another"), std::string::npos) << bad.status().message();
+}
+
+// Found by tests/fuzz/fuzz_cut: a header claiming a 1 GiB payload made
+// read_cut allocate (and zero) 1 GiB before finding that the file is 40 bytes.
+TEST(CutFile, PayloadSizeBeyondTheFileIsRejectedBeforeAllocating) {
+  Cut cut;
+  cut.cells = {{CellKey{1, 3}, 0.5f, 1}};
+  const fs::path path = tmp_dir() / "huge-claim.cut";
+  ASSERT_TRUE(write_cut(path, cut));
+  std::string bytes;
+  {
+    std::ifstream f(path, std::ios::binary);
+    bytes.assign(std::istreambuf_iterator<char>(f), {});
+  }
+  const uint64_t claimed = uint64_t(1) << 30;
+  ASSERT_GE(bytes.size(), 24u);
+  std::memcpy(bytes.data() + 16, &claimed, 8);  // the payload size field
+  {
+    std::ofstream f(path, std::ios::binary | std::ios::trunc);
+    f.write(bytes.data(), std::streamsize(bytes.size()));
+  }
+  // Each test runs in its own process, so the peak RSS before is this test's small start.
+  auto peak_mib = [] {
+    rusage u{};
+    getrusage(RUSAGE_SELF, &u);
+    return u.ru_maxrss / 1024;  // KiB on Linux
+  };
+  const long before = peak_mib();
+  auto bad = read_cut(path);
+  const long grown = peak_mib() - before;
+  ASSERT_FALSE(bad);
+  EXPECT_NE(bad.status().message().find("truncated"), std::string::npos) << bad.status().message();
+  EXPECT_LT(grown, 256) << "read_cut touched " << grown << " MiB for a " << bytes.size() << "-byte file";
 }
 
 TEST(Probe, DiffuseSceneTracesNoSecondaryRays) {

@@ -2,7 +2,10 @@
 // element order, batch boundaries, and every kind of bad input.
 #include <gtest/gtest.h>
 
+#include <unistd.h>
+
 #include <cmath>
+#include <cstdlib>
 #include <limits>
 
 #include "reader_test_util.h"
@@ -451,6 +454,37 @@ TEST(PlyReaderErrors, BinaryTrailingDataMeansWrongCount) {
   b.put<uint8_t>(3).put<int32_t>(0).put<int32_t>(1).put<int32_t>(2);
   b.put<uint8_t>(3).put<int32_t>(2).put<int32_t>(1).put<int32_t>(0);  // one face more than declared
   EXPECT_READ_ERROR(write_file("trailing.ply", b.data), "13 bytes of unexpected data after the last element");
+}
+
+// Found by tests/fuzz/fuzz_ply: skipping the elements after the faces went
+// once round a loop per declared record without moving when a record took no
+// bytes (an element without properties) or when the file ended before a
+// list's count, so a small header declaring 10^15 such records hung the
+// reader. Each read runs in a child process that SIGALRM ends if it hangs.
+TEST(PlyReaderErrors, ElementsAfterTheFacesCannotHangTheReader) {
+  auto file = [](const std::string& name, const std::string& extra_header, const std::string& extra_data) {
+    Bytes b;
+    b.text("ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+           "property float z\nelement face 1\nproperty list uchar int vertex_indices\n" + extra_header + "end_header\n");
+    for (float c : {0.f, 0.f, 0.f, 1.f, 0.f, 0.f, 0.f, 1.f, 0.f}) b.put<float>(c);
+    b.put<uint8_t>(3).put<int32_t>(0).put<int32_t>(1).put<int32_t>(2);
+    return write_file(name, b.data + extra_data);
+  };
+  // Exit status 0 if the read ends (within 20 s) with `expected` ("" = success) in its status.
+  auto read_ends_with = [](const std::filesystem::path& path, const std::string& expected) {
+    ::alarm(20);
+    const auto r = test::read_all(path);
+    const bool as_expected = expected.empty() ? r.status.is_ok() && r.triangles() == 1
+                                              : r.status.message().find(expected) != std::string::npos;
+    std::_Exit(as_expected ? 0 : 3);
+  };
+  const auto empty = file("no-properties.ply", "element nothing 1000000000000000\n", "");
+  EXPECT_EXIT(read_ends_with(empty, ""), ::testing::ExitedWithCode(0), "");
+  const auto list = file("list-at-eof.ply", "element tail 1000000000000000\nproperty list uchar int values\n", "");
+  EXPECT_EXIT(read_ends_with(list, "truncated: the file ends inside tail 0 of"), ::testing::ExitedWithCode(0), "");
+  const auto one = file("list-one-record.ply", "element tail 1000000000000000\nproperty list uchar int values\n",
+                        std::string(1, '\0'));
+  EXPECT_EXIT(read_ends_with(one, "truncated: the file ends inside tail 1 of"), ::testing::ExitedWithCode(0), "");
 }
 
 TEST(PlyReaderErrors, BinaryListInVertexElement) {
