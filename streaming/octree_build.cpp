@@ -395,12 +395,15 @@ struct Plan {
 // thread count (fewer threads use fewer), so the store does not depend on it.
 constexpr size_t kPlanTokens = 8;
 
-// Leaf nodes the global table may hold under a memory limit: half of what the
-// limit leaves after `overhead`, at least a tenth of the limit.
-uint64_t max_nodes_for(uint64_t memory_limit, uint64_t overhead) {
+// Bytes for the node table under a memory limit: half of what the limit
+// leaves after `overhead`, at least a tenth of the limit.
+uint64_t node_budget_for(uint64_t memory_limit, uint64_t overhead) {
   const double avail = memory_limit > overhead ? double(memory_limit - overhead) : 0.0;
-  const uint64_t node_budget = uint64_t(std::max(0.5 * avail, 0.1 * double(memory_limit)));
-  return std::max<uint64_t>(64, node_budget / kBytesPerLeafNode);
+  return uint64_t(std::max(0.5 * avail, 0.1 * double(memory_limit)));
+}
+// Leaf nodes the global table may hold under a memory limit.
+uint64_t max_nodes_for(uint64_t memory_limit, uint64_t overhead) {
+  return std::max<uint64_t>(64, node_budget_for(memory_limit, overhead) / kBytesPerLeafNode);
 }
 
 // The plan's quadric depth for a node cap: the deepest level whose estimated
@@ -442,7 +445,8 @@ std::pair<uint64_t, uint64_t> reuse_limits(const Plan& plan, int depth, uint64_t
   if (depth != plan.quadric_depth) return {memory_limit, memory_limit};
   uint64_t need = leaf_nodes + 1;
   if (depth > 0) need = std::max(need, uint64_t(std::ceil(plan.est_nodes[size_t(depth)] * 1.25)));
-  uint64_t lo = std::min(limit_for_nodes(need, plan.overhead), memory_limit);
+  // min: the build's own limit is inside, whatever the rounding at the edges.
+  const uint64_t lo = std::min(limit_for_nodes(need, plan.overhead), memory_limit);
   uint64_t hi = UINT64_MAX;
   const int next = depth + 1;
   if (next <= plan.max_depth && plan.est_nodes[size_t(depth)] < 0.5 * plan.vertices) {
@@ -451,8 +455,6 @@ std::pair<uint64_t, uint64_t> reuse_limits(const Plan& plan, int depth, uint64_t
     const uint64_t at = limit_for_nodes(deeper, plan.overhead);
     hi = at == UINT64_MAX ? UINT64_MAX : std::max(at - 1, memory_limit);
   }
-  // Guard against rounding at the edges: the build's own limit is inside.
-  lo = std::min(lo, memory_limit);
   return {lo, hi};
 }
 
@@ -478,7 +480,7 @@ std::vector<double> estimate_cells(std::vector<uint64_t> codes21, bool complete,
   return est;
 }
 
-Plan make_plan(const Scan& scan, const StoreOptions& options, uint64_t memory_limit, size_t ntokens) {
+Plan make_plan(const Scan& scan, const StoreOptions& options, uint64_t memory_limit) {
   Plan plan;
   plan.origin = scan.bounds.center();
   const Vec3d ext = scan.bounds.extent();
@@ -508,10 +510,9 @@ Plan make_plan(const Scan& scan, const StoreOptions& options, uint64_t memory_li
   // come first; of the rest, half goes to the node table and a quarter to
   // the run buffer, leaving a margin for the allocator and the sample.
   const uint64_t token_bytes = 3 * 65536 * (triangle_bytes(scan.has_normals) + 8);
-  (void)ntokens;  // the plan reserves kPlanTokens whatever the thread count
   const uint64_t overhead = scan.reader_bytes + (48ull << 20) + kPlanTokens * token_bytes;
   const double avail = memory_limit > overhead ? double(memory_limit - overhead) : 0.0;
-  const uint64_t node_budget = uint64_t(std::max(0.5 * avail, 0.1 * double(memory_limit)));
+  const uint64_t node_budget = node_budget_for(memory_limit, overhead);
   plan.overhead = overhead;
   plan.max_nodes = max_nodes_for(memory_limit, overhead);
   plan.max_depth = std::min(options.max_depth, int(kMaxLevel));
@@ -906,7 +907,7 @@ StatusOr<BuildReport> build_store_from_stream(const MeshStreamOpener& open, cons
   BuildReport report;
   report.scan_seconds = since(t0);
   auto t1 = now();
-  const Plan plan = make_plan(scan, options, memory_limit, ntokens);
+  const Plan plan = make_plan(scan, options, memory_limit);
 
   // Pass 2.
   auto runs_owner = std::make_unique<RunFile>(scan.has_normals, plan.run_triangles);

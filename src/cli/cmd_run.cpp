@@ -100,9 +100,7 @@ Status run_run(int argc, char** argv, bool& help) {
     ro.threads = opts.threads;
     // The comparison runs after the run's own render has been freed, so it
     // gets the whole memory limit to itself.
-    StoreOptions limit_of;
-    limit_of.memory_limit = opts.memory_limit;
-    ro.memory_limit = resolved_memory_limit(limit_of);
+    ro.memory_limit = MemoryBudget::resolve(opts.memory_limit).total;
     ro.progress = opts.progress;
     ro.over_limit_hint.clear();
     if (opts.mesh_override) ro.mesh_override = {*opts.mesh_override};
@@ -119,50 +117,48 @@ Status run_run(int argc, char** argv, bool& help) {
       auto j = nlohmann::json::parse(stats);
       j["comparison_skipped"] = why;
       stats = j.dump(2) + "\n";
-      std::printf("  wrote      %s\n", output.string().c_str());
-      if (args.has("--stats-json")) RAYLOD_RETURN_IF_ERROR(write_file_atomic(args.get("--stats-json"), stats));
-      return {};
+    } else {
+      RAYLOD_ASSIGN_OR_RETURN(FullRender fr, render_full_with_noise_floor(scene, ro));
+      const RenderResult& full = fr.reference;
+      const NoiseFloor& floor = fr.noise_floor;
+      RAYLOD_ASSIGN_OR_RETURN(ImageError e, compare_images(r.render.color, full.color));
+      const RenderStats& fs = full.stats;
+      double full_seconds = fs.load_seconds + fs.bvh_seconds + fs.render_seconds;
+      std::printf("  full mesh  %7.2f s  (load %.2f s, BVH %.2f s, trace %.2f s; seed %llu, and %.2f s more at seed %llu "
+                  "for the noise floor)\n",
+                  full_seconds, fs.load_seconds, fs.bvh_seconds, fs.render_seconds, (unsigned long long)floor.seed,
+                  floor.render_seconds, (unsigned long long)noise_floor_seed(floor.seed));
+      std::printf("  error      PSNR %.2f dB, SSIM %.4f (%s), largest pixel difference %.3f\n", e.psnr, e.ssim,
+                  describe_against_noise_floor(e, floor).c_str(), e.max_diff);
+      std::printf("  floor      PSNR %.2f dB, SSIM %.4f, largest pixel difference %.3f (full mesh, seed %llu against "
+                  "seed %llu, %d spp)\n",
+                  floor.psnr(), floor.error.ssim, floor.error.max_diff, (unsigned long long)noise_floor_seed(floor.seed),
+                  (unsigned long long)floor.seed, floor.spp);
+      std::filesystem::path ref = output;
+      ref.replace_extension(".full" + output.extension().string());
+      RAYLOD_RETURN_IF_ERROR(write_image(ref, full.color));
+      std::filesystem::path diff = output;
+      diff.replace_extension(".diff" + output.extension().string());
+      RAYLOD_RETURN_IF_ERROR(write_image(diff, difference_image(r.render.color, full.color)));
+      std::printf("  wrote      %s (full mesh), %s (difference x4)\n", ref.string().c_str(), diff.string().c_str());
+      // run_stats_json() (pipeline.cpp) knows nothing of the comparison: extend its object.
+      auto j = nlohmann::json::parse(stats);
+      // Identical images have infinite PSNR, which JSON cannot hold: null.
+      auto psnr_json = [](double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); };
+      j["full_render_seconds"] = full_seconds;
+      j["psnr"] = psnr_json(e.psnr);
+      j["ssim"] = e.ssim;
+      j["max_diff"] = e.max_diff;
+      j["noise_floor"] = {{"seed", floor.seed},
+                          {"other_seed", noise_floor_seed(floor.seed)},
+                          {"spp", floor.spp},
+                          {"psnr", psnr_json(floor.psnr())},
+                          {"ssim", floor.error.ssim},
+                          {"max_diff", floor.error.max_diff},
+                          {"render_seconds", floor.render_seconds}};
+      j["within_noise_floor"] = within_noise_floor(e, floor);
+      stats = j.dump(2) + "\n";
     }
-    RAYLOD_ASSIGN_OR_RETURN(FullRender fr, render_full_with_noise_floor(scene, ro));
-    const RenderResult& full = fr.reference;
-    const NoiseFloor& floor = fr.noise_floor;
-    RAYLOD_ASSIGN_OR_RETURN(ImageError e, compare_images(r.render.color, full.color));
-    const RenderStats& fs = full.stats;
-    double full_seconds = fs.load_seconds + fs.bvh_seconds + fs.render_seconds;
-    std::printf("  full mesh  %7.2f s  (load %.2f s, BVH %.2f s, trace %.2f s; seed %llu, and %.2f s more at seed %llu "
-                "for the noise floor)\n",
-                full_seconds, fs.load_seconds, fs.bvh_seconds, fs.render_seconds, (unsigned long long)floor.seed,
-                floor.render_seconds, (unsigned long long)noise_floor_seed(floor.seed));
-    std::printf("  error      PSNR %.2f dB, SSIM %.4f (%s), largest pixel difference %.3f\n", e.psnr, e.ssim,
-                describe_against_noise_floor(e, floor).c_str(), e.max_diff);
-    std::printf("  floor      PSNR %.2f dB, SSIM %.4f, largest pixel difference %.3f (full mesh, seed %llu against "
-                "seed %llu, %d spp)\n",
-                floor.psnr(), floor.error.ssim, floor.error.max_diff, (unsigned long long)noise_floor_seed(floor.seed),
-                (unsigned long long)floor.seed, floor.spp);
-    std::filesystem::path ref = output;
-    ref.replace_extension(".full" + output.extension().string());
-    RAYLOD_RETURN_IF_ERROR(write_image(ref, full.color));
-    std::filesystem::path diff = output;
-    diff.replace_extension(".diff" + output.extension().string());
-    RAYLOD_RETURN_IF_ERROR(write_image(diff, difference_image(r.render.color, full.color)));
-    std::printf("  wrote      %s (full mesh), %s (difference x4)\n", ref.string().c_str(), diff.string().c_str());
-    // run_stats_json() (pipeline.cpp) knows nothing of the comparison: extend its object.
-    auto j = nlohmann::json::parse(stats);
-    // Identical images have infinite PSNR, which JSON cannot hold: null.
-    auto psnr_json = [](double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); };
-    j["full_render_seconds"] = full_seconds;
-    j["psnr"] = psnr_json(e.psnr);
-    j["ssim"] = e.ssim;
-    j["max_diff"] = e.max_diff;
-    j["noise_floor"] = {{"seed", floor.seed},
-                        {"other_seed", noise_floor_seed(floor.seed)},
-                        {"spp", floor.spp},
-                        {"psnr", psnr_json(floor.psnr())},
-                        {"ssim", floor.error.ssim},
-                        {"max_diff", floor.error.max_diff},
-                        {"render_seconds", floor.render_seconds}};
-    j["within_noise_floor"] = within_noise_floor(e, floor);
-    stats = j.dump(2) + "\n";
   }
   std::printf("  wrote      %s\n", output.string().c_str());
   if (args.has("--stats-json")) RAYLOD_RETURN_IF_ERROR(write_file_atomic(args.get("--stats-json"), stats));

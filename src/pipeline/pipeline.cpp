@@ -202,11 +202,10 @@ StatusOr<SceneStores> prepare_scene_stores(Scene& scene, const std::optional<fs:
     if (!where.empty()) say(log, where);
     // An existing store is reused under this memory limit only if a fresh
     // build under it would make the same store (store_is_current).
-    const StoreOptions& options = store_options;
     std::string reason;
-    if (!store_is_current(mesh, store_path, options, &reason))
+    if (!store_is_current(mesh, store_path, store_options, &reason))
       say(log, "building store " + store_path.string() + " (" + reason + ")");
-    auto report = build_store(mesh, store_path, options);
+    auto report = build_store(mesh, store_path, store_options);
     if (!report.is_ok()) return report.status();
     auto store = OctreeStore::open(store_path);
     if (!store.is_ok()) return store.status();

@@ -7,6 +7,7 @@
 #include <random>
 
 #include "geometry/optics.h"
+#include "random_unit.h"
 
 namespace raylod {
 namespace {
@@ -35,14 +36,7 @@ TEST(Optics, TotalInternalReflectionBeyondTheCriticalAngle) {
   }
 }
 
-Vec3d random_unit(std::mt19937_64& rng) {
-  std::normal_distribution<double> g;
-  for (;;) {
-    const Vec3d v(g(rng), g(rng), g(rng));
-    const double l = glm::length(v);
-    if (l > 1e-6) return v / l;
-  }
-}
+using test::random_unit;
 
 // Angle between two unit vectors, robust near 0 and pi.
 double angle(const Vec3d& a, const Vec3d& b) { return std::atan2(glm::length(glm::cross(a, b)), glm::dot(a, b)); }

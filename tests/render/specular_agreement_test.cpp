@@ -9,18 +9,12 @@
 
 #include "geometry/ray_differential.h"
 #include "render/integrator.h"
+#include "random_unit.h"
 
 namespace raylod {
 namespace {
 
-Vec3d random_unit(std::mt19937_64& rng) {
-  std::normal_distribution<double> g;
-  for (;;) {
-    const Vec3d v(g(rng), g(rng), g(rng));
-    const double l = glm::length(v);
-    if (l > 1e-6) return v / l;
-  }
-}
+using test::random_unit;
 
 TEST(SpecularAgreement, ProbeDirectionsEqualTheIntegrators) {
   std::mt19937_64 rng(7);
