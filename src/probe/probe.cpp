@@ -91,6 +91,7 @@ struct PathRay {
   double path_length = 0;
   int skip_object = kNoObject;
   TriangleRef skip_ref;
+  int32_t parent = -1;  // the mesh hit (index into the ray's hits) this ray leaves, or -1
 };
 
 struct WorldHit {
@@ -199,6 +200,7 @@ class ProbeTracer {
           h.footprint = beam * path / x.sigma;
           ++out.counters.v[ProbeRayCounters::dropped];
         }
+        h.parent = pr.parent;
         out.hits.push_back(h);
       }
 
@@ -220,6 +222,7 @@ class ProbeTracer {
         s.path_length = path;
         s.skip_object = wh.object;
         s.skip_ref = wh.tri.ref;
+        s.parent = wh.object != kGround ? int32_t(out.hits.size() - 1) : pr.parent;
         stack.push_back(std::move(s));
       };
       if (mat.refracts()) {
@@ -235,6 +238,16 @@ class ProbeTracer {
         spawn(reflect(r, sp, config_.limits), kReflection);
       }
     }
+    // A direction error made at a surface is only resolved as finely as the
+    // narrowest beam along the rest of its path: a later surface can focus
+    // the beam (the two walls of a thin glass shell nearly cancel each
+    // other's spread) while the error stays. Hits come after the hit their
+    // ray left, so one backward pass takes the minimum over each subtree.
+    for (size_t i = out.hits.size(); i-- > 0;)
+      if (out.hits[i].parent >= 0) {
+        double& a = out.hits[size_t(out.hits[i].parent)].angular;
+        a = std::min(a, out.hits[i].angular);
+      }
     return out;
   }
 
@@ -456,7 +469,13 @@ StatusOr<ProbeTrace> trace_probe(const Scene& scene, std::span<const ProbeStore>
   size_t hits = 0;
   for (const RayOutcome& o : outcomes) hits += o.hits.size();
   result.hits.reserve(hits);
-  for (const RayOutcome& o : outcomes) result.hits.insert(result.hits.end(), o.hits.begin(), o.hits.end());
+  for (const RayOutcome& o : outcomes) {
+    const int32_t offset = int32_t(result.hits.size());
+    for (ProbeHit h : o.hits) {
+      if (h.parent >= 0) h.parent += offset;
+      result.hits.push_back(h);
+    }
+  }
   result.rays = config.rays;
   result.seed = config.seed;
 

@@ -48,9 +48,10 @@
 //     surface stays within tolerance_px pixels of the input wherever a ray
 //     sees it, silhouettes included; AND, on mirror and glass objects, the
 //     reflected ray's turn 2 * normal_deviation is at most tolerance_px times
-//     the angular spread ||dD|| of the rays leaving that surface (the
-//     smallest measured at hits in the cell, else a_min * m for unreached
-//     cells). K then only caps how large a cell may get relative to the
+//     the angular spread ||dD|| of the rays leaving that surface, taken
+//     as the smallest along the rest of each path (a later surface may focus
+//     the beam while the error stays); the smallest measured at hits in the
+//     cell, else a_min * m for unreached cells. K then only caps how large a cell may get relative to the
 //     footprint (bounding what a quadric cannot see, such as open rims).
 //
 // Cells that no ray path can reach -- outside the view frustum in a scene
@@ -142,7 +143,10 @@ struct ProbeHit {
   std::array<Vec3d, 3> corners{};  // hit triangle's corners, store coordinates
   double footprint = 0;            // ||dP|| in store units; if estimated, without the factor m
   double ratio = -1;               // f / (a_ray * path length) of a measured secondary hit
-  double angular = std::numeric_limits<double>::infinity();  // mirror/glass hit: ||dD|| of the ray leaving it
+  // Mirror/glass hit: the smallest ||dD|| of the rays leaving it and of
+  // every later mirror/glass hit on their paths.
+  double angular = std::numeric_limits<double>::infinity();
+  int32_t parent = -1;             // index in ProbeTrace::hits of the hit whose ray made this one, or -1
   bool estimated = false;          // differentials dropped: footprint from the beam
 };
 

@@ -299,6 +299,34 @@ TEST(Probe, GlassSceneRefractsAndHandlesTir) {
   EXPECT_LE(all, 1000u * 63u);
 }
 
+// A direction error made at a glass surface is compared with the narrowest
+// beam along the rest of its path: every hit's angular need is at most that
+// of each hit its rays lead to, and the path links point backwards.
+TEST(Probe, AngularNeedIsTheMinimumAlongTheRestOfThePath) {
+  const Built& b = teapot();
+  ProbeStore store{b.store.get(), b.store_path};
+  ProbeObject object{0, glm::dmat4(1.0), 0};
+  ProbeConfig c;
+  c.rays = 1000;
+  c.seed = 7;
+  auto t = trace_probe(make_scene(MaterialType::Glass, kEye, kLook), std::span<const ProbeStore>(&store, 1),
+                       std::span<const ProbeObject>(&object, 1), c);
+  ASSERT_TRUE(t) << t.status().message();
+  size_t linked = 0, lowered = 0;
+  for (size_t i = 0; i < t->hits.size(); ++i) {
+    const ProbeHit& h = t->hits[i];
+    if (h.parent < 0) continue;
+    ASSERT_LT(size_t(h.parent), i);
+    const ProbeHit& p = t->hits[size_t(h.parent)];
+    ++linked;
+    EXPECT_LE(p.angular, h.angular) << "hit " << i << " of parent " << h.parent;
+    lowered += p.angular == h.angular;
+  }
+  EXPECT_GT(linked, 500u);
+  // Somewhere a later surface narrows the beam, so the minimum is inherited.
+  EXPECT_GT(lowered, 0u);
+}
+
 // Properties of the cut: an antichain within quadric_depth; every marked cell
 // is finer than K times the smallest footprint of the hits inside it; visible
 // unreached cells are no coarser than the pinhole bound; larger K is coarser.
