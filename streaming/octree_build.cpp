@@ -48,12 +48,12 @@
 #include <mutex>
 
 #include <tbb/concurrent_queue.h>
-#include <tbb/global_control.h>
 #include <tbb/info.h>
 #include <tbb/parallel_pipeline.h>
 
 #include "core/progress.h"
 #include "core/fault_point.h"
+#include "core/parallelism.h"
 #include "core/system.h"
 #include "streaming/octree_format.h"
 #include "streaming/octree_store.h"
@@ -892,10 +892,7 @@ StatusOr<BuildReport> build_store_from_stream(const MeshStreamOpener& open, cons
     return Status::error("--max-depth must be between 0 and " + std::to_string(kMaxLevel));
   const uint64_t memory_limit = resolved_memory_limit(options);
   if (memory_limit < (1u << 20)) return Status::error("--memory-limit must be at least 1M");
-  std::unique_ptr<tbb::global_control> threads;
-  if (options.threads > 0)
-    threads = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism, size_t(options.threads));
-  const size_t concurrency = size_t(tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism));
+  const size_t concurrency = size_t(ambient_parallelism());
   const size_t ntokens = std::clamp<size_t>(2 * concurrency, 2, 8);
 
   // Pass 1.
@@ -935,7 +932,6 @@ StatusOr<BuildReport> build_store_from_stream(const MeshStreamOpener& open, cons
   }
   header.options = options;
   header.options.memory_limit = memory_limit;
-  header.options.threads = 0;  // the store is the same for any thread count
   header.triangle_count = scan.triangles;
   header.has_normals = scan.has_normals;
   header.origin = plan.origin;

@@ -90,7 +90,6 @@ struct PageInfo {
 struct StoreOptions {
   uint64_t memory_limit = 0;  // bytes; 0 = a quarter of physical memory
   int max_depth = 12;         // deepest level that may keep quadrics
-  int threads = 0;            // 0 = all cores (not recorded: the store does not depend on it)
   uint32_t page_triangles = 4096;  // target triangles per page (chooses page_level)
 };
 

@@ -82,6 +82,17 @@ StatusOr<CutOptions> cut_options_from_args(const Args& args);
 // --crease-angle applied if the command has it and it was given.
 StatusOr<Scene> scene_from_args(const Args& args);
 
+// --threads T: how many threads the whole command may use. Commands that run
+// parallel stages list threads_option() (help text, and so that parsing
+// accepts it); main() reads the value with threads_from_argv before the
+// command runs and creates the process's one tbb::global_control from it.
+// The stages create no thread limit of their own (core/parallelism.h).
+Args::Option threads_option(const std::string& note = "");
+// The value of --threads among a command's arguments (argv[0] is the
+// subcommand name; the last occurrence wins, as in Args::parse): 0, meaning
+// all cores, when absent; an error unless it is an integer from 0 to 4096.
+StatusOr<int> threads_from_argv(int argc, char** argv);
+
 // Prints "raylod <cmd>: <message>" to stderr and returns the exit code 1.
 int fail(const char* command, const Status& status);
 

@@ -31,7 +31,7 @@ Status run_run(int argc, char** argv, bool& help) {
                                     "                              coarsened until the simplified mesh fits", true, "SIZE"},
              {"--rays", "", "test rays (default 5000)", true, "N"},
              {"--spp", "", "samples per pixel (default: the scene's)", true, "N"},
-             {"--threads", "", "worker threads (default: all cores)", true, "T"},
+             threads_option(),
              {"--cache", "", "cache directory (default $XDG_CACHE_HOME/raylod or ~/.cache/raylod)", true, "DIR"},
              {"--cache-limit", "", "cache size limit, least recently used evicted (default 4G)", true, "SIZE"},
              {"--no-cache", "", "neither reuse nor keep simplified meshes", false, ""},
@@ -57,11 +57,9 @@ Status run_run(int argc, char** argv, bool& help) {
   opts.criterion = cut.criterion;
   opts.tolerance_px = cut.tolerance_px;
   RAYLOD_ASSIGN_OR_RETURN(int64_t spp, args.get_int("--spp", 0, 1, 4096));
-  RAYLOD_ASSIGN_OR_RETURN(int64_t threads, args.get_int("--threads", 0, 1, 4096));
   RAYLOD_ASSIGN_OR_RETURN(opts.cache_limit, args.get_size("--cache-limit", uint64_t(4) << 30));
   opts.rays = uint64_t(rays);
   opts.spp = int(spp);
-  opts.threads = int(threads);
   opts.cache_dir = args.get("--cache", default_cache_dir().string());
   opts.use_cache = !args.has("--no-cache");
   if (args.has("--mesh")) opts.mesh_override = std::filesystem::path(args.get("--mesh"));
@@ -97,7 +95,6 @@ Status run_run(int argc, char** argv, bool& help) {
     RAYLOD_RETURN_IF_ERROR(resolve_generated_meshes(scene, opts.cache_dir));
     RenderOptions ro;
     ro.spp = opts.spp;
-    ro.threads = opts.threads;
     // The comparison runs after the run's own render has been freed, so it
     // gets the whole memory limit to itself.
     ro.memory_limit = MemoryBudget::resolve(opts.memory_limit).total;

@@ -51,7 +51,6 @@ struct RunOptions {
   double footprint_scale = kDefaultFootprintScale;  // K (see README, "What accuracy costs": why this default)
   CutCriterion criterion = CutCriterion::Deviation;
   double tolerance_px = kDefaultTolerancePx;        // deviation criterion (probe.h)
-  int threads = 0;
   std::filesystem::path cache_dir;    // empty = default_cache_dir()
   uint64_t cache_limit = uint64_t(4) << 30;
   bool use_cache = true;
@@ -107,7 +106,7 @@ std::string run_stats_json(const RunResult& result, const RunOptions& options);
 // share (MemoryBudget::page_cache: half of what the limit leaves after what is
 // resident and the rays' hit records); an error if nothing is left. Call
 // after the stores are open.
-StatusOr<ProbeConfig> make_probe_config(const Scene& scene, uint64_t rays, double footprint_scale, int threads,
+StatusOr<ProbeConfig> make_probe_config(const Scene& scene, uint64_t rays, double footprint_scale,
                                         const MemoryBudget& budget, bool progress);
 
 // Simplifies the cut of a store and writes it Draco-compressed to `out`
