@@ -437,7 +437,7 @@ Status print_store_info(const std::filesystem::path& path, std::FILE* out) {
   std::fprintf(out, "  source        %s (%s, content hash %016" PRIx64 ")\n", h.source_path.c_str(),
                format_bytes(h.source_bytes).c_str(), h.source_hash);
   std::fprintf(out, "  build options --memory-limit %s --max-depth %d (page target %u triangles)\n",
-               format_bytes(h.options.memory_limit).c_str(), h.options.max_depth, h.options.page_triangles);
+               describe_memory_limit(h.options.memory_limit).c_str(), h.options.max_depth, h.options.page_triangles);
   std::fprintf(out, "  reused under  --memory-limit %s to %s (a build under any limit in between makes this store)\n",
                format_bytes(h.reuse_limit_lo).c_str(),
                h.reuse_limit_hi == UINT64_MAX ? "any larger" : format_bytes(h.reuse_limit_hi).c_str());

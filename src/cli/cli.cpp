@@ -156,6 +156,14 @@ StatusOr<Scene> scene_from_args(const Args& args) {
   return scene;
 }
 
+StatusOr<MemoryBudget> memory_budget_from_args(const Args& args) {
+  std::optional<uint64_t> given;
+  if (args.has("--memory-limit")) {
+    RAYLOD_ASSIGN_OR_RETURN(given, args.get_size("--memory-limit", 0));
+  }
+  return MemoryBudget::resolve(given);
+}
+
 Args::Option threads_option(const std::string& note) {
   return {"--threads", "", "worker threads for the whole command (default 0: all cores)" + note, true, "T"};
 }

@@ -8,6 +8,7 @@
 #include <string>
 #include <vector>
 
+#include "core/memory_budget.h"
 #include "core/status.h"
 #include "probe/probe.h"
 #include "scene/scene.h"
@@ -92,6 +93,12 @@ Args::Option threads_option(const std::string& note = "");
 // subcommand name; the last occurrence wins, as in Args::parse): 0, meaning
 // all cores, when absent; an error unless it is an integer from 0 to 4096.
 StatusOr<int> threads_from_argv(int argc, char** argv);
+
+// --memory-limit, resolved once at the command line boundary: the size given,
+// else the default, a quarter of physical memory (MemoryBudget::resolve).
+// Commands pass its total down as a concrete number; inside the library 0
+// means no limit (memory_budget.h). `raylod render` alone defaults to no limit.
+StatusOr<MemoryBudget> memory_budget_from_args(const Args& args);
 
 // Prints "raylod <cmd>: <message>" to stderr and returns the exit code 1.
 int fail(const char* command, const Status& status);

@@ -40,9 +40,9 @@ int run_build(int argc, char** argv) {
   if (args.positionals().size() != 1) return fail("build", Status::error("expected one MESH (see raylod build --help)"));
   const std::filesystem::path mesh = args.positionals()[0];
   StoreOptions options;
-  auto limit = args.get_size("--memory-limit", 0);
-  if (!limit) return fail("build", limit.status());
-  options.memory_limit = *limit;
+  auto budget = memory_budget_from_args(args);
+  if (!budget) return fail("build", budget.status());
+  options.memory_limit = budget->total;
   auto depth = args.get_int("--max-depth", options.max_depth, 0, 21);
   if (!depth) return fail("build", depth.status());
   options.max_depth = int(*depth);
@@ -79,7 +79,7 @@ int run_build(int argc, char** argv) {
               r.seconds, double(r.triangles) / r.seconds / 1e6, r.scan_seconds, r.bin_seconds, r.write_seconds,
               r.commit_seconds);
   std::printf("  peak RSS       %s (limit %s)\n", format_bytes(peak_rss_bytes()).c_str(),
-              format_bytes(resolved_memory_limit(options)).c_str());
+              describe_memory_limit(options.memory_limit).c_str());
   return 0;
 }
 

@@ -44,12 +44,12 @@ int cmd_probe(int argc, char** argv) {
 
   auto rays = args.get_int("--rays", 5000, 1, 100'000'000);
   auto seed = args.get_int("--seed", int64_t(scene.seed), 0, INT64_MAX);
-  auto limit = args.get_size("--memory-limit", 0);
+  auto limit = memory_budget_from_args(args);
   for (const Status& s : {rays.status(), seed.status(), limit.status()})
     if (!s) return cli::fail("probe", s);
 
   // One store per distinct mesh, built first if missing or stale (saying so).
-  const MemoryBudget budget = MemoryBudget::resolve(*limit);
+  const MemoryBudget budget = *limit;
   StoreOptions store_options;
   store_options.memory_limit = budget.total;
   std::optional<std::filesystem::path> mesh_override;

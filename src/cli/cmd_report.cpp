@@ -98,7 +98,8 @@ Status run_report_cmd(int argc, char** argv) {
   RAYLOD_ASSIGN_OR_RETURN(int64_t spp, args.get_int("--spp", cfg.spp, 0, 4096));
   RAYLOD_ASSIGN_OR_RETURN(int64_t width, args.get_int("--width", cfg.width, 0, 32768));
   RAYLOD_ASSIGN_OR_RETURN(int64_t height, args.get_int("--height", cfg.height, 0, 32768));
-  RAYLOD_ASSIGN_OR_RETURN(cfg.memory_limit, args.get_size("--memory-limit", 0));
+  RAYLOD_ASSIGN_OR_RETURN(const MemoryBudget budget, memory_budget_from_args(args));
+  cfg.memory_limit = budget.total;
   cfg.spp = int(spp);
   cfg.width = int(width);
   cfg.height = int(height);

@@ -50,7 +50,8 @@ Status run_run(int argc, char** argv, bool& help) {
   RAYLOD_RETURN_IF_ERROR(check_output_image(output));
 
   RunOptions opts;
-  RAYLOD_ASSIGN_OR_RETURN(opts.memory_limit, args.get_size("--memory-limit", 0));
+  RAYLOD_ASSIGN_OR_RETURN(const MemoryBudget budget, memory_budget_from_args(args));
+  opts.memory_limit = budget.total;
   RAYLOD_ASSIGN_OR_RETURN(int64_t rays, args.get_int("--rays", 5000, 1, 100000000));
   RAYLOD_ASSIGN_OR_RETURN(CutOptions cut, cut_options_from_args(args));
   opts.footprint_scale = cut.footprint_scale;
@@ -97,13 +98,13 @@ Status run_run(int argc, char** argv, bool& help) {
     ro.spp = opts.spp;
     // The comparison runs after the run's own render has been freed, so it
     // gets the whole memory limit to itself.
-    ro.memory_limit = MemoryBudget::resolve(opts.memory_limit).total;
+    ro.memory_limit = opts.memory_limit;
     ro.progress = opts.progress;
     ro.over_limit_hint.clear();
     if (opts.mesh_override) ro.mesh_override = {*opts.mesh_override};
     RAYLOD_ASSIGN_OR_RETURN(uint64_t full_triangles, declared_scene_triangles(scene, ro));
     const uint64_t full_need = estimate_render_memory(full_triangles, bvh_for_memory_limit(full_triangles, ro.memory_limit));
-    if (full_need > ro.memory_limit) {
+    if (ro.memory_limit && full_need > ro.memory_limit) {
       // The run itself succeeded: keep its image and statistics, and say why
       // there is no comparison.
       const std::string why = "the full mesh (" + std::to_string(full_triangles) + " triangles) needs about " +

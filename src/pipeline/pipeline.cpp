@@ -96,7 +96,7 @@ StatusOr<ProbeConfig> make_probe_config(const Scene& scene, uint64_t rays, doubl
   const uint64_t rss = current_rss_bytes();
   const uint64_t reserve = rays * 64 * uint64_t(std::max(1, scene.max_depth + 1)) + (uint64_t(32) << 20);
   probe.cache_bytes = budget.page_cache(rss, reserve);
-  if (probe.cache_bytes == 0)
+  if (budget.limited() && probe.cache_bytes == 0)
     return Status::error("the memory limit of " + format_bytes(budget.total) + " leaves nothing for the probe's pages: " +
                          format_bytes(rss) + " is already resident (the stores' node tables and the program) and the " +
                          "test rays need " + format_bytes(reserve) + "; raise --memory-limit");
@@ -268,7 +268,7 @@ StatusOr<RunResult> run_pipeline(Scene scene, const RunOptions& options, const L
   const fs::path cache_dir = options.cache_dir.empty() ? default_cache_dir() : options.cache_dir;
   // One budget for the whole run (memory_budget.h): the build plans within
   // its total; simplify and render share what the program itself leaves.
-  const MemoryBudget budget = MemoryBudget::resolve(options.memory_limit);
+  const MemoryBudget budget = MemoryBudget::measured(options.memory_limit);
   StoreOptions store_options;
   store_options.memory_limit = budget.total;
   const uint64_t memory_limit = budget.working();
@@ -312,7 +312,7 @@ StatusOr<RunResult> run_pipeline(Scene scene, const RunOptions& options, const L
     const uint64_t scene_triangles = estimate + 2;  // and the ground's two
     const uint64_t need = std::max(
         simplify_need, estimate_render_memory(scene_triangles, bvh_for_memory_limit(scene_triangles, memory_limit)));
-    if (need <= memory_limit) break;
+    if (!budget.limited() || need <= memory_limit) break;
     // Stop once coarsening no longer helps (the estimate bottoms out at the
     // renderer's fixed overhead) or after max_coarsening_steps doublings.
     if (result.coarsening_steps >= options.max_coarsening_steps || estimate >= previous_estimate)

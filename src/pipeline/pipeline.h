@@ -46,7 +46,7 @@ StatusOr<SceneStores> prepare_scene_stores(Scene& scene, const std::optional<std
 
 struct RunOptions {
   std::optional<std::filesystem::path> mesh_override;
-  uint64_t memory_limit = 0;          // 0 = a quarter of physical memory
+  uint64_t memory_limit = 0;          // bytes for the whole run (memory_budget.h); 0 = no limit
   uint64_t rays = 5000;
   double footprint_scale = kDefaultFootprintScale;  // K (see README, "What accuracy costs": why this default)
   CutCriterion criterion = CutCriterion::Deviation;
@@ -104,8 +104,8 @@ std::string run_stats_json(const RunResult& result, const RunOptions& options);
 
 // The probe configuration within a memory budget: the page cache gets its
 // share (MemoryBudget::page_cache: half of what the limit leaves after what is
-// resident and the rays' hit records); an error if nothing is left. Call
-// after the stores are open.
+// resident and the rays' hit records); an error if nothing is left. Without a
+// limit the cache has none either. Call after the stores are open.
 StatusOr<ProbeConfig> make_probe_config(const Scene& scene, uint64_t rays, double footprint_scale,
                                         const MemoryBudget& budget, bool progress);
 
@@ -115,7 +115,7 @@ StatusOr<ProbeConfig> make_probe_config(const Scene& scene, uint64_t rays, doubl
 // no triangles is not an error here: nothing is written, drc stays empty and
 // empty_reason says why (the caller decides: `run` leaves the object out).
 StatusOr<SimplifiedMesh> simplify_cut_to_draco(const OctreeStore& store, const Cut& cut, const std::filesystem::path& out,
-                                               uint64_t memory_limit, double max_normal_error, bool progress,
+                                               uint64_t memory_limit /* 0 = no limit */, double max_normal_error, bool progress,
                                                double* seconds = nullptr,
                                                double crease_angle_deg = kDefaultCreaseAngleDeg);
 

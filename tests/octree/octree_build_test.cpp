@@ -149,6 +149,28 @@ TEST(OctreeBuild, HugeMemoryLimitsAreNotReserved) {
   }
 }
 
+TEST(OctreeBuild, ZeroMemoryLimitMeansNoLimit) {
+  // 0 means no limit in every library options struct (the command line
+  // resolves its default, a quarter of RAM, itself): the plan is bound only
+  // by --max-depth and the data, as under a limit no mesh reaches, and the
+  // store records no limit (reused under any limit that makes the same store).
+  auto m = testing::soup(30000, 9, true);
+  auto dir = testing::scratch_dir("no-limit");
+  StoreOptions none, huge;
+  huge.memory_limit = uint64_t(64) << 40;
+  auto unlimited = build(m, dir / "none.raylod", none, 1000);
+  auto limited = build(m, dir / "huge.raylod", huge, 1000);
+  ASSERT_TRUE(unlimited && limited);
+  const StoreHeader &a = unlimited->header(), &b = limited->header();
+  EXPECT_EQ(a.options.memory_limit, 0u);
+  EXPECT_EQ(a.reuse_limit_hi, UINT64_MAX);
+  EXPECT_LE(a.reuse_limit_lo, b.options.memory_limit);
+  EXPECT_FALSE(a.coarsened);
+  EXPECT_EQ(a.quadric_depth, b.quadric_depth);
+  for (int l = 0; l <= a.quadric_depth; ++l) EXPECT_EQ(unlimited->level(l).size(), limited->level(l).size()) << l;
+  EXPECT_EQ(describe_memory_limit(0), "no limit");
+}
+
 SoupMesh cube() {
   // [-1, 1]^3, two triangles per face, outward winding.
   const Vec3 v[8] = {{-1, -1, -1}, {1, -1, -1}, {1, 1, -1}, {-1, 1, -1}, {-1, -1, 1}, {1, -1, 1}, {1, 1, 1}, {-1, 1, 1}};
