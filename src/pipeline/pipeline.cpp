@@ -145,6 +145,10 @@ StatusOr<SimplifiedMesh> simplify_cut_to_draco(const OctreeStore& store, const C
   return sm;
 }
 
+bool staged_write_refused(const Status& status, const fs::path& staged) {
+  return status.is_write_failure() && fs::path(status.path()) == staged;
+}
+
 namespace {
 
 // Whether this process can create files in `dir` (a probe file, removed at once).
@@ -397,7 +401,7 @@ StatusOr<RunResult> run_pipeline(Scene scene, const RunOptions& options, const L
                                      options.progress, nullptr, scene.crease_angle_deg);
       };
       auto simplified = simplify_store();
-      if (!simplified.is_ok() && cache && simplified.status().message().find(staged.string()) != std::string::npos) {
+      if (!simplified.is_ok() && cache && staged_write_refused(simplified.status(), staged)) {
         // The cache's disk refused the file (full, read-only): render from
         // the system's temporary folder, without caching.
         result.warnings.push_back("cannot write into the cache (" + simplified.status().message() +

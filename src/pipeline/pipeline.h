@@ -119,6 +119,13 @@ StatusOr<SimplifiedMesh> simplify_cut_to_draco(const OctreeStore& store, const C
                                                double* seconds = nullptr,
                                                double crease_angle_deg = kDefaultCreaseAngleDeg);
 
+// Whether a failed simplify_cut_to_draco into `staged` means the disk refused
+// that file (full, read-only, gone): a typed write failure (Status::code) of
+// that very path. `run` then stages in the system's temporary folder and
+// renders without caching; any other failure -- even one whose message names
+// the file -- is not the disk's and is not retried there.
+bool staged_write_refused(const Status& status, const std::filesystem::path& staged);
+
 // The largest normal error (radians) the scene's shading cannot show: a
 // rotation d of a shading normal changes a Lambert term by up to d and a
 // Phong lobe cos^n by about n d, so d < 1 / (2 * 255 * max(1, n)) keeps the
