@@ -12,6 +12,7 @@
 // sqrt(3) when the octahedron is projected onto the sphere, bounds the angle.
 #include "streaming/draco_io.h"
 
+#include <cerrno>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
@@ -177,7 +178,7 @@ StatusOr<DracoWriteReport> write_draco(const std::filesystem::path& path, const 
   AtomicOutput out(path);
   {
     std::ofstream f(out.temp_path(), std::ios::binary);
-    if (!f) return Status::error(path.string() + ": cannot create output file");
+    if (!f) return Status::write_failed(path.string(), path.string() + ": cannot create output file", errno);
     // In two halves, with a fault point between them (core/fault_point.h).
     const size_t half = buffer.size() / 2;
     f.write(buffer.data(), std::streamsize(half));
@@ -185,7 +186,7 @@ StatusOr<DracoWriteReport> write_draco(const std::filesystem::path& path, const 
     fault_point("draco.partial");
     f.write(buffer.data() + half, std::streamsize(buffer.size() - half));
     f.flush();
-    if (!f) return Status::error(path.string() + ": write failed (disk full?)");
+    if (!f) return Status::write_failed(path.string(), path.string() + ": write failed (disk full?)", errno);
   }
   RAYLOD_RETURN_IF_ERROR(out.commit());
   report.bytes = buffer.size();

@@ -48,12 +48,12 @@
 #include <mutex>
 
 #include <tbb/concurrent_queue.h>
-#include <tbb/global_control.h>
 #include <tbb/info.h>
 #include <tbb/parallel_pipeline.h>
 
 #include "core/progress.h"
 #include "core/fault_point.h"
+#include "core/parallelism.h"
 #include "core/system.h"
 #include "streaming/octree_format.h"
 #include "streaming/octree_store.h"
@@ -523,8 +523,10 @@ Plan make_plan(const Scan& scan, const StoreOptions& options, uint64_t memory_li
     if (double(scan.triangles) / est_pages[size_t(l)] >= double(std::max<uint32_t>(1, options.page_triangles)))
       plan.page_level = l;
 
-  const uint64_t run_bytes = std::clamp<uint64_t>(uint64_t(0.25 * avail), std::max<uint64_t>(1 << 20, memory_limit / 20),
-                                                  256ull << 20);
+  // min(max()) rather than std::clamp: above 5 GiB the lower bound passes
+  // the upper one (std::clamp's precondition), and the upper one wins.
+  const uint64_t run_bytes = std::min<uint64_t>(
+      std::max<uint64_t>(uint64_t(0.25 * avail), std::max<uint64_t>(1 << 20, memory_limit / 20)), 256ull << 20);
   plan.run_triangles = std::max<uint64_t>(1024, run_bytes / (triangle_bytes(scan.has_normals) + 8));
   plan.budget_bytes = overhead + node_budget + run_bytes;
   return plan;
@@ -881,7 +883,11 @@ Status write_pages(int fd, const std::filesystem::path& out_path, RunFile& runs,
 }  // namespace
 
 uint64_t resolved_memory_limit(const StoreOptions& options) {
-  return options.memory_limit ? options.memory_limit : physical_memory_bytes() / 4;
+  return options.memory_limit ? options.memory_limit : UINT64_MAX;
+}
+
+std::string describe_memory_limit(uint64_t memory_limit) {
+  return memory_limit ? format_bytes(memory_limit) : "no limit";
 }
 
 StatusOr<BuildReport> build_store_from_stream(const MeshStreamOpener& open, const SourceFingerprint& source,
@@ -892,10 +898,7 @@ StatusOr<BuildReport> build_store_from_stream(const MeshStreamOpener& open, cons
     return Status::error("--max-depth must be between 0 and " + std::to_string(kMaxLevel));
   const uint64_t memory_limit = resolved_memory_limit(options);
   if (memory_limit < (1u << 20)) return Status::error("--memory-limit must be at least 1M");
-  std::unique_ptr<tbb::global_control> threads;
-  if (options.threads > 0)
-    threads = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism, size_t(options.threads));
-  const size_t concurrency = size_t(tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism));
+  const size_t concurrency = size_t(ambient_parallelism());
   const size_t ntokens = std::clamp<size_t>(2 * concurrency, 2, 8);
 
   // Pass 1.
@@ -934,8 +937,6 @@ StatusOr<BuildReport> build_store_from_stream(const MeshStreamOpener& open, cons
     RAYLOD_ASSIGN_OR_RETURN(header.source_hash, source_hash());
   }
   header.options = options;
-  header.options.memory_limit = memory_limit;
-  header.options.threads = 0;  // the store is the same for any thread count
   header.triangle_count = scan.triangles;
   header.has_normals = scan.has_normals;
   header.origin = plan.origin;

@@ -116,8 +116,8 @@ bool store_is_current(const std::filesystem::path& mesh, const std::filesystem::
   if (h.options.max_depth != options.max_depth || h.options.page_triangles != options.page_triangles)
     return say("the store was built with other options (--max-depth " + std::to_string(h.options.max_depth) + ")");
   if (limit < h.reuse_limit_lo || limit > h.reuse_limit_hi)
-    return say("the store was built under --memory-limit " + format_bytes(h.options.memory_limit) +
-               ", and a build under " + format_bytes(limit) + " makes a " +
+    return say("the store was built under --memory-limit " + describe_memory_limit(h.options.memory_limit) +
+               ", and a build under " + describe_memory_limit(options.memory_limit) + " makes a " +
                (limit < h.reuse_limit_lo ? "coarser" : "finer") + " one");
   auto hashed = fingerprint_file(mesh, true);
   if (!hashed.is_ok()) return say(hashed.status().message());

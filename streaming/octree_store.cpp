@@ -66,7 +66,8 @@ std::string encode_header(const StoreHeader& h, const Layout& l) {
   ByteWriter blob;
   blob.put_str(h.source_path);
   blob.put(h.source_bytes); blob.put(h.source_mtime_ns); blob.put(h.source_hash);
-  blob.put(h.options.memory_limit); blob.put(int32_t(h.options.max_depth)); blob.put(int32_t(h.options.threads));
+  blob.put(h.options.memory_limit); blob.put(int32_t(h.options.max_depth));
+  blob.put(int32_t(0));  // was the thread count; the store never depended on it
   blob.put(h.options.page_triangles);
   blob.put(h.triangle_count); blob.put(uint8_t(h.has_normals)); blob.put(uint8_t(h.coarsened));
   blob.put_vec(h.origin); blob.put_vec(h.root_lo); blob.put(h.root_size);
@@ -138,13 +139,13 @@ Status read_header(int fd, const std::filesystem::path& path, StoreHeader& h, La
     return Status::error(name + ": header checksum mismatch (the store is corrupt; rebuild it)");
 
   ByteReader r(bytes.data() + sizeof head, blob_bytes);
-  int32_t max_depth = 0, threads = 0, qd = 0, pl = 0;
+  int32_t max_depth = 0, unused_threads = 0, qd = 0, pl = 0;
   uint8_t normals = 0, coarsened = 0;
   uint32_t levels = 0;
   h = StoreHeader{};
   h.version = version;
   bool ok = r.get_str(h.source_path) && r.get(h.source_bytes) && r.get(h.source_mtime_ns) && r.get(h.source_hash) &&
-            r.get(h.options.memory_limit) && r.get(max_depth) && r.get(threads) && r.get(h.options.page_triangles) &&
+            r.get(h.options.memory_limit) && r.get(max_depth) && r.get(unused_threads) && r.get(h.options.page_triangles) &&
             r.get(h.triangle_count) && r.get(normals) && r.get(coarsened) && r.get_vec(h.origin) &&
             r.get_vec(h.root_lo) && r.get(h.root_size) && r.get(qd) && r.get(pl) && r.get_vec(h.bounds.lo) &&
             r.get_vec(h.bounds.hi) && r.get(levels);
@@ -160,7 +161,6 @@ Status read_header(int fd, const std::filesystem::path& path, StoreHeader& h, La
   if (!ok || pl < 0 || pl > int(kMaxLevel) || !(h.root_size > 0))
     return Status::error(name + ": malformed store header");
   h.options.max_depth = max_depth;
-  h.options.threads = threads;
   h.has_normals = normals != 0;
   h.coarsened = coarsened != 0;
   h.quadric_depth = qd;
@@ -437,7 +437,7 @@ Status print_store_info(const std::filesystem::path& path, std::FILE* out) {
   std::fprintf(out, "  source        %s (%s, content hash %016" PRIx64 ")\n", h.source_path.c_str(),
                format_bytes(h.source_bytes).c_str(), h.source_hash);
   std::fprintf(out, "  build options --memory-limit %s --max-depth %d (page target %u triangles)\n",
-               format_bytes(h.options.memory_limit).c_str(), h.options.max_depth, h.options.page_triangles);
+               describe_memory_limit(h.options.memory_limit).c_str(), h.options.max_depth, h.options.page_triangles);
   std::fprintf(out, "  reused under  --memory-limit %s to %s (a build under any limit in between makes this store)\n",
                format_bytes(h.reuse_limit_lo).c_str(),
                h.reuse_limit_hi == UINT64_MAX ? "any larger" : format_bytes(h.reuse_limit_hi).c_str());

@@ -88,9 +88,8 @@ struct PageInfo {
 };
 
 struct StoreOptions {
-  uint64_t memory_limit = 0;  // bytes; 0 = a quarter of physical memory
+  uint64_t memory_limit = 0;  // bytes the build plans within; 0 = no limit (the deepest useful quadric level)
   int max_depth = 12;         // deepest level that may keep quadrics
-  int threads = 0;            // 0 = all cores (not recorded: the store does not depend on it)
   uint32_t page_triangles = 4096;  // target triangles per page (chooses page_level)
 };
 
@@ -209,8 +208,11 @@ StatusOr<BuildReport> build_store_from_stream(const MeshStreamOpener& open, cons
                                               const std::filesystem::path& store, const StoreOptions& options,
                                               const std::function<StatusOr<uint64_t>()>& source_hash = nullptr);
 
-// The memory_limit actually used for these options (default: physical / 4).
+// The limit the build plans within: options.memory_limit, or UINT64_MAX for
+// 0 (no limit). A store built without a limit records 0.
 uint64_t resolved_memory_limit(const StoreOptions& options);
+// For messages: "1.00 GiB", or "no limit" for 0.
+std::string describe_memory_limit(uint64_t memory_limit);
 
 // ---- Store file helpers (streaming/octree_store.cpp) ----
 

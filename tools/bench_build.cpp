@@ -20,12 +20,14 @@
 #include <cstdio>
 #include <cstring>
 #include <fstream>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include <OpenMesh/Core/IO/MeshIO.hh>
 #include <OpenMesh/Core/Mesh/TriMesh_ArrayKernelT.hh>
 #include <nlohmann/json.hpp>
+#include <tbb/global_control.h>
 
 #include "core/progress.h"
 #include "core/system.h"
@@ -157,9 +159,11 @@ int main(int argc, char** argv) {
     for (int run = 0; run < runs; ++run) {
       ChildResult r = in_child([&](ChildResult& out) {
         Progress::set_enabled(false);
+        // As raylod's main(): one thread limit for the process (this child) that builds.
+        std::optional<tbb::global_control> parallelism;
+        if (threads > 0) parallelism.emplace(tbb::global_control::max_allowed_parallelism, size_t(threads));
         StoreOptions opt;
         opt.memory_limit = limit;
-        opt.threads = threads;
         // What `raylod build --force` runs: the content hash is computed concurrently with pass 1.
         auto built = build_store(mesh, store, opt, /*force=*/true);
         if (!built) { std::snprintf(out.error, sizeof out.error, "%s", built.status().message().c_str()); return; }

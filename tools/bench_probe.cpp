@@ -11,6 +11,7 @@
 #include <chrono>
 #include <cstdio>
 #include <fstream>
+#include <optional>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -18,6 +19,8 @@
 #if defined(__GLIBC__)
 #include <malloc.h>
 #endif
+
+#include <tbb/global_control.h>
 
 #include "core/system.h"
 #include "probe/probe.h"
@@ -80,6 +83,9 @@ int main(int argc, char** argv) {
     } else stores.push_back(a);
   }
   if (stores.empty()) { std::fprintf(stderr, "bench_probe: give at least one store (raylod build MESH)\n"); return 2; }
+  // As raylod's main(): one thread limit for the process, which the probe uses.
+  std::optional<tbb::global_control> parallelism;
+  if (threads > 0) parallelism.emplace(tbb::global_control::max_allowed_parallelism, size_t(threads));
 
   // The page cache gets what the limit leaves after the node tables (opened
   // first) and a reserve for the hit records; computed once, before any run.
@@ -114,7 +120,6 @@ int main(int argc, char** argv) {
         ProbeConfig config;
         config.rays = rays;
         config.seed = 1;
-        config.threads = threads;
         config.cache_bytes = cache_bytes;
         std::vector<double> seconds;
         ProbeResult last;

@@ -156,6 +156,40 @@ StatusOr<Scene> scene_from_args(const Args& args) {
   return scene;
 }
 
+StatusOr<MemoryBudget> memory_budget_from_args(const Args& args) {
+  std::optional<uint64_t> given;
+  if (args.has("--memory-limit")) {
+    RAYLOD_ASSIGN_OR_RETURN(given, args.get_size("--memory-limit", 0));
+  }
+  return MemoryBudget::resolve(given);
+}
+
+Args::Option threads_option(const std::string& note) {
+  return {"--threads", "", "worker threads for the whole command (default 0: all cores)" + note, true, "T"};
+}
+
+StatusOr<int> threads_from_argv(int argc, char** argv) {
+  // The same reading of the arguments as Args::parse: "--threads T" or
+  // "--threads=T", the last one counting.
+  std::optional<std::string> text;
+  for (int i = 1; i < argc; ++i) {
+    const std::string a = argv[i];
+    if (a == "--threads") {
+      if (i + 1 >= argc) return Status::error("option --threads needs a value");
+      text = argv[++i];
+    } else if (a.rfind("--threads=", 0) == 0) {
+      text = a.substr(std::string("--threads=").size());
+    }
+  }
+  if (!text) return 0;
+  Args parsed("", "", "", {threads_option()});
+  std::string name = "--threads";
+  char* values[] = {name.data(), name.data(), text->data()};
+  RAYLOD_RETURN_IF_ERROR(parsed.parse(3, values));
+  RAYLOD_ASSIGN_OR_RETURN(int64_t threads, parsed.get_int("--threads", 0, 0, 4096));
+  return int(threads);
+}
+
 int fail(const char* command, const Status& status) {
   std::fprintf(stderr, "raylod %s: error: %s\n", command, status.message().c_str());
   return 1;

@@ -8,6 +8,7 @@
 #include <string>
 #include <vector>
 
+#include "core/memory_budget.h"
 #include "core/status.h"
 #include "probe/probe.h"
 #include "scene/scene.h"
@@ -81,6 +82,23 @@ StatusOr<CutOptions> cut_options_from_args(const Args& args);
 // scene when there is none (more than one positional is an error), with
 // --crease-angle applied if the command has it and it was given.
 StatusOr<Scene> scene_from_args(const Args& args);
+
+// --threads T: how many threads the whole command may use. Commands that run
+// parallel stages list threads_option() (help text, and so that parsing
+// accepts it); main() reads the value with threads_from_argv before the
+// command runs and creates the process's one tbb::global_control from it.
+// The stages create no thread limit of their own (core/parallelism.h).
+Args::Option threads_option(const std::string& note = "");
+// The value of --threads among a command's arguments (argv[0] is the
+// subcommand name; the last occurrence wins, as in Args::parse): 0, meaning
+// all cores, when absent; an error unless it is an integer from 0 to 4096.
+StatusOr<int> threads_from_argv(int argc, char** argv);
+
+// --memory-limit, resolved once at the command line boundary: the size given,
+// else the default, a quarter of physical memory (MemoryBudget::resolve).
+// Commands pass its total down as a concrete number; inside the library 0
+// means no limit (memory_budget.h). `raylod render` alone defaults to no limit.
+StatusOr<MemoryBudget> memory_budget_from_args(const Args& args);
 
 // Prints "raylod <cmd>: <message>" to stderr and returns the exit code 1.
 int fail(const char* command, const Status& status);

@@ -27,7 +27,7 @@ int run_build(int argc, char** argv) {
             {{"--output", "-o", "store to write (default MESH.raylod beside the mesh)", true, "STORE"},
              {"--memory-limit", "", "memory bound for the build, e.g. 1G (default: a quarter of RAM)", true, "SIZE"},
              {"--max-depth", "", "deepest octree level that may keep quadrics, 0..21 (default 12)", true, "N"},
-             {"--threads", "", "worker threads (default: all cores); the store does not depend on it", true, "T"},
+             threads_option("; the store does not depend on it"),
              {"--page-triangles", "", "target triangles per page (default 4096)", true, "N"},
              {"--force", "", "rebuild even if the store is up to date", false, ""},
              {"--verify", "", "check every page's checksum of an up-to-date store; rebuild it on a mismatch", false, ""},
@@ -40,15 +40,12 @@ int run_build(int argc, char** argv) {
   if (args.positionals().size() != 1) return fail("build", Status::error("expected one MESH (see raylod build --help)"));
   const std::filesystem::path mesh = args.positionals()[0];
   StoreOptions options;
-  auto limit = args.get_size("--memory-limit", 0);
-  if (!limit) return fail("build", limit.status());
-  options.memory_limit = *limit;
+  auto budget = memory_budget_from_args(args);
+  if (!budget) return fail("build", budget.status());
+  options.memory_limit = budget->total;
   auto depth = args.get_int("--max-depth", options.max_depth, 0, 21);
   if (!depth) return fail("build", depth.status());
   options.max_depth = int(*depth);
-  auto threads = args.get_int("--threads", 0, 0, 1024);
-  if (!threads) return fail("build", threads.status());
-  options.threads = int(*threads);
   auto page = args.get_int("--page-triangles", options.page_triangles, 1, 1 << 24);
   if (!page) return fail("build", page.status());
   options.page_triangles = uint32_t(*page);
@@ -82,7 +79,7 @@ int run_build(int argc, char** argv) {
               r.seconds, double(r.triangles) / r.seconds / 1e6, r.scan_seconds, r.bin_seconds, r.write_seconds,
               r.commit_seconds);
   std::printf("  peak RSS       %s (limit %s)\n", format_bytes(peak_rss_bytes()).c_str(),
-              format_bytes(resolved_memory_limit(options)).c_str());
+              describe_memory_limit(options.memory_limit).c_str());
   return 0;
 }
 

@@ -28,7 +28,7 @@ int cmd_probe(int argc, char** argv) {
                  cli::with_cut_options({{"--mesh", "", "use FILE in place of the scene's meshes", true, "FILE"},
                   {"--rays", "", "test rays (default 5000)", true, "N"},
                   {"--seed", "", "random seed (default: the scene's seed)", true, "S"},
-                  {"--threads", "", "threads (default: all cores)", true, "T"},
+                  cli::threads_option(),
                   {"--memory-limit", "", "memory limit (default: a quarter of physical memory)", true, "SIZE"},
                   {"--output", "-o", "cut file to write (single-mesh scenes)", true, "CUT"}}));
   if (Status s = args.parse(argc, argv); !s) return cli::fail("probe", s);
@@ -44,16 +44,14 @@ int cmd_probe(int argc, char** argv) {
 
   auto rays = args.get_int("--rays", 5000, 1, 100'000'000);
   auto seed = args.get_int("--seed", int64_t(scene.seed), 0, INT64_MAX);
-  auto threads = args.get_int("--threads", 0, 0, 1024);
-  auto limit = args.get_size("--memory-limit", 0);
-  for (const Status& s : {rays.status(), seed.status(), threads.status(), limit.status()})
+  auto limit = memory_budget_from_args(args);
+  for (const Status& s : {rays.status(), seed.status(), limit.status()})
     if (!s) return cli::fail("probe", s);
 
   // One store per distinct mesh, built first if missing or stale (saying so).
-  const MemoryBudget budget = MemoryBudget::resolve(*limit);
+  const MemoryBudget budget = *limit;
   StoreOptions store_options;
   store_options.memory_limit = budget.total;
-  store_options.threads = int(*threads);
   std::optional<std::filesystem::path> mesh_override;
   if (args.has("--mesh")) mesh_override = std::filesystem::path(args.get("--mesh"));
   auto prepared = prepare_scene_stores(scene, mesh_override, store_options, default_cache_dir(),
@@ -67,7 +65,7 @@ int cmd_probe(int argc, char** argv) {
     return cli::fail("probe", Status::error("-o names one cut, but the scene has " + std::to_string(meshes.size()) +
                                             " meshes; omit -o to write one cut beside each store"));
 
-  auto config_or = make_probe_config(scene, uint64_t(*rays), cut_opts->footprint_scale, int(*threads), budget, true);
+  auto config_or = make_probe_config(scene, uint64_t(*rays), cut_opts->footprint_scale, budget, true);
   if (!config_or) return cli::fail("probe", config_or.status());
   ProbeConfig config = *config_or;
   config.seed = uint64_t(*seed);

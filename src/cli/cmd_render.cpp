@@ -21,7 +21,7 @@ Status run_render(int argc, char** argv, bool& help) {
             {{"--output", "-o", "output image (format by extension)", true, "IMAGE"},
              {"--mesh", "", "mesh to render in place of the first object's (.drc, .ply, .stl, .obj)", true, "FILE"},
              {"--spp", "", "samples per pixel (default: the scene's)", true, "N"},
-             {"--threads", "", "worker threads (default: all cores)", true, "T"},
+             threads_option(),
              {"--memory-limit", "", "refuse scenes whose mesh + BVH would exceed SIZE, e.g. 4G (default: no limit)", true, "SIZE"},
              {"--aov", "", "extra EXR images next to IMAGE: depth,normal,triangle-id", true, "LIST"},
              {"--wireframe", "", "darken pixels near triangle edges (shows triangle density)", false, ""},
@@ -42,10 +42,8 @@ Status run_render(int argc, char** argv, bool& help) {
 
   RenderOptions opts;
   RAYLOD_ASSIGN_OR_RETURN(int64_t spp, args.get_int("--spp", 0, 1, 4096));
-  RAYLOD_ASSIGN_OR_RETURN(int64_t threads, args.get_int("--threads", 0, 1, 4096));
   RAYLOD_ASSIGN_OR_RETURN(uint64_t limit, args.get_size("--memory-limit", 0));
   opts.spp = int(spp);
-  opts.threads = int(threads);
   opts.memory_limit = limit;
   opts.wireframe = args.has("--wireframe");
   const bool quiet = args.has("--quiet");

@@ -64,7 +64,7 @@ Status run_report_cmd(int argc, char** argv) {
              {"--spp", "", "samples per pixel (default: the scene's)", true, "N"},
              {"--width", "", "image width (default: the scene's)", true, "W"},
              {"--height", "", "image height (default: the scene's)", true, "H"},
-             {"--threads", "", "worker threads (default: all cores)", true, "T"},
+             threads_option(),
              {"--memory-limit", "", "memory cap (default: a quarter of physical memory)", true, "SIZE"},
              {"--quick", "", "a small, fast report (50k-triangle teapot, 160x120, two K, two ray counts)", false, ""},
              {"--crease-angle", "", kCreaseAngleHelp, true, "DEG"},
@@ -98,12 +98,11 @@ Status run_report_cmd(int argc, char** argv) {
   RAYLOD_ASSIGN_OR_RETURN(int64_t spp, args.get_int("--spp", cfg.spp, 0, 4096));
   RAYLOD_ASSIGN_OR_RETURN(int64_t width, args.get_int("--width", cfg.width, 0, 32768));
   RAYLOD_ASSIGN_OR_RETURN(int64_t height, args.get_int("--height", cfg.height, 0, 32768));
-  RAYLOD_ASSIGN_OR_RETURN(int64_t threads, args.get_int("--threads", 0, 0, 4096));
-  RAYLOD_ASSIGN_OR_RETURN(cfg.memory_limit, args.get_size("--memory-limit", 0));
+  RAYLOD_ASSIGN_OR_RETURN(const MemoryBudget budget, memory_budget_from_args(args));
+  cfg.memory_limit = budget.total;
   cfg.spp = int(spp);
   cfg.width = int(width);
   cfg.height = int(height);
-  cfg.threads = int(threads);
   cfg.closeup = !args.has("--no-closeup");
   cfg.baselines = !args.has("--no-baselines");
   cfg.out_dir = args.get("--output", "raylod-report");

@@ -31,7 +31,7 @@ Status run_run(int argc, char** argv, bool& help) {
                                     "                              coarsened until the simplified mesh fits", true, "SIZE"},
              {"--rays", "", "test rays (default 5000)", true, "N"},
              {"--spp", "", "samples per pixel (default: the scene's)", true, "N"},
-             {"--threads", "", "worker threads (default: all cores)", true, "T"},
+             threads_option(),
              {"--cache", "", "cache directory (default $XDG_CACHE_HOME/raylod or ~/.cache/raylod)", true, "DIR"},
              {"--cache-limit", "", "cache size limit, least recently used evicted (default 4G)", true, "SIZE"},
              {"--no-cache", "", "neither reuse nor keep simplified meshes", false, ""},
@@ -50,18 +50,17 @@ Status run_run(int argc, char** argv, bool& help) {
   RAYLOD_RETURN_IF_ERROR(check_output_image(output));
 
   RunOptions opts;
-  RAYLOD_ASSIGN_OR_RETURN(opts.memory_limit, args.get_size("--memory-limit", 0));
+  RAYLOD_ASSIGN_OR_RETURN(const MemoryBudget budget, memory_budget_from_args(args));
+  opts.memory_limit = budget.total;
   RAYLOD_ASSIGN_OR_RETURN(int64_t rays, args.get_int("--rays", 5000, 1, 100000000));
   RAYLOD_ASSIGN_OR_RETURN(CutOptions cut, cut_options_from_args(args));
   opts.footprint_scale = cut.footprint_scale;
   opts.criterion = cut.criterion;
   opts.tolerance_px = cut.tolerance_px;
   RAYLOD_ASSIGN_OR_RETURN(int64_t spp, args.get_int("--spp", 0, 1, 4096));
-  RAYLOD_ASSIGN_OR_RETURN(int64_t threads, args.get_int("--threads", 0, 1, 4096));
   RAYLOD_ASSIGN_OR_RETURN(opts.cache_limit, args.get_size("--cache-limit", uint64_t(4) << 30));
   opts.rays = uint64_t(rays);
   opts.spp = int(spp);
-  opts.threads = int(threads);
   opts.cache_dir = args.get("--cache", default_cache_dir().string());
   opts.use_cache = !args.has("--no-cache");
   if (args.has("--mesh")) opts.mesh_override = std::filesystem::path(args.get("--mesh"));
@@ -97,16 +96,15 @@ Status run_run(int argc, char** argv, bool& help) {
     RAYLOD_RETURN_IF_ERROR(resolve_generated_meshes(scene, opts.cache_dir));
     RenderOptions ro;
     ro.spp = opts.spp;
-    ro.threads = opts.threads;
     // The comparison runs after the run's own render has been freed, so it
     // gets the whole memory limit to itself.
-    ro.memory_limit = MemoryBudget::resolve(opts.memory_limit).total;
+    ro.memory_limit = opts.memory_limit;
     ro.progress = opts.progress;
     ro.over_limit_hint.clear();
     if (opts.mesh_override) ro.mesh_override = {*opts.mesh_override};
     RAYLOD_ASSIGN_OR_RETURN(uint64_t full_triangles, declared_scene_triangles(scene, ro));
     const uint64_t full_need = estimate_render_memory(full_triangles, bvh_for_memory_limit(full_triangles, ro.memory_limit));
-    if (full_need > ro.memory_limit) {
+    if (ro.memory_limit && full_need > ro.memory_limit) {
       // The run itself succeeded: keep its image and statistics, and say why
       // there is no comparison.
       const std::string why = "the full mesh (" + std::to_string(full_triangles) + " triangles) needs about " +

@@ -60,7 +60,7 @@ int run_simplify(int argc, char** argv) {
   if (ext != ".drc" && ext != ".ply" && ext != ".obj")
     return fail("simplify", Status::error(out_path.string() + ": unknown output format '" + ext +
                                           "' (use .drc, .ply or .obj)"));
-  auto limit = args.get_size("--memory-limit", physical_memory_bytes() / 4);
+  auto limit = memory_budget_from_args(args);
   if (!limit) return fail("simplify", limit.status());
   auto normal_bits = args.get_int("--normal-bits", 10, 2, 30);
   if (!normal_bits) return fail("simplify", normal_bits.status());
@@ -84,10 +84,10 @@ int run_simplify(int argc, char** argv) {
 
   // Refuse before any work if the output would not fit.
   const SimplifyEstimate estimate = estimate_simplify(**store, *cut);
-  if (estimate.bytes > *limit)
+  if (estimate.bytes > limit->total)
     return fail("simplify", Status::error("the simplified mesh (about " + std::to_string(estimate.triangles) +
                                           " triangles) needs about " + format_bytes(estimate.bytes) +
-                                          ", over the memory limit of " + format_bytes(*limit) +
+                                          ", over the memory limit of " + format_bytes(limit->total) +
                                           "; nothing was written. Raise --memory-limit or probe with a larger "
                                           "--footprint-scale"));
 
@@ -96,7 +96,7 @@ int run_simplify(int argc, char** argv) {
   if (!crease) return fail("simplify", crease.status());
   SimplifyConfig config;
   config.crease_angle_deg = *crease;
-  config.memory_limit = *limit;
+  config.memory_limit = limit->total;
   config.progress = !args.has("--quiet");
   auto result = simplify(**store, *cut, config);
   if (!result) return fail("simplify", result.status().with_context(store_path.string()));

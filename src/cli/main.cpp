@@ -4,11 +4,14 @@
 #include <cstdio>
 #include <cstring>
 #include <exception>
+#include <optional>
 #include <string>
 
 #if defined(__GLIBC__)
 #include <malloc.h>
 #endif
+
+#include <tbb/global_control.h>
 
 #include "cli/cli.h"
 
@@ -54,6 +57,12 @@ int main(int argc, char** argv) {
   for (const auto& c : raylod::cli::commands()) {
     if (std::strcmp(c.name, argv[1]) == 0) {
       try {
+        // The thread count is set here, once for the whole command: every
+        // stage uses the ambient parallelism (core/parallelism.h).
+        auto threads = raylod::cli::threads_from_argv(argc - 1, argv + 1);
+        if (!threads.is_ok()) return raylod::cli::fail(c.name, threads.status());
+        std::optional<tbb::global_control> parallelism;
+        if (*threads > 0) parallelism.emplace(tbb::global_control::max_allowed_parallelism, size_t(*threads));
         return c.run(argc - 1, argv + 1);
       } catch (const std::exception& e) {
         std::fprintf(stderr, "raylod %s: internal error: %s\n", c.name, e.what());

@@ -5,9 +5,15 @@
 
 namespace raylod {
 
-MemoryBudget MemoryBudget::resolve(uint64_t requested) {
+uint64_t MemoryBudget::default_total() { return physical_memory_bytes() / 4; }
+
+MemoryBudget MemoryBudget::resolve(std::optional<uint64_t> requested) {
+  return measured(requested ? *requested : default_total());
+}
+
+MemoryBudget MemoryBudget::measured(uint64_t total) {
   MemoryBudget b;
-  b.total = requested ? requested : physical_memory_bytes() / 4;
+  b.total = total;
   b.baseline = current_rss_bytes();
   return b;
 }

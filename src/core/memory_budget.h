@@ -1,7 +1,10 @@
 // One memory budget per command: --memory-limit resolved once, and the share
 // each stage of `raylod run` (and probe, report) may use.
 //
-//   total      --memory-limit; 0 means a quarter of physical memory.
+//   total      --memory-limit, resolved once by the command line: the value
+//              given, else default_total(), a quarter of physical memory.
+//              Inside the library 0 means no limit, here and in every
+//              options struct with a memory_limit (and cache_bytes).
 //   baseline   what the process holds before any stage starts (code, the
 //              libraries' data, the runtime: about 140 MiB here), measured
 //              when the budget is resolved; it counts against total.
@@ -21,22 +24,36 @@
 #pragma once
 
 #include <cstdint>
+#include <optional>
 
 namespace raylod {
 
 struct MemoryBudget {
-  uint64_t total = 0;
-  uint64_t baseline = 0;
+  uint64_t total = 0;     // bytes; 0 = no limit
+  uint64_t baseline = 0;  // resident bytes when the budget was made
 
-  // From --memory-limit (0 = a quarter of physical memory); baseline = the
-  // resident size now.
-  static MemoryBudget resolve(uint64_t requested);
+  // The command line's default --memory-limit: a quarter of physical memory.
+  static uint64_t default_total();
+  // --memory-limit at the command line boundary: the size given, or
+  // default_total() when the option is absent (nullopt); baseline = the
+  // resident size now. Commands call this once and pass `total` down.
+  static MemoryBudget resolve(std::optional<uint64_t> requested);
+  // A budget of `total` bytes (0 = no limit) whose baseline is the resident
+  // size now: what a library stage makes of the limit it was given.
+  static MemoryBudget measured(uint64_t total);
 
-  // What the stages after the build may use: total - baseline (0 if none).
-  uint64_t working() const { return total > baseline ? total - baseline : 0; }
+  bool limited() const { return total != 0; }
+  // What the stages after the build may use: total - baseline, at least 1
+  // byte (nothing fits) under a limit; 0 (no limit) without one.
+  uint64_t working() const {
+    if (!limited()) return 0;
+    return total > baseline ? total - baseline : 1;
+  }
   // The probe's page cache, given what is resident once the stores are open
-  // and the bytes reserved for hit records; 0 if nothing is left.
+  // and the bytes reserved for hit records: 0 if nothing is left under a
+  // limit, UINT64_MAX (every page may stay) without one.
   uint64_t page_cache(uint64_t resident, uint64_t reserve) const {
+    if (!limited()) return UINT64_MAX;
     return total > resident + reserve ? (total - resident - reserve) / 2 : 0;
   }
 };

@@ -3,6 +3,7 @@
 // into an exit code.
 #pragma once
 
+#include <cerrno>
 #include <optional>
 #include <string>
 #include <utility>
@@ -10,27 +11,53 @@
 
 namespace raylod {
 
+// What kind of failure a Status is, for code that acts on it (people read
+// the message; code never parses it).
+enum class StatusCode {
+  kOk,
+  kError,        // any other failure
+  kWriteFailed,  // an output file could not be created, written, flushed or renamed into place
+  kNoSpace,      // the same, because its file system is full (ENOSPC, EDQUOT)
+};
+
 class [[nodiscard]] Status {
  public:
   Status() = default;  // ok
   static Status ok() { return {}; }
-  static Status error(std::string message) { return Status(std::move(message)); }
+  static Status error(std::string message) { return Status(StatusCode::kError, std::move(message), {}); }
+  // Writing the output file `path` failed; `err` is the errno if known (0
+  // otherwise): ENOSPC and EDQUOT make it kNoSpace, anything else kWriteFailed.
+  static Status write_failed(std::string path, std::string message, int err = 0);
 
-  bool is_ok() const { return !message_.has_value(); }
+  bool is_ok() const { return code_ == StatusCode::kOk; }
   explicit operator bool() const { return is_ok(); }
+  StatusCode code() const { return code_; }
+  // kWriteFailed or kNoSpace.
+  bool is_write_failure() const { return code_ == StatusCode::kWriteFailed || code_ == StatusCode::kNoSpace; }
+  // The output file a write failure is about; empty for other statuses.
+  const std::string& path() const { return path_; }
   const std::string& message() const {
     static const std::string kOk = "ok";
     return message_ ? *message_ : kOk;
   }
   // Prefixes context, e.g. the file name: "teapot.ply: line 12: bad vertex".
+  // The code and path stay.
   Status with_context(const std::string& context) const {
-    return is_ok() ? *this : Status(context + ": " + *message_);
+    return is_ok() ? *this : Status(code_, context + ": " + *message_, path_);
   }
 
  private:
-  explicit Status(std::string m) : message_(std::move(m)) {}
+  Status(StatusCode code, std::string m, std::string path)
+      : code_(code), message_(std::move(m)), path_(std::move(path)) {}
+  StatusCode code_ = StatusCode::kOk;
   std::optional<std::string> message_;
+  std::string path_;
 };
+
+inline Status Status::write_failed(std::string path, std::string message, int err) {
+  const bool no_space = err == ENOSPC || err == EDQUOT;
+  return Status(no_space ? StatusCode::kNoSpace : StatusCode::kWriteFailed, std::move(message), std::move(path));
+}
 
 template <class T>
 class [[nodiscard]] StatusOr {

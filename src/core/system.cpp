@@ -154,13 +154,17 @@ AtomicOutput::~AtomicOutput() {
 
 Status AtomicOutput::commit() {
   int fd = ::open(temp_.c_str(), O_RDONLY);
-  if (fd < 0) return Status::error(dest_.string() + ": output was not written");
+  if (fd < 0) return Status::write_failed(dest_.string(), dest_.string() + ": output was not written", errno);
   bool synced = ::fsync(fd) == 0;
+  const int sync_errno = errno;
   ::close(fd);
-  if (!synced) return Status::error(dest_.string() + ": could not flush to disk (disk full?)");
+  if (!synced)
+    return Status::write_failed(dest_.string(), dest_.string() + ": could not flush to disk (disk full?)", sync_errno);
   std::error_code ec;
   std::filesystem::rename(temp_, dest_, ec);
-  if (ec) return Status::error(dest_.string() + ": could not rename into place: " + ec.message());
+  if (ec)
+    return Status::write_failed(dest_.string(), dest_.string() + ": could not rename into place: " + ec.message(),
+                                ec.value());
   committed_ = true;
   // Make the rename itself durable.
   auto dir = dest_.parent_path().empty() ? std::filesystem::path(".") : dest_.parent_path();
@@ -180,9 +184,9 @@ Status write_file_atomic(const std::filesystem::path& path, const std::string& t
   AtomicOutput out(path);
   {
     std::ofstream f(out.temp_path(), std::ios::binary);
-    if (!f) return Status::error(path.string() + ": cannot open for writing");
+    if (!f) return Status::write_failed(path.string(), path.string() + ": cannot open for writing", errno);
     f << text;
-    if (!f.flush()) return Status::error(path.string() + ": write failed (disk full?)");
+    if (!f.flush()) return Status::write_failed(path.string(), path.string() + ": write failed (disk full?)", errno);
   }
   return out.commit();
 }

@@ -5,7 +5,6 @@
 #include <cstdio>
 #include <optional>
 
-#include <tbb/global_control.h>
 
 #include "core/system.h"
 
@@ -58,8 +57,6 @@ StatusOr<NoiseFloor> measure_noise_floor(const EmbreeScene& geometry, const Scen
 }
 
 StatusOr<FullRender> render_full_with_noise_floor(const Scene& scene, const RenderOptions& options) {
-  std::optional<tbb::global_control> threads;
-  if (options.threads > 0) threads.emplace(tbb::global_control::max_allowed_parallelism, size_t(options.threads));
   RenderStats load_stats;
   BvhConfig bvh;
   RAYLOD_ASSIGN_OR_RETURN(auto meshes, load_scene_meshes(scene, options, load_stats, &bvh));

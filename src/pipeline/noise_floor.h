@@ -51,7 +51,7 @@ struct FullRender {
 };
 
 // The full-resolution reference and its noise floor, as render() would make
-// the reference (options.mesh_override, memory check, thread limit), with the
+// the reference (options.mesh_override, memory check), with the
 // meshes loaded and the BVH built once for both renders.
 StatusOr<FullRender> render_full_with_noise_floor(const Scene& scene, const RenderOptions& options);
 

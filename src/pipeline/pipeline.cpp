@@ -83,13 +83,12 @@ double draco_error_bound(const Cut& cut, const OctreeStore& store) {
   return bound;
 }
 
-StatusOr<ProbeConfig> make_probe_config(const Scene& scene, uint64_t rays, double footprint_scale, int threads,
+StatusOr<ProbeConfig> make_probe_config(const Scene& scene, uint64_t rays, double footprint_scale,
                                         const MemoryBudget& budget, bool progress) {
   ProbeConfig probe;
   probe.rays = rays;
   probe.seed = scene.seed;
   probe.footprint_scale = footprint_scale;
-  probe.threads = threads;
   probe.progress = progress;
   // The page cache's share (memory_budget.h): half of what the limit leaves
   // after what is already resident (the stores' node tables) and a reserve
@@ -97,7 +96,7 @@ StatusOr<ProbeConfig> make_probe_config(const Scene& scene, uint64_t rays, doubl
   const uint64_t rss = current_rss_bytes();
   const uint64_t reserve = rays * 64 * uint64_t(std::max(1, scene.max_depth + 1)) + (uint64_t(32) << 20);
   probe.cache_bytes = budget.page_cache(rss, reserve);
-  if (probe.cache_bytes == 0)
+  if (budget.limited() && probe.cache_bytes == 0)
     return Status::error("the memory limit of " + format_bytes(budget.total) + " leaves nothing for the probe's pages: " +
                          format_bytes(rss) + " is already resident (the stores' node tables and the program) and the " +
                          "test rays need " + format_bytes(reserve) + "; raise --memory-limit");
@@ -144,6 +143,10 @@ StatusOr<SimplifiedMesh> simplify_cut_to_draco(const OctreeStore& store, const C
   sm.max_position_error = written.max_position_error;
   if (seconds) *seconds = seconds_since(t0);
   return sm;
+}
+
+bool staged_write_refused(const Status& status, const fs::path& staged) {
+  return status.is_write_failure() && fs::path(status.path()) == staged;
 }
 
 namespace {
@@ -238,7 +241,7 @@ void remove_dead_staged_meshes(const fs::path& dir) {
 // corrupt page (it recorded that in STORE.corrupt) is rebuilt and reopened in
 // place, at most once per run (`repaired`). True if the caller should retry;
 // false if no store was found corrupt (the failure was something else).
-StatusOr<bool> repair_corrupt_stores(SceneStores& stores, const StoreOptions& store_options, const std::string& stage,
+StatusOr<bool> repair_corrupt_stores(SceneStores& stores, const std::string& stage,
                                      bool& repaired, const LogFn& log) {
   if (repaired) return false;
   bool rebuilt = false;
@@ -251,7 +254,6 @@ StatusOr<bool> repair_corrupt_stores(SceneStores& stores, const StoreOptions& st
     // The same options as the open store: the rebuilt store is byte-identical
     // to the one the cuts were made for, had it not been damaged.
     StoreOptions options = stores.stores[i]->header().options;
-    options.threads = store_options.threads;
     RAYLOD_ASSIGN_OR_RETURN(BuildReport report, build_store(stores.meshes[i], path, options));
     RAYLOD_ASSIGN_OR_RETURN(auto reopened, OctreeStore::open(path));
     stores.stores[i] = std::move(reopened);
@@ -270,10 +272,9 @@ StatusOr<RunResult> run_pipeline(Scene scene, const RunOptions& options, const L
   const fs::path cache_dir = options.cache_dir.empty() ? default_cache_dir() : options.cache_dir;
   // One budget for the whole run (memory_budget.h): the build plans within
   // its total; simplify and render share what the program itself leaves.
-  const MemoryBudget budget = MemoryBudget::resolve(options.memory_limit);
+  const MemoryBudget budget = MemoryBudget::measured(options.memory_limit);
   StoreOptions store_options;
   store_options.memory_limit = budget.total;
-  store_options.threads = options.threads;
   const uint64_t memory_limit = budget.working();
 
   // A. Stores (method step A1), reused when current.
@@ -288,8 +289,8 @@ StatusOr<RunResult> run_pipeline(Scene scene, const RunOptions& options, const L
   // B. Probe (A2-A4); if the simplified meshes would not fit the memory
   // limit, coarsen by doubling K until they do.
   say(log, "[2/4] probe: " + std::to_string(options.rays) + " test rays");
-  RAYLOD_ASSIGN_OR_RETURN(ProbeConfig probe, make_probe_config(scene, options.rays, options.footprint_scale,
-                                                              options.threads, budget, options.progress));
+  RAYLOD_ASSIGN_OR_RETURN(ProbeConfig probe, make_probe_config(scene, options.rays, options.footprint_scale, budget,
+                                                              options.progress));
   probe.criterion = options.criterion;
   probe.tolerance_px = options.tolerance_px;
   auto t_probe = std::chrono::steady_clock::now();
@@ -298,7 +299,7 @@ StatusOr<RunResult> run_pipeline(Scene scene, const RunOptions& options, const L
   bool repaired = false;  // a store found corrupt is rebuilt once per run, then the stage retried
   auto traced = trace_probe(scene, stores.probe_stores, stores.objects, probe);
   if (!traced.is_ok()) {
-    RAYLOD_ASSIGN_OR_RETURN(bool retry, repair_corrupt_stores(stores, store_options, "probe", repaired, log));
+    RAYLOD_ASSIGN_OR_RETURN(bool retry, repair_corrupt_stores(stores, "probe", repaired, log));
     if (retry) traced = trace_probe(scene, stores.probe_stores, stores.objects, probe);
   }
   RAYLOD_ASSIGN_OR_RETURN(ProbeTrace trace, std::move(traced));
@@ -315,7 +316,7 @@ StatusOr<RunResult> run_pipeline(Scene scene, const RunOptions& options, const L
     const uint64_t scene_triangles = estimate + 2;  // and the ground's two
     const uint64_t need = std::max(
         simplify_need, estimate_render_memory(scene_triangles, bvh_for_memory_limit(scene_triangles, memory_limit)));
-    if (need <= memory_limit) break;
+    if (!budget.limited() || need <= memory_limit) break;
     // Stop once coarsening no longer helps (the estimate bottoms out at the
     // renderer's fixed overhead) or after max_coarsening_steps doublings.
     if (result.coarsening_steps >= options.max_coarsening_steps || estimate >= previous_estimate)
@@ -400,7 +401,7 @@ StatusOr<RunResult> run_pipeline(Scene scene, const RunOptions& options, const L
                                      options.progress, nullptr, scene.crease_angle_deg);
       };
       auto simplified = simplify_store();
-      if (!simplified.is_ok() && cache && simplified.status().message().find(staged.string()) != std::string::npos) {
+      if (!simplified.is_ok() && cache && staged_write_refused(simplified.status(), staged)) {
         // The cache's disk refused the file (full, read-only): render from
         // the system's temporary folder, without caching.
         result.warnings.push_back("cannot write into the cache (" + simplified.status().message() +
@@ -410,7 +411,7 @@ StatusOr<RunResult> run_pipeline(Scene scene, const RunOptions& options, const L
         simplified = simplify_store();
       }
       if (!simplified.is_ok()) {
-        RAYLOD_ASSIGN_OR_RETURN(bool retry, repair_corrupt_stores(stores, store_options, "simplify", repaired, log));
+        RAYLOD_ASSIGN_OR_RETURN(bool retry, repair_corrupt_stores(stores, "simplify", repaired, log));
         if (retry) simplified = simplify_store();
       }
       RAYLOD_ASSIGN_OR_RETURN(sm, std::move(simplified));
@@ -456,7 +457,6 @@ StatusOr<RunResult> run_pipeline(Scene scene, const RunOptions& options, const L
   say(log, "[4/4] render");
   RenderOptions ro;
   ro.spp = options.spp;
-  ro.threads = options.threads;
   ro.memory_limit = memory_limit;
   ro.progress = options.progress;
   ro.log = log;

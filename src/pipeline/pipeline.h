@@ -46,12 +46,11 @@ StatusOr<SceneStores> prepare_scene_stores(Scene& scene, const std::optional<std
 
 struct RunOptions {
   std::optional<std::filesystem::path> mesh_override;
-  uint64_t memory_limit = 0;          // 0 = a quarter of physical memory
+  uint64_t memory_limit = 0;          // bytes for the whole run (memory_budget.h); 0 = no limit
   uint64_t rays = 5000;
   double footprint_scale = kDefaultFootprintScale;  // K (see README, "What accuracy costs": why this default)
   CutCriterion criterion = CutCriterion::Deviation;
   double tolerance_px = kDefaultTolerancePx;        // deviation criterion (probe.h)
-  int threads = 0;
   std::filesystem::path cache_dir;    // empty = default_cache_dir()
   uint64_t cache_limit = uint64_t(4) << 30;
   bool use_cache = true;
@@ -105,9 +104,9 @@ std::string run_stats_json(const RunResult& result, const RunOptions& options);
 
 // The probe configuration within a memory budget: the page cache gets its
 // share (MemoryBudget::page_cache: half of what the limit leaves after what is
-// resident and the rays' hit records); an error if nothing is left. Call
-// after the stores are open.
-StatusOr<ProbeConfig> make_probe_config(const Scene& scene, uint64_t rays, double footprint_scale, int threads,
+// resident and the rays' hit records); an error if nothing is left. Without a
+// limit the cache has none either. Call after the stores are open.
+StatusOr<ProbeConfig> make_probe_config(const Scene& scene, uint64_t rays, double footprint_scale,
                                         const MemoryBudget& budget, bool progress);
 
 // Simplifies the cut of a store and writes it Draco-compressed to `out`
@@ -116,9 +115,16 @@ StatusOr<ProbeConfig> make_probe_config(const Scene& scene, uint64_t rays, doubl
 // no triangles is not an error here: nothing is written, drc stays empty and
 // empty_reason says why (the caller decides: `run` leaves the object out).
 StatusOr<SimplifiedMesh> simplify_cut_to_draco(const OctreeStore& store, const Cut& cut, const std::filesystem::path& out,
-                                               uint64_t memory_limit, double max_normal_error, bool progress,
+                                               uint64_t memory_limit /* 0 = no limit */, double max_normal_error, bool progress,
                                                double* seconds = nullptr,
                                                double crease_angle_deg = kDefaultCreaseAngleDeg);
+
+// Whether a failed simplify_cut_to_draco into `staged` means the disk refused
+// that file (full, read-only, gone): a typed write failure (Status::code) of
+// that very path. `run` then stages in the system's temporary folder and
+// renders without caching; any other failure -- even one whose message names
+// the file -- is not the disk's and is not retried there.
+bool staged_write_refused(const Status& status, const std::filesystem::path& staged);
 
 // The largest normal error (radians) the scene's shading cannot show: a
 // rotation d of a shading normal changes a Lambert term by up to d and a

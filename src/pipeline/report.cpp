@@ -9,7 +9,6 @@
 #include <thread>
 
 #include <nlohmann/json.hpp>
-#include <tbb/global_control.h>
 
 #include "core/system.h"
 #include "gen/generate.h"
@@ -348,9 +347,6 @@ Scene closeup_scene(const Scene& scene) {
 StatusOr<ReportResult> run_report(const Scene& input_scene, const std::optional<fs::path>& mesh_override,
                                   const ReportConfig& cfg, const LogFn& log) {
   auto say = [&](const std::string& m) { if (log) log(m); };
-  // One thread limit for every row, the baselines' BVH builds and traces included.
-  std::optional<tbb::global_control> threads;
-  if (cfg.threads > 0) threads.emplace(tbb::global_control::max_allowed_parallelism, size_t(cfg.threads));
   std::error_code ec;
   fs::create_directories(cfg.out_dir, ec);
   if (ec) return Status::error(cfg.out_dir.string() + ": cannot create report directory: " + ec.message());
@@ -362,10 +358,9 @@ StatusOr<ReportResult> run_report(const Scene& input_scene, const std::optional<
   Scene base = input_scene;
   if (cfg.width > 0) base.camera.width = cfg.width;
   if (cfg.height > 0) base.camera.height = cfg.height;
-  const MemoryBudget budget = MemoryBudget::resolve(cfg.memory_limit);
+  const MemoryBudget budget = MemoryBudget::measured(cfg.memory_limit);
   StoreOptions store_options;
   store_options.memory_limit = budget.total;
-  store_options.threads = cfg.threads;
   const uint64_t memory_limit = budget.working();
   RAYLOD_ASSIGN_OR_RETURN(SceneStores stores, prepare_scene_stores(base, mesh_override, store_options, cache_dir, log));
   const OctreeStore& store = *stores.stores[0];
@@ -376,7 +371,6 @@ StatusOr<ReportResult> run_report(const Scene& input_scene, const std::optional<
 
   RenderOptions ro;
   ro.spp = cfg.spp;
-  ro.threads = cfg.threads;
   ro.memory_limit = memory_limit;
   ro.progress = cfg.progress;
 
@@ -442,7 +436,7 @@ StatusOr<ReportResult> run_report(const Scene& input_scene, const std::optional<
       row.method = diagonal ? "raylod (diagonal)" : "raylod";
       row.footprint_scale = k;
       row.rays = n;
-      RAYLOD_ASSIGN_OR_RETURN(ProbeConfig pc, make_probe_config(run.scene, n, k, cfg.threads, budget, false));
+      RAYLOD_ASSIGN_OR_RETURN(ProbeConfig pc, make_probe_config(run.scene, n, k, budget, false));
       pc.criterion = variant.criterion;
       if (!traces.count(n)) {
         RAYLOD_ASSIGN_OR_RETURN(ProbeTrace t, trace_probe(run.scene, stores.probe_stores, stores.objects, pc));

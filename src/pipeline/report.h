@@ -30,8 +30,7 @@ struct ReportConfig {
   bool closeup = true;         // add a close-up view of the same mesh
   int spp = 0;                 // 0 = the scene's
   int width = 0, height = 0;   // 0 = the scene's
-  int threads = 0;
-  uint64_t memory_limit = 0;
+  uint64_t memory_limit = 0;   // bytes for the whole report (memory_budget.h); 0 = no limit
   std::filesystem::path out_dir = "raylod-report";
   std::filesystem::path cache_dir;  // for generated meshes and stores of generated meshes
   bool progress = false;

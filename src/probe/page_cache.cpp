@@ -43,7 +43,7 @@ Page make_page(TriangleBatch&& batch) {
   return page;
 }
 
-PageCache::PageCache(uint64_t capacity_bytes) : capacity_(capacity_bytes) {}
+PageCache::PageCache(uint64_t capacity_bytes) : capacity_(capacity_bytes ? capacity_bytes : UINT64_MAX) {}
 
 StatusOr<std::shared_ptr<const Page>> PageCache::get(const OctreeStore& store, uint32_t index) {
   const Key key{&store, index};

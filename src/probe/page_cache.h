@@ -56,7 +56,7 @@ struct PageCacheCounters {
 class PageCache {
  public:
   // capacity_bytes: memory budget for resident pages (at least one page is
-  // always kept, whatever its size).
+  // always kept, whatever its size); 0 = no limit (no page is evicted).
   explicit PageCache(uint64_t capacity_bytes);
 
   // The page, from memory or read from the store (checksummed by the store;

@@ -13,7 +13,6 @@
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
-#include <tbb/task_arena.h>
 
 #include "core/random.h"
 #include "core/progress.h"
@@ -443,12 +442,9 @@ StatusOr<ProbeTrace> trace_probe(const Scene& scene, std::span<const ProbeStore>
   {
     std::optional<Progress> progress;
     if (config.progress) progress.emplace("probe", config.rays, "rays");
-    tbb::task_arena arena(config.threads > 0 ? config.threads : tbb::task_arena::automatic);
-    arena.execute([&] {
-      tbb::parallel_for(tbb::blocked_range<uint64_t>(0, config.rays, 16), [&](const tbb::blocked_range<uint64_t>& r) {
-        for (uint64_t i = r.begin(); i != r.end(); ++i) outcomes[order[i].second] = tracer.trace_test_ray(order[i].second);
-        if (progress) progress->advance(r.size());
-      });
+    tbb::parallel_for(tbb::blocked_range<uint64_t>(0, config.rays, 16), [&](const tbb::blocked_range<uint64_t>& r) {
+      for (uint64_t i = r.begin(); i != r.end(); ++i) outcomes[order[i].second] = tracer.trace_test_ray(order[i].second);
+      if (progress) progress->advance(r.size());
     });
     if (progress) progress->finish();
   }
@@ -591,21 +587,18 @@ StatusOr<ProbeResult> select_cuts(const ProbeTrace& trace, const Scene& scene, s
     // need() and the angular need bottom-up: measured or estimated at level
     // Q, min over children above.
     std::vector<std::vector<double>> need(size_t(Q) + 1), angular(size_t(Q) + 1);
-    tbb::task_arena arena(config.threads > 0 ? config.threads : tbb::task_arena::automatic);
     {
       const auto nodes = st.level(Q);
       need[size_t(Q)].assign(nodes.size(), kInf);
       if (bound_normals) angular[size_t(Q)].assign(nodes.size(), kInf);
-      arena.execute([&] {
-        tbb::parallel_for(tbb::blocked_range<size_t>(0, nodes.size(), 1024), [&](const tbb::blocked_range<size_t>& r) {
-          for (size_t i = r.begin(); i != r.end(); ++i) {
-            auto it = measured.find(nodes[i].code);
-            need[size_t(Q)][i] = it != measured.end() ? it->second.f : estimate(CellKey{uint32_t(Q), nodes[i].code});
-            // Unreached mirror or glass cells: the pixel angle, as magnified
-            // as the most magnified measured paths.
-            if (bound_normals) angular[size_t(Q)][i] = it != measured.end() ? it->second.angular : a_min * m;
-          }
-        });
+      tbb::parallel_for(tbb::blocked_range<size_t>(0, nodes.size(), 1024), [&](const tbb::blocked_range<size_t>& r) {
+        for (size_t i = r.begin(); i != r.end(); ++i) {
+          auto it = measured.find(nodes[i].code);
+          need[size_t(Q)][i] = it != measured.end() ? it->second.f : estimate(CellKey{uint32_t(Q), nodes[i].code});
+          // Unreached mirror or glass cells: the pixel angle, as magnified
+          // as the most magnified measured paths.
+          if (bound_normals) angular[size_t(Q)][i] = it != measured.end() ? it->second.angular : a_min * m;
+        }
       });
     }
     for (int L = Q - 1; L >= 0; --L) {
@@ -643,20 +636,18 @@ StatusOr<ProbeResult> select_cuts(const ProbeTrace& trace, const Scene& scene, s
       }
       // 0 = keep, 1 = collapse, 2 = kept for its deviation, 3 = for its normal.
       std::vector<char> verdict(nodes.size(), 0);
-      arena.execute([&] {
-        tbb::parallel_for(tbb::blocked_range<size_t>(0, nodes.size(), 256), [&](const tbb::blocked_range<size_t>& r) {
-          for (size_t i = r.begin(); i != r.end(); ++i) {
-            if (inside[i]) continue;
-            const double f = need[size_t(L)][i];
-            if (!(diag < K * f)) continue;
-            if (!deviation) { verdict[i] = 1; continue; }
-            const Bbox cell = st.cell_bounds(CellKey{uint32_t(L), nodes[i].code});
-            const CollapseDeviation dev = collapse_deviation(nodes[i], Bbox{cell.lo - origin, cell.hi - origin}, qem);
-            if (dev.position > config.tolerance_px * f) { verdict[i] = 2; continue; }
-            if (bound_normals && 2.0 * dev.normal > config.tolerance_px * angular[size_t(L)][i]) { verdict[i] = 3; continue; }
-            verdict[i] = 1;
-          }
-        });
+      tbb::parallel_for(tbb::blocked_range<size_t>(0, nodes.size(), 256), [&](const tbb::blocked_range<size_t>& r) {
+        for (size_t i = r.begin(); i != r.end(); ++i) {
+          if (inside[i]) continue;
+          const double f = need[size_t(L)][i];
+          if (!(diag < K * f)) continue;
+          if (!deviation) { verdict[i] = 1; continue; }
+          const Bbox cell = st.cell_bounds(CellKey{uint32_t(L), nodes[i].code});
+          const CollapseDeviation dev = collapse_deviation(nodes[i], Bbox{cell.lo - origin, cell.hi - origin}, qem);
+          if (dev.position > config.tolerance_px * f) { verdict[i] = 2; continue; }
+          if (bound_normals && 2.0 * dev.normal > config.tolerance_px * angular[size_t(L)][i]) { verdict[i] = 3; continue; }
+          verdict[i] = 1;
+        }
       });
       for (size_t i = 0; i < nodes.size(); ++i) {
         if (inside[i]) { collapsed[size_t(L)][i] = 1; continue; }

@@ -104,8 +104,7 @@ struct ProbeConfig {
   CutCriterion criterion = CutCriterion::Deviation;
   double footprint_scale = kDefaultFootprintScale;  // K: collapse cells with diagonal < K * footprint
   double tolerance_px = kDefaultTolerancePx;        // deviation criterion: surface deviation, in pixels
-  int threads = 0;                 // 0 = all cores
-  uint64_t cache_bytes = uint64_t(256) << 20;  // page cache budget
+  uint64_t cache_bytes = uint64_t(256) << 20;  // page cache budget; 0 = no limit
   DifferentialLimits limits;
   double calibration_quantile = 0.02;  // of the secondary hits' magnification (policy above)
   double shadow_factor = 4.0;          // unreachable cells in scenes with lights

@@ -15,10 +15,10 @@
 #include <OpenImageIO/imageio.h>
 #include <nlohmann/json.hpp>
 #include <tbb/blocked_range.h>
-#include <tbb/global_control.h>
 #include <tbb/parallel_for.h>
 
 #include "core/fault_point.h"
+#include "core/parallelism.h"
 #include "core/progress.h"
 #include "core/random.h"
 #include "core/system.h"
@@ -347,7 +347,7 @@ RenderResult render_embree_scene(const EmbreeScene& geometry, const Scene& scene
   st.width = width;
   st.height = height;
   st.spp = spp;
-  st.threads = int(tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism));
+  st.threads = ambient_parallelism();
   const BvhInfo& info = geometry.info();
   st.triangles = info.triangles;
   st.vertices = info.vertices;
@@ -362,8 +362,6 @@ RenderResult render_embree_scene(const EmbreeScene& geometry, const Scene& scene
 }
 
 StatusOr<RenderResult> render(const Scene& scene, const RenderOptions& options) {
-  std::optional<tbb::global_control> threads;
-  if (options.threads > 0) threads.emplace(tbb::global_control::max_allowed_parallelism, size_t(options.threads));
   auto log = [&](const std::string& m) { if (options.log) options.log(m); };
 
   RenderStats load_stats;

@@ -30,7 +30,6 @@ struct Image {
 
 struct RenderOptions {
   int spp = 0;                  // samples per pixel; 0 = the scene's spp
-  int threads = 0;              // 0 = all hardware threads (TBB default)
   uint64_t memory_limit = 0;    // bytes for meshes + BVH; 0 = no limit
   // mesh_override[i] replaces the mesh of scene.objects[i] (empty path = keep).
   std::vector<std::filesystem::path> mesh_override;
@@ -54,7 +53,8 @@ struct RenderOptions {
 struct RenderStats {
   RayCounters rays;
   Effects effects;
-  int width = 0, height = 0, spp = 0, threads = 0;
+  int width = 0, height = 0, spp = 0;
+  int threads = 0;               // the parallelism it ran with (ambient_parallelism(), core/parallelism.h)
   uint64_t triangles = 0, vertices = 0;
   uint64_t estimated_bytes = 0;  // estimate_render_memory() before loading
   uint64_t mesh_bytes = 0, bvh_bytes = 0, bvh_peak_bytes = 0;

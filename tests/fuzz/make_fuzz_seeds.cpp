@@ -139,7 +139,6 @@ int main(int argc, char** argv) try {
   StoreOptions so;
   so.memory_limit = 64 << 20;
   so.max_depth = 4;
-  so.threads = 1;
   so.page_triangles = 16;
   check(build_store(work / "grid.ply", work / "grid.raylod", so).status());
   const std::string store = read_bytes(work / "grid.raylod");

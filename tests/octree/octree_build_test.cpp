@@ -9,6 +9,8 @@
 #include <iterator>
 #include <map>
 
+#include <tbb/task_arena.h>
+
 #include "core/progress.h"
 #include "octree/octree_test_util.h"
 
@@ -145,6 +147,28 @@ TEST(OctreeBuild, HugeMemoryLimitsAreNotReserved) {
     ASSERT_TRUE(store) << limit;
     EXPECT_EQ(store->header().triangle_count, 1u);
   }
+}
+
+TEST(OctreeBuild, ZeroMemoryLimitMeansNoLimit) {
+  // 0 means no limit in every library options struct (the command line
+  // resolves its default, a quarter of RAM, itself): the plan is bound only
+  // by --max-depth and the data, as under a limit no mesh reaches, and the
+  // store records no limit (reused under any limit that makes the same store).
+  auto m = testing::soup(30000, 9, true);
+  auto dir = testing::scratch_dir("no-limit");
+  StoreOptions none, huge;
+  huge.memory_limit = uint64_t(64) << 40;
+  auto unlimited = build(m, dir / "none.raylod", none, 1000);
+  auto limited = build(m, dir / "huge.raylod", huge, 1000);
+  ASSERT_TRUE(unlimited && limited);
+  const StoreHeader &a = unlimited->header(), &b = limited->header();
+  EXPECT_EQ(a.options.memory_limit, 0u);
+  EXPECT_EQ(a.reuse_limit_hi, UINT64_MAX);
+  EXPECT_LE(a.reuse_limit_lo, b.options.memory_limit);
+  EXPECT_FALSE(a.coarsened);
+  EXPECT_EQ(a.quadric_depth, b.quadric_depth);
+  for (int l = 0; l <= a.quadric_depth; ++l) EXPECT_EQ(unlimited->level(l).size(), limited->level(l).size()) << l;
+  EXPECT_EQ(describe_memory_limit(0), "no limit");
 }
 
 SoupMesh cube() {
@@ -402,13 +426,15 @@ TEST(OctreeBuild, ReusedUnderExactlyTheLimitsThatMakeTheSameStore) {
 TEST(OctreeBuild, SameStoreBytesForOneAndTwoThreads) {
   auto m = testing::soup(30000, 9, true);
   auto dir = testing::scratch_dir("threads");
-  StoreOptions one, two;
-  one.threads = 1;
-  two.threads = 2;
-  one.memory_limit = two.memory_limit = 2 << 20;  // exercise runs and coarsening too
-  one.page_triangles = two.page_triangles = 300;
-  ASSERT_TRUE(build(m, dir / "one.raylod", one, 1000));
-  ASSERT_TRUE(build(m, dir / "two.raylod", two, 1000));
+  StoreOptions options;
+  options.memory_limit = 2 << 20;  // exercise runs and coarsening too
+  options.page_triangles = 300;
+  // The build uses the parallelism of the arena it is called in.
+  bool built_one = false, built_two = false;
+  tbb::task_arena(1).execute([&] { built_one = build(m, dir / "one.raylod", options, 1000) != nullptr; });
+  tbb::task_arena(2).execute([&] { built_two = build(m, dir / "two.raylod", options, 1000) != nullptr; });
+  ASSERT_TRUE(built_one);
+  ASSERT_TRUE(built_two);
   auto slurp = [](const std::filesystem::path& p) {
     std::ifstream in(p, std::ios::binary);
     return std::string(std::istreambuf_iterator<char>(in), {});

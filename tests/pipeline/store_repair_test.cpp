@@ -52,7 +52,6 @@ Scene small_scene(const fs::path& dir) {
 StoreOptions small_store_options() {
   StoreOptions o;
   o.memory_limit = uint64_t(1) << 30;
-  o.threads = 1;
   return o;
 }
 
@@ -108,7 +107,6 @@ TEST(StoreRepair, ChecksumFailureDuringARunIsRecordedTheStoreRebuiltAndTheRunRet
   RunOptions options;
   options.memory_limit = uint64_t(1) << 30;
   options.rays = 200;
-  options.threads = 1;
   options.cache_dir = s.dir;
   options.progress = false;
   Log log;

@@ -14,6 +14,7 @@
 #include <unistd.h>
 
 #include <glm/gtc/matrix_transform.hpp>
+#include <tbb/task_arena.h>
 
 #include "core/system.h"
 #include "gen/generate.h"
@@ -105,6 +106,8 @@ Scene make_scene(MaterialType type, const Vec3d& eye, const Vec3d& look_at, bool
   return s;
 }
 
+// The probe in a task arena of `threads`: the probe uses the parallelism of
+// the arena it is called in (core/parallelism.h).
 StatusOr<ProbeResult> probe(const Scene& scene, const Built& b, uint64_t rays, int threads = 2, double k = 1.0,
                             uint64_t cache = uint64_t(64) << 20) {
   ProbeStore store{b.store.get(), b.store_path};
@@ -112,10 +115,13 @@ StatusOr<ProbeResult> probe(const Scene& scene, const Built& b, uint64_t rays, i
   ProbeConfig c;
   c.rays = rays;
   c.seed = 7;
-  c.threads = threads;
   c.footprint_scale = k;
   c.cache_bytes = cache;
-  return run_probe(scene, std::span<const ProbeStore>(&store, 1), std::span<const ProbeObject>(&object, 1), c);
+  StatusOr<ProbeResult> result = Status::error("not run");
+  tbb::task_arena(threads).execute([&] {
+    result = run_probe(scene, std::span<const ProbeStore>(&store, 1), std::span<const ProbeObject>(&object, 1), c);
+  });
+  return result;
 }
 
 const Vec3d kEye(6.5, 4.8, 8.5), kLook(0.2, 1.3, 0.0);

@@ -29,7 +29,6 @@ BuiltStore build(const TriangleBatch& soup, const std::string& name, int max_dep
   StoreOptions opt;
   opt.max_depth = max_depth;
   opt.page_triangles = 256;  // several pages even for small meshes
-  opt.threads = 2;
   auto report = build_store_from_stream(testing::opener(mesh, 700), testing::fake_source(), b.dir / "s.raylod", opt);
   if (!report.is_ok()) {
     ADD_FAILURE() << report.status().message();
