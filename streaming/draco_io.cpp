@@ -95,8 +95,8 @@ int choose_position_bits(double extent, double max_abs, double max_error) {
   return kMaxDracoBits;
 }
 
-StatusOr<DracoWriteReport> write_draco(const std::filesystem::path& path, const IndexedMesh& mesh,
-                                       const DracoOptions& options) {
+StatusOr<DracoEncoded> encode_draco(const std::filesystem::path& path, const IndexedMesh& mesh,
+                                     const DracoOptions& options) {
   RAYLOD_RETURN_IF_ERROR(check_mesh(path, mesh));
   const bool normals = !mesh.normals.empty();
   Bbox box;
@@ -114,7 +114,8 @@ StatusOr<DracoWriteReport> write_draco(const std::filesystem::path& path, const 
     return Status::error(path.string() + what);
   }
 
-  DracoWriteReport report;
+  DracoEncoded encoded;
+  DracoWriteReport& report = encoded.report;
   if (options.position_bits > 0) {
     if (options.position_bits > kMaxDracoBits)
       return Status::error(path.string() + ": position_bits " + std::to_string(options.position_bits) +
@@ -148,12 +149,14 @@ StatusOr<DracoWriteReport> write_draco(const std::filesystem::path& path, const 
   const int pos_id = dm.AddAttribute(pos_att, true, n);
   for (uint32_t i = 0; i < n; ++i)
     dm.attribute(pos_id)->SetAttributeValue(draco::AttributeValueIndex(i), &mesh.positions[i].x);
+  encoded.position_id = int(dm.attribute(pos_id)->unique_id());
   if (normals) {
     draco::GeometryAttribute nrm_att;
     nrm_att.Init(draco::GeometryAttribute::NORMAL, nullptr, 3, draco::DT_FLOAT32, false, sizeof(float) * 3, 0);
     const int nrm_id = dm.AddAttribute(nrm_att, true, n);
     for (uint32_t i = 0; i < n; ++i)
       dm.attribute(nrm_id)->SetAttributeValue(draco::AttributeValueIndex(i), &mesh.normals[i].x);
+    encoded.normal_id = int(dm.attribute(nrm_id)->unique_id());
   }
   dm.SetNumFaces(mesh.triangle_count());
   for (size_t t = 0; t < mesh.triangle_count(); ++t) {
@@ -174,7 +177,15 @@ StatusOr<DracoWriteReport> write_draco(const std::filesystem::path& path, const 
   draco::EncoderBuffer buffer;
   const draco::Status st = encoder.EncodeMeshToBuffer(dm, &buffer);
   if (!st.ok()) return Status::error(path.string() + ": Draco encoding failed: " + st.error_msg_string());
+  encoded.bytes.assign(buffer.data(), buffer.data() + buffer.size());
+  report.bytes = buffer.size();
+  return encoded;
+}
 
+StatusOr<DracoWriteReport> write_draco(const std::filesystem::path& path, const IndexedMesh& mesh,
+                                       const DracoOptions& options) {
+  RAYLOD_ASSIGN_OR_RETURN(DracoEncoded encoded, encode_draco(path, mesh, options));
+  const std::vector<char>& buffer = encoded.bytes;
   AtomicOutput out(path);
   {
     std::ofstream f(out.temp_path(), std::ios::binary);
@@ -189,8 +200,7 @@ StatusOr<DracoWriteReport> write_draco(const std::filesystem::path& path, const 
     if (!f) return Status::write_failed(path.string(), path.string() + ": write failed (disk full?)", errno);
   }
   RAYLOD_RETURN_IF_ERROR(out.commit());
-  report.bytes = buffer.size();
-  return report;
+  return encoded.report;
 }
 
 StatusOr<IndexedMesh> read_draco(const std::filesystem::path& path) {
@@ -200,8 +210,13 @@ StatusOr<IndexedMesh> read_draco(const std::filesystem::path& path) {
   std::vector<char> data((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
   if (data.size() < 5 || std::memcmp(data.data(), "DRACO", 5) != 0)
     return Status::error(where + "not a Draco file (no DRACO header)");
+  return decode_draco(data.data(), data.size(), path.string());
+}
+
+StatusOr<IndexedMesh> decode_draco(const char* data, size_t size, const std::string& name) {
+  const std::string where = name + ": ";
   draco::DecoderBuffer buffer;
-  buffer.Init(data.data(), data.size());
+  buffer.Init(data, size);
   draco::Decoder decoder;
   auto decoded = decoder.DecodeMeshFromBuffer(&buffer);
   if (!decoded.ok()) return Status::error(where + "Draco decoding failed: " + decoded.status().error_msg_string());

@@ -50,6 +50,17 @@ double normal_error_bound(int bits);
 StatusOr<DracoWriteReport> write_draco(const std::filesystem::path& path, const IndexedMesh& mesh,
                                        const DracoOptions& options);
 StatusOr<IndexedMesh> read_draco(const std::filesystem::path& path);
+// Decodes a Draco mesh held in memory (name says whose, in errors).
+StatusOr<IndexedMesh> decode_draco(const char* data, size_t size, const std::string& name);
+
+// The encoded bytes, without writing them (write_draco and the .glb writer).
+struct DracoEncoded {
+  std::vector<char> bytes;
+  DracoWriteReport report;
+  int position_id = -1, normal_id = -1;  // the attributes' unique ids (-1: no normals)
+};
+StatusOr<DracoEncoded> encode_draco(const std::filesystem::path& path, const IndexedMesh& mesh,
+                                    const DracoOptions& options);
 // A MeshReader over a decoded Draco file (used by open_mesh for .drc).
 StatusOr<std::unique_ptr<MeshReader>> open_draco_reader(const std::filesystem::path& path, ReaderOptions options);
 

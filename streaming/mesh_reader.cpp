@@ -11,6 +11,7 @@
 
 #include "core/system.h"
 #include "streaming/draco_io.h"
+#include "streaming/gltf_io.h"
 
 namespace raylod {
 
@@ -20,6 +21,7 @@ const char* to_string(MeshFormat f) {
     case MeshFormat::Stl: return "STL";
     case MeshFormat::Obj: return "OBJ";
     case MeshFormat::Draco: return "Draco";
+    case MeshFormat::Gltf: return "glTF";
   }
   return "unknown";
 }
@@ -47,20 +49,41 @@ StatusOr<MeshFormat> mesh_format_from_extension(const std::filesystem::path& pat
   if (ext == ".stl") return MeshFormat::Stl;
   if (ext == ".obj") return MeshFormat::Obj;
   if (ext == ".drc") return MeshFormat::Draco;
+  if (ext == ".gltf" || ext == ".glb") return MeshFormat::Gltf;
   return Status::error(path.string() + ": unknown mesh format '" + ext +
-                       "' (expected .ply, .stl, .obj or .drc)");
+                       "' (expected .ply, .stl, .obj, .drc, .gltf or .glb)");
+}
+
+MeshRef parse_mesh_ref(const std::filesystem::path& path) {
+  const std::string s = path.string();
+  const size_t hash = s.rfind("#meshes[");
+  if (hash == std::string::npos || s.size() < hash + 10 || s.back() != ']') return MeshRef{path, -1};
+  const std::string digits = s.substr(hash + 8, s.size() - hash - 9);
+  if (digits.empty() || digits.size() > 9 || (digits.size() > 1 && digits[0] == '0')) return MeshRef{path, -1};
+  for (char c : digits)
+    if (c < '0' || c > '9') return MeshRef{path, -1};
+  const std::filesystem::path file = s.substr(0, hash);
+  auto format = mesh_format_from_extension(file);
+  if (!format || *format != MeshFormat::Gltf) return MeshRef{path, -1};
+  return MeshRef{file, std::stoi(digits)};
+}
+
+std::filesystem::path gltf_mesh_path(const std::filesystem::path& file, int mesh) {
+  return std::filesystem::path(file.string() + "#meshes[" + std::to_string(mesh) + "]");
 }
 
 StatusOr<std::unique_ptr<MeshReader>> open_mesh(const std::filesystem::path& path, ReaderOptions options) {
   // What the path is comes first: a FIFO or a device must fail at once, and
   // saying "unknown mesh format ''" about /dev/zero would hide the real problem.
-  RAYLOD_RETURN_IF_ERROR(check_regular_file(path));
-  RAYLOD_ASSIGN_OR_RETURN(MeshFormat format, mesh_format_from_extension(path));
+  const MeshRef ref = parse_mesh_ref(path);
+  RAYLOD_RETURN_IF_ERROR(check_regular_file(ref.file));
+  RAYLOD_ASSIGN_OR_RETURN(MeshFormat format, mesh_format_from_extension(ref.file));
   switch (format) {
     case MeshFormat::Ply: return open_ply_reader(path, options);
     case MeshFormat::Stl: return open_stl_reader(path, options);
     case MeshFormat::Obj: return open_obj_reader(path, options);
     case MeshFormat::Draco: return open_draco_reader(path, options);
+    case MeshFormat::Gltf: return open_gltf_reader(path, options);
   }
   return Status::error(path.string() + ": unknown mesh format");
 }

@@ -56,7 +56,7 @@
 
 namespace raylod {
 
-enum class MeshFormat { Ply, Stl, Obj, Draco };
+enum class MeshFormat { Ply, Stl, Obj, Draco, Gltf };
 const char* to_string(MeshFormat f);
 
 // A batch of independent triangles: positions[3*i+k] is vertex k of triangle i.
@@ -108,7 +108,18 @@ class MeshReader {
   uint64_t repaired_normals_ = 0;
 };
 
-// Opens a mesh by extension (.ply, .stl, .obj, .drc; case-insensitive), with
+// A mesh path names a file, or one mesh of a glTF file: "FILE.glb#meshes[N]"
+// (streaming/gltf_io.h). Only a .gltf/.glb file name followed by exactly
+// "#meshes[N]" is such a reference; anything else is a plain file name.
+struct MeshRef {
+  std::filesystem::path file;  // the file to open
+  int gltf_mesh = -1;          // the glTF mesh, or -1 for the whole file
+};
+MeshRef parse_mesh_ref(const std::filesystem::path& path);
+// "FILE#meshes[N]".
+std::filesystem::path gltf_mesh_path(const std::filesystem::path& file, int mesh);
+
+// Opens a mesh by extension (.ply, .stl, .obj, .drc, .gltf, .glb; case-insensitive), with
 // the file's content checked against the extension. A path that is not a
 // regular file fails at once and says what it is ("is a named pipe (FIFO),
 // not a regular file", "is a directory, ...", "is a character device, ...").
@@ -127,6 +138,7 @@ StatusOr<MeshSummary> summarize_mesh(const std::filesystem::path& path);
 StatusOr<std::unique_ptr<MeshReader>> open_ply_reader(const std::filesystem::path& path, ReaderOptions options = {});
 StatusOr<std::unique_ptr<MeshReader>> open_stl_reader(const std::filesystem::path& path, ReaderOptions options = {});
 StatusOr<std::unique_ptr<MeshReader>> open_obj_reader(const std::filesystem::path& path, ReaderOptions options = {});
+// glTF: streaming/gltf_io.h (open_gltf_reader).
 // The format implied by a path's extension (case-insensitive), or an error.
 StatusOr<MeshFormat> mesh_format_from_extension(const std::filesystem::path& path);
 

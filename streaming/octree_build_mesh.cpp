@@ -71,7 +71,10 @@ bool same_file_state(const SourceFingerprint& a, const SourceFingerprint& b) {
 
 }  // namespace
 
-StatusOr<SourceFingerprint> fingerprint_file(const std::filesystem::path& path, bool with_hash) {
+StatusOr<SourceFingerprint> fingerprint_file(const std::filesystem::path& mesh, bool with_hash) {
+  // One mesh of a glTF file: the file's state, under the mesh's own name.
+  const MeshRef ref = parse_mesh_ref(mesh);
+  const std::filesystem::path& path = ref.file;
   struct stat st {};
   if (::stat(path.c_str(), &st) != 0) return Status::error(path.string() + ": " + std::strerror(errno));
   if (!S_ISREG(st.st_mode)) return Status::error(path.string() + ": " + not_regular_file_text(st.st_mode));
@@ -79,6 +82,7 @@ StatusOr<SourceFingerprint> fingerprint_file(const std::filesystem::path& path, 
   std::error_code ec;
   auto abs = std::filesystem::weakly_canonical(std::filesystem::absolute(path), ec);
   fp.path = (ec ? std::filesystem::absolute(path) : abs).string();
+  if (ref.gltf_mesh >= 0) fp.path = gltf_mesh_path(fp.path, ref.gltf_mesh).string();
   fp.bytes = uint64_t(st.st_size);
   fp.mtime_ns = uint64_t(st.st_mtim.tv_sec) * 1000000000ull + uint64_t(st.st_mtim.tv_nsec);
   if (with_hash) {
@@ -133,7 +137,7 @@ StatusOr<BuildReport> build_store(const std::filesystem::path& mesh, const std::
 
 StatusOr<BuildReport> build_store(const std::filesystem::path& mesh, const std::filesystem::path& store,
                                   const StoreOptions& options, bool force, bool verify) {
-  BuildLock lock(mesh);
+  BuildLock lock(parse_mesh_ref(mesh).file);
   std::string reason = "--force";
   if (!force && store_is_current(mesh, store, options, &reason)) {
     BuildReport report;

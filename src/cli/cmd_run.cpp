@@ -1,5 +1,6 @@
 // raylod run: the whole pipeline (build, probe, simplify, render) for one
 // view, with simplified meshes cached across views.
+#include <cctype>
 #include <cmath>
 #include <cstdio>
 
@@ -38,6 +39,8 @@ Status run_run(int argc, char** argv, bool& help) {
              {"--compare", "", "also render the full-resolution mesh and report the error, beside the\n"
                                "                              noise floor (the full mesh at seed + 1 against seed)", false, ""},
              {"--stats-json", "", "write triangle counts, stage times, memory and cache use as JSON", true, "FILE"},
+             {"--export-mesh", "", "also write the simplified meshes as a Draco-compressed glTF (.glb), one\n"
+                                   "                              node per scene object, with the .drc's quantisation", true, "OUT.glb"},
              {"--crease-angle", "", kCreaseAngleHelp, true, "DEG"},
              {"--quiet", "-q", "no progress bars or log lines", false, ""}}));
   RAYLOD_RETURN_IF_ERROR(args.parse(argc, argv));
@@ -64,6 +67,13 @@ Status run_run(int argc, char** argv, bool& help) {
   opts.cache_dir = args.get("--cache", default_cache_dir().string());
   opts.use_cache = !args.has("--no-cache");
   if (args.has("--mesh")) opts.mesh_override = std::filesystem::path(args.get("--mesh"));
+  if (args.has("--export-mesh")) {
+    opts.export_mesh = args.get("--export-mesh");
+    std::string ext = opts.export_mesh.extension().string();
+    for (char& c : ext) c = char(std::tolower(static_cast<unsigned char>(c)));
+    if (ext != ".glb")
+      return Status::error(opts.export_mesh.string() + ": --export-mesh writes glTF binary; the name must end in .glb");
+  }
   const bool quiet = args.has("--quiet");
   opts.progress = !quiet;
   if (quiet) Progress::set_enabled(false);
@@ -159,6 +169,8 @@ Status run_run(int argc, char** argv, bool& help) {
     }
   }
   std::printf("  wrote      %s\n", output.string().c_str());
+  if (!opts.export_mesh.empty())
+    std::printf("  exported   %s (%s)\n", opts.export_mesh.string().c_str(), format_bytes(r.exported_bytes).c_str());
   if (args.has("--stats-json")) RAYLOD_RETURN_IF_ERROR(write_file_atomic(args.get("--stats-json"), stats));
   return {};
 }

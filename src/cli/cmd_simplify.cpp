@@ -16,6 +16,7 @@
 #include "simplify/indexed_mesh_writer.h"
 #include "streaming/cut_file.h"
 #include "streaming/draco_io.h"
+#include "streaming/gltf_io.h"
 #include "streaming/octree_store.h"
 
 namespace raylod::cli {
@@ -27,17 +28,29 @@ std::string lower_extension(const std::filesystem::path& p) {
   return e;
 }
 
+StatusOr<DracoWriteReport> write_simplified_glb(const std::filesystem::path& out, const IndexedMesh& mesh,
+                                                const DracoOptions& options) {
+  RAYLOD_ASSIGN_OR_RETURN(DracoEncoded encoded, encode_draco(out, mesh, options));
+  DracoWriteReport report = encoded.report;
+  std::vector<GlbMesh> meshes(1);
+  meshes[0].name = out.stem().string();
+  meshes[0].draco = std::move(encoded.bytes);
+  RAYLOD_ASSIGN_OR_RETURN(report.bytes, write_glb(out, meshes, {GlbNode{meshes[0].name, 0, glm::dmat4(1.0)}}));
+  return report;
+}
+
 unsigned long long ull(uint64_t v) { return static_cast<unsigned long long>(v); }
 
 int run_simplify(int argc, char** argv) {
-  Args args("simplify", "STORE CUT -o OUT.drc|OUT.ply|OUT.obj [options]",
+  Args args("simplify", "STORE CUT -o OUT.drc|OUT.glb|OUT.ply|OUT.obj [options]",
             "Collapses every cell of the cut (from `raylod probe`) to its representative vertex\n"
             "(minimum of the cell's quadric, kept inside the cell), keeps all other vertices exactly,\n"
             "drops triangles that become degenerate or duplicated, and writes the simplified mesh\n"
             "with vertex normals. Draco positions are quantised so that the error stays below 1/8\n"
             "of the smallest footprint the probe measured and below what tilts a face of the\n"
             "input's mean size by 1/510 rad (override with --position-error).",
-            {{"--output", "-o", "output mesh: .drc (Draco), .ply (binary) or .obj (required)", true, "FILE"},
+            {{"--output", "-o", "output mesh: .drc (Draco), .glb (glTF with a Draco primitive), .ply (binary)\n"
+                                  "                              or .obj (required)", true, "FILE"},
              {"--memory-limit", "", "memory the simplified mesh may use (default: a quarter of RAM)", true, "SIZE"},
              {"--position-error", "", "Draco: largest position error in world units (default: as the pipeline's)",
               true, "E"},
@@ -53,13 +66,13 @@ int run_simplify(int argc, char** argv) {
   }
   if (args.positionals().size() != 2)
     return fail("simplify", Status::error("expected STORE and CUT (see raylod simplify --help)"));
-  if (!args.has("--output")) return fail("simplify", Status::error("-o OUT.drc|.ply|.obj is required"));
+  if (!args.has("--output")) return fail("simplify", Status::error("-o OUT.drc|.glb|.ply|.obj is required"));
   const std::filesystem::path store_path = args.positionals()[0], cut_path = args.positionals()[1];
   const std::filesystem::path out_path = args.get("--output");
   const std::string ext = lower_extension(out_path);
-  if (ext != ".drc" && ext != ".ply" && ext != ".obj")
+  if (ext != ".drc" && ext != ".glb" && ext != ".ply" && ext != ".obj")
     return fail("simplify", Status::error(out_path.string() + ": unknown output format '" + ext +
-                                          "' (use .drc, .ply or .obj)"));
+                                          "' (use .drc, .glb, .ply or .obj)"));
   auto limit = memory_budget_from_args(args);
   if (!limit) return fail("simplify", limit.status());
   auto normal_bits = args.get_int("--normal-bits", 10, 2, 30);
@@ -108,7 +121,7 @@ int run_simplify(int argc, char** argv) {
   const auto t_write = Clock::now();
   uint64_t bytes = 0;
   std::string quantisation;
-  if (ext == ".drc") {
+  if (ext == ".drc" || ext == ".glb") {
     DracoOptions opt;
     opt.normal_bits = int(*normal_bits);
     opt.speed = int(*speed);
@@ -123,7 +136,8 @@ int run_simplify(int argc, char** argv) {
     if (const double geometric = geometric_normal_position_bound(**store); geometric > 0)
       bound = bound > 0 ? std::min(bound, geometric) : geometric;
     opt.max_position_error = *position_error > 0 ? *position_error : bound;
-    auto report = write_draco(out_path, r.mesh, opt);
+    // .glb: the same Draco bytes as the .drc, as one primitive of one node.
+    auto report = ext == ".drc" ? write_draco(out_path, r.mesh, opt) : write_simplified_glb(out_path, r.mesh, opt);
     if (!report) return fail("simplify", report.status());
     bytes = report->bytes;
     char line[256];

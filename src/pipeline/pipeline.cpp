@@ -11,6 +11,8 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <fstream>
+#include <iterator>
 #include <map>
 #include <sstream>
 
@@ -21,6 +23,7 @@
 #include "gen/generate.h"
 #include "pipeline/simplified_cache.h"
 #include "streaming/draco_io.h"
+#include "streaming/gltf_io.h"
 
 namespace raylod {
 namespace fs = std::filesystem;
@@ -267,6 +270,31 @@ StatusOr<bool> repair_corrupt_stores(SceneStores& stores, const std::string& sta
 
 }  // namespace
 
+StatusOr<uint64_t> export_simplified_glb(const fs::path& out, const std::vector<SimplifiedMesh>& meshes,
+                                          const SceneStores& stores) {
+  // The .drc bytes go into the .glb as they are: the same quantisation.
+  std::vector<GlbMesh> glb_meshes;
+  std::vector<size_t> glb_index(meshes.size(), SIZE_MAX);
+  for (size_t i = 0; i < meshes.size(); ++i) {
+    if (meshes[i].triangles == 0) continue;
+    std::ifstream in(meshes[i].drc, std::ios::binary);
+    if (!in) return Status::error(meshes[i].drc.string() + ": cannot open the simplified mesh");
+    GlbMesh m;
+    m.name = stores.meshes[i].filename().string();
+    m.draco.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+    glb_index[i] = glb_meshes.size();
+    glb_meshes.push_back(std::move(m));
+  }
+  std::vector<GlbNode> nodes;
+  for (size_t o = 0; o < stores.objects.size(); ++o) {
+    const ProbeObject& obj = stores.objects[o];
+    if (glb_index[obj.store] == SIZE_MAX) continue;
+    nodes.push_back(GlbNode{"objects[" + std::to_string(o) + "]", glb_index[obj.store], obj.transform});
+  }
+  if (nodes.empty()) return Status::error(out.string() + ": no simplified mesh has triangles; nothing was exported");
+  return write_glb(out, glb_meshes, nodes);
+}
+
 StatusOr<RunResult> run_pipeline(Scene scene, const RunOptions& options, const LogFn& log) {
   RunResult result;
   const fs::path cache_dir = options.cache_dir.empty() ? default_cache_dir() : options.cache_dir;
@@ -445,6 +473,10 @@ StatusOr<RunResult> run_pipeline(Scene scene, const RunOptions& options, const L
     result.meshes.push_back(sm);
   }
   result.seconds.simplify = seconds_since(t_simplify);
+  if (!options.export_mesh.empty()) {
+    RAYLOD_ASSIGN_OR_RETURN(result.exported_bytes, export_simplified_glb(options.export_mesh, result.meshes, stores));
+    say(log, "exported the simplified meshes to " + options.export_mesh.string() + " (" + format_bytes(result.exported_bytes) + ")");
+  }
 
   // D. Render the simplified meshes. The stores' node tables and the trace
   // are not needed any more: the render gets their memory.

@@ -57,6 +57,7 @@ struct RunOptions {
   bool progress = true;
   int spp = 0;                        // 0 = the scene's
   int max_coarsening_steps = 12;      // K doubles per step when over memory
+  std::filesystem::path export_mesh;  // also write the simplified meshes here as .glb (empty: no)
 };
 
 struct StageTimes {
@@ -87,6 +88,7 @@ struct RunResult {
   bool cache_hit = false;             // every simplified mesh came from the cache
   uint64_t peak_rss = 0;
   std::vector<std::string> warnings;  // printed whatever the log level (meshes left out, ...)
+  uint64_t exported_bytes = 0;        // RunOptions::export_mesh's size
 };
 
 // Where the store of `mesh` lives: beside it (MESH.raylod) when that store is
@@ -97,6 +99,12 @@ std::filesystem::path store_path_for(const std::filesystem::path& mesh, const st
                                      const StoreOptions& options, std::string* note = nullptr);
 
 StatusOr<RunResult> run_pipeline(Scene scene, const RunOptions& options, const LogFn& log);
+
+// Writes the simplified meshes (their Draco bytes unchanged, so with the
+// .drc's quantisation) as one .glb: one glTF mesh per store with triangles,
+// one node per scene object using it, with the object's transform.
+StatusOr<uint64_t> export_simplified_glb(const std::filesystem::path& out, const std::vector<SimplifiedMesh>& meshes,
+                                          const SceneStores& stores);
 
 // JSON for --stats-json: triangles_in, triangles_out, seconds per stage,
 // peak memory, cache hit, and the render's own statistics.

@@ -10,6 +10,8 @@
 
 #include "core/system.h"
 #include "scene/default_scene.h"
+#include "streaming/gltf_io.h"
+#include "streaming/mesh_reader.h"
 
 namespace raylod {
 
@@ -209,6 +211,70 @@ Status parse_transform(const Parser& p, const json& j, const std::string& where,
   return {};
 }
 
+// A whole .gltf/.glb file (not one of its meshes, "FILE#meshes[N]").
+bool is_whole_gltf(const std::filesystem::path& mesh) {
+  const MeshRef ref = parse_mesh_ref(mesh);
+  auto format = mesh_format_from_extension(ref.file);
+  return ref.gltf_mesh < 0 && format && *format == MeshFormat::Gltf;
+}
+
+// The material of an object from a glTF mesh: the glTF material where raylod
+// has an equivalent (metallic 1 and roughness 0: a mirror, reflecting the
+// mean of baseColorFactor; a baseColorFactor other than white: the colour of
+// a diffuse or glossy scene material), else the scene object's material.
+int gltf_material(const SceneObject& obj, const std::filesystem::path& file, const GltfSummary& gltf, int index,
+                  std::vector<Material>& materials, std::map<std::string, int>& derived) {
+  if (index < 0) return obj.material;
+  const GltfMaterialInfo& g = gltf.materials[size_t(index)];
+  const Material& base = materials[size_t(obj.material)];
+  Material m = base;
+  if (g.mirror) {
+    m = Material{};
+    m.type = MaterialType::Mirror;
+    m.color = Vec3(0);
+    m.reflectance = (g.base_color.x + g.base_color.y + g.base_color.z) / 3.0f;
+  } else if (g.has_base_color && (base.type == MaterialType::Diffuse || base.type == MaterialType::Glossy)) {
+    m.color = g.base_color;
+  } else {
+    return obj.material;
+  }
+  const std::string key = (g.mirror ? std::string() : base.name) + "|" + file.string() + "|" + std::to_string(index);
+  if (auto it = derived.find(key); it != derived.end()) return it->second;
+  m.name = (g.mirror ? std::string() : base.name + "/") + file.filename().string() + ":" + g.name;
+  materials.push_back(m);
+  derived[key] = int(materials.size()) - 1;
+  return derived[key];
+}
+
+// A scene object naming a glTF file becomes one object per node instance of
+// a mesh in the file's default scene: mesh "FILE#meshes[N]" (one store per
+// glTF mesh, however many nodes use it), transform = the object's transform
+// times the node's global transform, material from gltf_material. Meshes
+// with no triangle primitive are left out.
+Status expand_gltf_object(const Parser& p, const SceneObject& obj, const std::string& where,
+                          std::vector<Material>& materials, std::map<std::string, int>& derived,
+                          std::vector<SceneObject>& out) {
+  auto described = describe_gltf(obj.mesh);
+  if (!described) return p.fail(where + ".mesh", described.status().message());
+  const GltfSummary& gltf = *described;
+  size_t added = 0;
+  for (const GltfInstance& inst : gltf.instances) {
+    const GltfMeshInfo& mesh = gltf.meshes[size_t(inst.mesh)];
+    if (mesh.triangle_primitives == 0) continue;
+    SceneObject o = obj;
+    o.mesh = gltf_mesh_path(obj.mesh, inst.mesh);
+    o.transform = obj.transform * inst.transform;
+    const double det = glm::determinant(glm::dmat3(o.transform));
+    if (!std::isfinite(det) || std::abs(det) < 1e-18)
+      return p.fail(where + ".mesh", obj.mesh.string() + ": " + inst.node + ": the transform is singular");
+    o.material = gltf_material(obj, obj.mesh, gltf, mesh.material, materials, derived);
+    out.push_back(o);
+    ++added;
+  }
+  if (added == 0) return p.fail(where + ".mesh", obj.mesh.string() + ": the default scene places no mesh with triangles");
+  return {};
+}
+
 Status parse_light(const Parser& p, const json& j, const std::string& where, Light& l) {
   RAYLOD_RETURN_IF_ERROR(p.known_keys(j, where, {"type", "position", "direction", "color", "intensity"}));
   const std::string type = j.contains("type") && j["type"].is_string() ? j["type"].get<std::string>() : "";
@@ -277,6 +343,7 @@ StatusOr<Scene> parse_scene(const std::string& text, const std::filesystem::path
     return {};
   };
 
+  std::map<std::string, int> gltf_materials;  // derived materials, by scene material and glTF file and material
   if (!j.contains("objects") || !j["objects"].is_array() || j["objects"].empty())
     return p.fail("objects", "expected an array with at least one object");
   for (size_t i = 0; i < j["objects"].size(); ++i) {
@@ -289,9 +356,9 @@ StatusOr<Scene> parse_scene(const std::string& text, const std::filesystem::path
     if (jm.is_string()) {
       std::filesystem::path mp = jm.get<std::string>();
       if (mp.is_relative()) mp = base_dir / mp;
-      if (Status st = check_regular_file(mp); !st) {
+      if (Status st = check_regular_file(parse_mesh_ref(mp).file); !st) {
         std::error_code ec;
-        if (!std::filesystem::exists(mp, ec)) return p.fail(where + ".mesh", "file not found: " + mp.string());
+        if (!std::filesystem::exists(parse_mesh_ref(mp).file, ec)) return p.fail(where + ".mesh", "file not found: " + mp.string());
         return p.fail(where + ".mesh", st.message());  // "m.ply: is a named pipe (FIFO), not a regular file"
       }
       obj.mesh = mp;
@@ -311,6 +378,10 @@ StatusOr<Scene> parse_scene(const std::string& text, const std::filesystem::path
     if (!jo.contains("material")) return p.fail(where, "missing 'material'");
     RAYLOD_RETURN_IF_ERROR(lookup_material(jo["material"], where + ".material", obj.material));
     if (jo.contains("transform")) RAYLOD_RETURN_IF_ERROR(parse_transform(p, jo["transform"], where + ".transform", obj.transform));
+    if (!obj.mesh.empty() && is_whole_gltf(obj.mesh)) {
+      RAYLOD_RETURN_IF_ERROR(expand_gltf_object(p, obj, where, scene.materials, gltf_materials, scene.objects));
+      continue;
+    }
     scene.objects.push_back(obj);
   }
 

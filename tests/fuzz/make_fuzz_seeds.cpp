@@ -11,6 +11,8 @@
 
 #include "streaming/cut_file.h"
 #include "streaming/draco_io.h"
+#include "streaming/gltf_io.h"
+#include "../streaming/gltf_test_util.h"
 #include "streaming/mesh_writer.h"
 #include "streaming/octree_store.h"
 
@@ -131,6 +133,44 @@ int main(int argc, char** argv) try {
   DracoOptions coarse;
   coarse.position_bits = 8;
   check(write_draco(out / "draco" / "grid.drc", indexed, coarse).status());
+
+  // glTF: a .glb as raylod writes it (a Draco primitive), a .gltf with a
+  // data URI (indexed triangles with normals, a strip, a node hierarchy) and
+  // a quantized .glb (KHR_mesh_quantization, a fan).
+  {
+    fs::create_directories(out / "gltf");
+    DracoOptions o;
+    auto encoded = encode_draco(out / "gltf" / "draco.glb", indexed, o);
+    check(encoded.status());
+    check(write_glb(out / "gltf" / "draco.glb", {GlbMesh{"grid", encoded.value().bytes}},
+                    {GlbNode{"grid", 0, glm::dmat4(1.0)}}).status());
+    test::GltfBuilder b;
+    std::vector<Vec3> p(small.positions.begin(), small.positions.end()), n(small.normals.begin(), small.normals.end());
+    const int pos = b.positions(p);
+    std::vector<float> nf;
+    for (const Vec3& v : n) nf.insert(nf.end(), {v.x, v.y, v.z});
+    const int nrm = b.accessor(nf, test::kFloat, "VEC3", n.size());
+    std::vector<uint16_t> idx;
+    for (size_t i = 0; i < p.size(); ++i) idx.push_back(uint16_t(i));
+    const int ind = b.accessor(idx, test::kUShort, "SCALAR", idx.size());
+    b.mesh({test::GltfBuilder::primitive(pos, ind, 4, nrm), test::GltfBuilder::primitive(pos, -1, 5)}, "grid");
+    b.doc["nodes"] = nlohmann::json::array({{{"translation", {1, 2, 3}}, {"children", {1}}},
+                                            {{"mesh", 0}, {"rotation", {0, 0.6, 0, 0.8}}, {"scale", {2, 1, 1}}}});
+    b.doc["scenes"] = nlohmann::json::array({{{"nodes", {0}}}});
+    b.doc["materials"] = nlohmann::json::array({{{"pbrMetallicRoughness", {{"baseColorFactor", {0.5, 0.2, 0.1, 1}}}}}});
+    b.doc["meshes"][0]["primitives"][0]["material"] = 0;
+    write_bytes(out / "gltf" / "hierarchy.gltf", b.gltf());
+    test::GltfBuilder q;
+    const int qp = q.accessor(std::vector<int16_t>{0, 0, 0, 0, 32767, 0, 0, 0, 0, 32767, 0, 0, 32767, 32767, 0, 0},
+                              test::kShort, "VEC3", 4, true);
+    q.doc["bufferViews"][0]["byteStride"] = 8;
+    q.mesh({test::GltfBuilder::primitive(qp, -1, 6)});
+    q.doc["extensionsUsed"] = {"KHR_mesh_quantization"};
+    q.doc["extensionsRequired"] = {"KHR_mesh_quantization"};
+    q.doc["nodes"] = nlohmann::json::array({{{"mesh", 0}, {"scale", {10, 10, 10}}}});
+    q.doc["scenes"] = nlohmann::json::array({{{"nodes", {0}}}});
+    write_bytes(out / "gltf" / "quantized.glb", q.glb());
+  }
 
   // Store: built from a grid PLY with small pages, so that it has several levels and pages.
   // The first byte of a store or cut seed is the target's mode (0 as is, 1 checksums repaired).
