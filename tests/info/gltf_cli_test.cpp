@@ -12,28 +12,17 @@
 #include <fstream>
 #include <string>
 
+#include "run_command.h"
 #include "test_tmp.h"
 
 namespace {
 
 namespace fs = std::filesystem;
 
-struct CommandResult {
-  int status = -1;
-  std::string out;  // stdout and stderr
-};
+using raylod::test::CommandResult;
 
-CommandResult shell(const std::string& cmd) {
-  CommandResult r;
-  std::FILE* p = ::popen((cmd + " 2>&1").c_str(), "r");
-  if (!p) return r;
-  char buf[4096];
-  size_t n;
-  while ((n = std::fread(buf, 1, sizeof buf, p)) > 0) r.out.append(buf, n);
-  const int st = ::pclose(p);
-  r.status = WIFEXITED(st) ? WEXITSTATUS(st) : -1;
-  return r;
-}
+CommandResult shell(const std::string& cmd) { return raylod::test::run_command(cmd); }
+
 CommandResult raylod(const std::string& args) { return shell(std::string(RAYLOD_EXE) + " " + args); }
 
 fs::path scratch() { return raylod::test::scratch_dir("gltf-cli"); }

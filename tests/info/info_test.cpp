@@ -10,28 +10,17 @@
 #include <string>
 #include <utility>
 
+#include "run_command.h"
 #include "test_tmp.h"
 
 namespace {
 
-struct CommandResult {
-  int status = -1;
-  std::string out;  // stdout and stderr
-};
+using raylod::test::CommandResult;
 
 // timeout_s > 0 runs raylod under timeout(1), which exits with 124 if it hangs.
 CommandResult run(const std::string& args, int timeout_s = 0) {
-  CommandResult r;
   const std::string limit = timeout_s > 0 ? "timeout " + std::to_string(timeout_s) + " " : "";
-  const std::string cmd = limit + std::string(RAYLOD_EXE) + " " + args + " 2>&1";
-  std::FILE* p = ::popen(cmd.c_str(), "r");
-  if (!p) return r;
-  char buf[4096];
-  size_t n;
-  while ((n = std::fread(buf, 1, sizeof buf, p)) > 0) r.out.append(buf, n);
-  const int st = ::pclose(p);
-  r.status = WIFEXITED(st) ? WEXITSTATUS(st) : -1;
-  return r;
+  return raylod::test::run_command(limit + std::string(RAYLOD_EXE) + " " + args);
 }
 
 std::filesystem::path scratch() {

@@ -13,6 +13,7 @@
 #include "core/memory_budget.h"
 #include "core/system.h"
 #include "streaming/octree_store.h"
+#include "run_command.h"
 #include "test_tmp.h"
 
 namespace raylod {
@@ -20,15 +21,7 @@ namespace {
 
 namespace fs = std::filesystem;
 
-int run(const std::string& args, std::string& out) {
-  std::FILE* p = ::popen((std::string(RAYLOD_EXE) + " " + args + " 2>&1").c_str(), "r");
-  if (!p) return -1;
-  char buf[4096];
-  size_t n;
-  while ((n = std::fread(buf, 1, sizeof buf, p)) > 0) out.append(buf, n);
-  const int st = ::pclose(p);
-  return WIFEXITED(st) ? WEXITSTATUS(st) : -1;
-}
+int run(const std::string& args, std::string& out) { return test::run_raylod(args, out); }
 
 std::string read_bytes(const fs::path& p) {
   std::ifstream in(p, std::ios::binary);

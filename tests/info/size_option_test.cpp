@@ -12,6 +12,7 @@
 #include <string>
 
 #include "core/system.h"
+#include "run_command.h"
 #include "test_tmp.h"
 
 namespace raylod {
@@ -55,15 +56,7 @@ TEST(SizeOption, RejectsFractionsZeroOverflowAndJunk) {
   }
 }
 
-int run(const std::string& args, std::string& out) {
-  std::FILE* p = ::popen((std::string(RAYLOD_EXE) + " " + args + " 2>&1").c_str(), "r");
-  if (!p) return -1;
-  char buf[4096];
-  size_t n;
-  while ((n = std::fread(buf, 1, sizeof buf, p)) > 0) out.append(buf, n);
-  const int st = ::pclose(p);
-  return WIFEXITED(st) ? WEXITSTATUS(st) : -1;
-}
+int run(const std::string& args, std::string& out) { return test::run_raylod(args, out); }
 
 TEST(SizeOption, BadMemoryLimitFailsTheCommandAndWritesNothing) {
   const fs::path dir = test::scratch_dir("size-option");

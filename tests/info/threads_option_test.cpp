@@ -9,6 +9,7 @@
 #include <fstream>
 #include <string>
 
+#include "run_command.h"
 #include "test_tmp.h"
 
 namespace raylod {
@@ -16,15 +17,7 @@ namespace {
 
 namespace fs = std::filesystem;
 
-int run(const std::string& args, std::string& out) {
-  std::FILE* p = ::popen((std::string(RAYLOD_EXE) + " " + args + " 2>&1").c_str(), "r");
-  if (!p) return -1;
-  char buf[4096];
-  size_t n;
-  while ((n = std::fread(buf, 1, sizeof buf, p)) > 0) out.append(buf, n);
-  const int st = ::pclose(p);
-  return WIFEXITED(st) ? WEXITSTATUS(st) : -1;
-}
+int run(const std::string& args, std::string& out) { return test::run_raylod(args, out); }
 
 struct Tiny {
   fs::path dir = test::scratch_dir("threads-option");
