@@ -164,6 +164,9 @@ int run_simplify(int argc, char** argv) {
               ull(r.cut_cells), ull(r.cut_cells_missing), ull(r.clamped_representatives));
   std::printf("  dropped    %llu collapsed, %llu zero-area, %llu duplicate; %llu reverse-wound twins kept\n",
               ull(s.dropped_collapsed), ull(s.dropped_zero_area), ull(s.dropped_duplicate), ull(s.reverse_twins));
+  if (r.fold_passes || s.folded)
+    std::printf("  folds      %llu cells refined in %llu more passes for triangles turned over; %llu turned over left\n",
+                ull(r.fold_cells_refined), ull(r.fold_passes), ull(s.folded));
   if (s.normal_fallbacks) std::printf("  normals    %llu fell back (merged normals cancelled; the quadric's normal used)\n", ull(s.normal_fallbacks));
   std::printf("%s", quantisation.c_str());
   std::printf("  bytes      %llu (%s)\n", ull(bytes), format_bytes(bytes).c_str());

@@ -150,7 +150,7 @@ constexpr uint32_t kRepresentativeClusters = 64;
 CollapseBuilder::CollapseBuilder(std::span<const Representative> reps, bool input_has_normals,
                                  double crease_angle_deg)
     : reps_(reps), has_normals_(input_has_normals), cos_crease_(crease_cosine(crease_angle_deg)),
-      clusters_(reps.size()) {
+      clusters_(reps.size()), folding_(reps.size(), 0) {
   rep_pos_.reserve(reps.size());
   for (const auto& r : reps) rep_pos_.push_back(Vec3(r.position));
   table_.assign(1024, kKeepVertex);
@@ -236,6 +236,14 @@ void CollapseBuilder::add(const TriangleBatch& batch, std::span<const uint32_t> 
     if (id[0] == id[1] || id[1] == id[2] || id[0] == id[2]) { ++stats_.dropped_collapsed; continue; }
     auto pos = [&](uint32_t i) -> const Vec3& { return i < nreps ? rep_pos_[i] : kept_pos_[i - nreps]; };
     if (zero_area(pos(id[0]), pos(id[1]), pos(id[2]))) { ++stats_.dropped_zero_area; continue; }
+    if ((id[0] < nreps || id[1] < nreps || id[2] < nreps) && area2 > 0) {
+      const Vec3d out = glm::cross(Vec3d(pos(id[1])) - Vec3d(pos(id[0])), Vec3d(pos(id[2])) - Vec3d(pos(id[0])));
+      if (glm::dot(out, face) <= 0) {
+        ++stats_.folded;
+        for (uint32_t v : id)
+          if (v < nreps) folding_[v] = 1;
+      }
+    }
     tris_.push_back(id);
     keys_.push_back(Vec3(face));
   }
@@ -345,38 +353,16 @@ SimplifyEstimate estimate_simplify(const OctreeStore& store, const Cut& cut) {
   return e;
 }
 
-StatusOr<SimplifyResult> simplify(const OctreeStore& store, const Cut& cut, const SimplifyConfig& config) {
-  const auto start = std::chrono::steady_clock::now();
+namespace {
+
+// One pass over the store's pages collapsing `keys` (cells the store has
+// nodes for) to `reps`.
+Status collapse_pass(const OctreeStore& store, std::span<const CellKey> keys, std::span<const Representative> reps,
+                     const SimplifyConfig& config, const SimplifyEstimate& estimate, CollapseBuilder& builder,
+                     uint64_t& pages_read) {
   const StoreHeader& h = store.header();
-  SimplifyResult result;
-  result.cut_cells = cut.cells.size();
-
-  if (config.memory_limit) {
-    const SimplifyEstimate e = estimate_simplify(store, cut);
-    if (e.bytes > config.memory_limit)
-      return Status::error("the simplified mesh (about " + std::to_string(e.triangles) + " triangles) needs about " +
-                           format_bytes(e.bytes) + ", over the memory limit of " + format_bytes(config.memory_limit) +
-                           "; raise --memory-limit or collapse more cells");
-  }
-
-  // Representatives of the cut cells the store has nodes for.
-  std::vector<CellKey> keys;
-  std::vector<Representative> reps;
-  keys.reserve(cut.cells.size());
-  reps.reserve(cut.cells.size());
-  for (const auto& c : cut.cells) {
-    const NodeRecord* node = c.key.level <= uint32_t(h.quadric_depth) ? store.find(c.key) : nullptr;
-    if (!node) { ++result.cut_cells_missing; continue; }
-    keys.push_back(c.key);
-    reps.push_back(make_representative(*node, store.cell_bounds(c.key), h.origin, config.qem));
-    if (reps.back().clamped) ++result.clamped_representatives;
-  }
   const CutLookup lookup(h.root_lo, h.root_size, keys);
-  CollapseBuilder builder(reps, h.has_normals, config.crease_angle_deg);
-  {
-    const SimplifyEstimate e = estimate_simplify(store, cut);
-    builder.reserve(e.vertices + e.vertices / 4, e.triangles);
-  }
+  builder.reserve(estimate.vertices + estimate.vertices / 4, estimate.triangles);
   // Consecutive corners in a page are close, and each vertex is shared by
   // about six triangles: a small direct-mapped cache of code -> cut cell
   // saves most of the hash lookups (one per level of the cut).
@@ -391,7 +377,7 @@ StatusOr<SimplifyResult> simplify(const OctreeStore& store, const Cut& cut, cons
   std::vector<uint32_t> cells;
   for (size_t i = 0; i < pages.size(); ++i) {
     RAYLOD_RETURN_IF_ERROR(store.read_page(i, batch));
-    ++result.pages_read;
+    ++pages_read;
     cells.resize(batch.positions.size());
     for (size_t k = 0; k < batch.positions.size(); ++k) {
       const uint64_t code = lookup.code_of(Vec3d(batch.positions[k]));
@@ -411,7 +397,71 @@ StatusOr<SimplifyResult> simplify(const OctreeStore& store, const Cut& cut, cons
     if (progress) progress->advance(1);
   }
   if (progress) progress->finish();
-  result.mesh = builder.finish(&result.stats);
+  return Status::ok();
+}
+
+}  // namespace
+
+StatusOr<SimplifyResult> simplify(const OctreeStore& store, const Cut& cut, const SimplifyConfig& config) {
+  const auto start = std::chrono::steady_clock::now();
+  const StoreHeader& h = store.header();
+  SimplifyResult result;
+  result.cut_cells = cut.cells.size();
+
+  const SimplifyEstimate estimate = estimate_simplify(store, cut);
+  if (config.memory_limit && estimate.bytes > config.memory_limit)
+    return Status::error("the simplified mesh (about " + std::to_string(estimate.triangles) + " triangles) needs about " +
+                         format_bytes(estimate.bytes) + ", over the memory limit of " +
+                         format_bytes(config.memory_limit) + "; raise --memory-limit or collapse more cells");
+
+  // Representatives of the cut cells the store has nodes for.
+  std::vector<CellKey> keys;
+  std::vector<Representative> reps;
+  keys.reserve(cut.cells.size());
+  reps.reserve(cut.cells.size());
+  auto add_cell = [&](const CellKey& key, const NodeRecord& node) {
+    keys.push_back(key);
+    reps.push_back(make_representative(node, store.cell_bounds(key), h.origin, config.qem));
+  };
+  for (const auto& c : cut.cells) {
+    const NodeRecord* node = c.key.level <= uint32_t(h.quadric_depth) ? store.find(c.key) : nullptr;
+    if (!node) { ++result.cut_cells_missing; continue; }
+    add_cell(c.key, *node);
+  }
+  for (int pass = 0;; ++pass) {
+    CollapseBuilder builder(reps, h.has_normals, config.crease_angle_deg);
+    RAYLOD_RETURN_IF_ERROR(collapse_pass(store, keys, reps, config, estimate, builder, result.pages_read));
+    const std::vector<uint8_t>& folding = builder.folding();
+    const bool folds = std::find(folding.begin(), folding.end(), uint8_t(1)) != folding.end();
+    if (!folds || pass >= config.fold_passes) {
+      result.mesh = builder.finish(&result.stats);
+      break;
+    }
+    // Each folding cell gives way to its children (the cut stays an
+    // antichain: children of a cut cell are in no other cut cell).
+    std::vector<CellKey> next_keys;
+    std::vector<Representative> next_reps;
+    for (size_t i = 0; i < keys.size(); ++i) {
+      if (!folding[i]) {
+        next_keys.push_back(keys[i]);
+        next_reps.push_back(reps[i]);
+        continue;
+      }
+      ++result.fold_cells_refined;
+      if (keys[i].level >= uint32_t(h.quadric_depth)) continue;
+      for (uint64_t c = 0; c < 8; ++c) {
+        const CellKey child{keys[i].level + 1, (keys[i].code << 3) | c};
+        if (const NodeRecord* node = store.find(child)) {
+          next_keys.push_back(child);
+          next_reps.push_back(make_representative(*node, store.cell_bounds(child), h.origin, config.qem));
+        }
+      }
+    }
+    keys.swap(next_keys);
+    reps.swap(next_reps);
+    ++result.fold_passes;
+  }
+  for (const Representative& r : reps) result.clamped_representatives += r.clamped;
   result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return result;
 }

@@ -100,6 +100,7 @@ struct CollapseStats {
   uint64_t kept_vertices = 0;         // distinct kept vertices (before splitting by normal)
   uint64_t split_vertices = 0;        // extra output vertices for corners with their own normal
   uint64_t normal_fallbacks = 0;      // corners whose normals cancelled (quadric's normal or +Y used)
+  uint64_t folded = 0;                // kept triangles turned over: facing against their input triangle
   uint64_t peak_bytes = 0;          // largest memory_bytes() seen
 };
 
@@ -121,6 +122,8 @@ class CollapseBuilder {
   // Bytes held by the mesh under construction (capacity of its buffers).
   uint64_t memory_bytes() const;
   uint64_t triangles() const { return tris_.size(); }
+  // Per representative: 1 if a triangle using it came out turned over.
+  const std::vector<uint8_t>& folding() const { return folding_; }
 
  private:
   uint32_t kept_vertex(const Vec3& p, const Vec3& n);
@@ -135,6 +138,7 @@ class CollapseBuilder {
   std::vector<uint32_t> table_;          // open addressing into kept_*, kKeepVertex = empty
   std::vector<std::array<uint32_t, 3>> tris_;  // provisional ids: reps first, then kept
   std::vector<Vec3> keys_;               // per triangle: its input triangle's unit normal (crease key)
+  std::vector<uint8_t> folding_;         // per representative
   CollapseStats stats_;
 };
 
@@ -149,6 +153,9 @@ struct SimplifyConfig {
   // Memory the simplified mesh may use while it is built (bytes); 0 = no limit.
   uint64_t memory_limit = 0;
   bool progress = false;  // show a progress bar over the store's pages
+  // Passes that replace a cell whose representative turns a triangle over
+  // by its children (a finest cell is kept instead); 0 = collapse the cut as given.
+  int fold_passes = 3;
 };
 
 struct SimplifyEstimate {
@@ -168,11 +175,19 @@ struct SimplifyResult {
   uint64_t cut_cells = 0;
   uint64_t cut_cells_missing = 0;     // cut cells the store has no node for (ignored)
   uint64_t clamped_representatives = 0;
+  uint64_t fold_passes = 0;           // extra passes over the pages to undo folds
+  uint64_t fold_cells_refined = 0;    // cut cells replaced by their children (or kept) for a fold
   uint64_t pages_read = 0;
   double seconds = 0;
 };
 
-// Streams the store's pages once and collapses the cut. Fails before reading
+// Streams the store's pages and collapses the cut. Vertex clustering can
+// turn a triangle over where a large collapsed cell meets finer geometry: its
+// representative lands on the far side of a thin triangle's other corners.
+// A turned-over triangle faces against its input and shows as a sparkle
+// through glass or a dark seam on a mirror, so each such cell is replaced by
+// its children in the store (a finest cell is not collapsed) and the pages
+// are streamed again, at most config.fold_passes times. Fails before reading
 // any page if the estimate exceeds config.memory_limit, and during the pass if
 // the mesh under construction does.
 StatusOr<SimplifyResult> simplify(const OctreeStore& store, const Cut& cut, const SimplifyConfig& config = {});

@@ -94,6 +94,27 @@ TEST(CollapseBuilder, DropsCollapsedZeroAreaAndDuplicateTrianglesButKeepsReverse
   }
 }
 
+TEST(CollapseBuilder, FlagsTheRepresentativesOfTrianglesTurnedOver) {
+  // Two triangles facing +z; corner c of the first moves to a representative
+  // below edge ab (turned over, now facing -z), corner f of the second to
+  // one that keeps it facing +z.
+  TriangleBatch soup;
+  add_tri(soup, {0, 0, 0}, {1, 0, 0}, {0, 1, 0});
+  add_tri(soup, {5, 0, 0}, {6, 0, 0}, {5, 1, 0});
+  std::vector<Representative> reps(2);
+  reps[0].position = Vec3d(0.5, -1, 0);
+  reps[1].position = Vec3d(5.2, 0.8, 0);
+  CollapseBuilder b(reps, false);
+  b.add(soup, std::vector<uint32_t>{kKeepVertex, kKeepVertex, 0, kKeepVertex, kKeepVertex, 1});
+  ASSERT_EQ(b.folding().size(), 2u);
+  EXPECT_EQ(b.folding()[0], 1);
+  EXPECT_EQ(b.folding()[1], 0);
+  CollapseStats st;
+  const IndexedMesh m = b.finish(&st);
+  EXPECT_EQ(m.triangle_count(), 2u);
+  EXPECT_EQ(st.folded, 1u);
+}
+
 TEST(CollapseBuilder, ReserveMidStreamKeepsTheVerticesFoundSoFar) {
   const TriangleBatch sphere = test::uv_sphere({0, 0, 0}, 1.0f, 12, 16);
   TriangleBatch first, second;

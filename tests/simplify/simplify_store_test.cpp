@@ -2,6 +2,9 @@
 // simplify(), and the Draco output of the result.
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <set>
+
 #include "core/progress.h"
 #include "octree/octree_test_util.h"
 #include "simplify/collapse.h"
@@ -13,6 +16,8 @@
 
 namespace raylod {
 namespace {
+
+using test::add_tri;
 
 struct BuiltStore {
   std::unique_ptr<OctreeStore> store;
@@ -91,6 +96,42 @@ TEST(SimplifyStore, UniformCutEqualsReferenceClustering) {
       expect_meshes_match(result->mesh, ref, 1e-5f);
     }
   }
+}
+
+// A collapsed cell whose representative lands beyond a thin triangle's other
+// corners turns that triangle over; a thin glass wall (two concentric spheres
+// 0.06 apart, the inner one facing inwards) collapsed at cells about as large
+// as the wall is thick does so. simplify() replaces such cells by their
+// children until no triangle faces against its input triangle.
+TEST(SimplifyStore, CellsThatTurnTrianglesOverAreRefined) {
+  TriangleBatch shell = test::uv_sphere({0, 0, 0}, 1.0f, 96, 160);
+  const TriangleBatch inner = test::uv_sphere({0, 0, 0}, 0.94f, 96, 160);
+  for (size_t t = 0; t < inner.size(); ++t)
+    add_tri(shell, inner.positions[3 * t], inner.positions[3 * t + 2], inner.positions[3 * t + 1]);
+  shell.normals.clear();  // positions only, as an STL gives them
+  BuiltStore b = build(shell, "folds");
+  ASSERT_TRUE(b.store);
+  const int level = 5;
+  Cut cut;
+  for (const NodeRecord& n : b.store->level(level))
+    if (b.store->cell_bounds({uint32_t(level), n.code}).lo.y >= 0.3) cut.cells.push_back({{uint32_t(level), n.code}, 0.05f, 1});
+  ASSERT_GT(cut.cells.size(), 100u);
+  SimplifyConfig as_given;
+  as_given.fold_passes = 0;
+  auto raw = simplify(*b.store, cut, as_given);
+  ASSERT_TRUE(raw.is_ok()) << raw.status().message();
+  ASSERT_GT(raw->stats.folded, 0u) << "the case must turn triangles over to test anything";
+  EXPECT_EQ(raw->fold_passes, 0u);
+
+  auto fixed = simplify(*b.store, cut);
+  ASSERT_TRUE(fixed.is_ok()) << fixed.status().message();
+  EXPECT_EQ(fixed->stats.folded, 0u);
+  EXPECT_GT(fixed->fold_passes, 0u);
+  EXPECT_GT(fixed->fold_cells_refined, 0u);
+  EXPECT_EQ(fixed->pages_read, (fixed->fold_passes + 1) * b.store->pages().size());
+  // Refined only where folds were: still fewer triangles than the input.
+  EXPECT_LT(fixed->mesh.triangle_count(), shell.size());
+  EXPECT_GE(fixed->mesh.triangle_count(), raw->mesh.triangle_count());
 }
 
 TEST(SimplifyStore, MixedCutKeepsOtherTrianglesExactly) {
