@@ -58,6 +58,8 @@ int run_simplify(int argc, char** argv) {
              {"--speed", "", "Draco: encoder speed 0 (smallest) .. 10 (fastest) (default 5)", true, "S"},
              {"--crease-angle", "", "normals: facets meeting at more than DEG degrees keep separate\n"
                                     "                              normals (default 30, as the scene's crease_angle)", true, "DEG"},
+             {"--fold-passes", "", "passes that refine cells whose collapse turns a triangle over\n"
+                                   "                              (default 0; raylod run uses 3 on mirror and glass meshes)", true, "N"},
              {"--quiet", "-q", "no progress bar", false, ""}});
   if (Status st = args.parse(argc, argv); !st) return fail("simplify", st);
   if (args.help_requested()) {
@@ -79,6 +81,8 @@ int run_simplify(int argc, char** argv) {
   if (!normal_bits) return fail("simplify", normal_bits.status());
   auto speed = args.get_int("--speed", 5, 0, 10);
   if (!speed) return fail("simplify", speed.status());
+  auto fold_passes = args.get_int("--fold-passes", 0, 0, 64);
+  if (!fold_passes) return fail("simplify", fold_passes.status());
   auto position_error = args.get_double("--position-error", 0);
   if (!position_error) return fail("simplify", position_error.status());
   if (*position_error < 0) return fail("simplify", Status::error("--position-error must be positive"));
@@ -110,6 +114,7 @@ int run_simplify(int argc, char** argv) {
   SimplifyConfig config;
   config.crease_angle_deg = *crease;
   config.memory_limit = limit->total;
+  config.fold_passes = *fold_passes;
   config.progress = !args.has("--quiet");
   auto result = simplify(**store, *cut, config);
   if (!result) return fail("simplify", result.status().with_context(store_path.string()));

@@ -118,12 +118,22 @@ double shading_normal_tolerance(const Scene& scene) {
   return tolerance;
 }
 
+int fold_passes_for(const Scene& scene, std::span<const ProbeObject> objects, size_t store) {
+  for (const ProbeObject& o : objects) {
+    if (o.store != store) continue;
+    const Material& m = scene.materials[size_t(o.material)];
+    if (m.refracts() || (m.reflects() && m.reflectance > 0)) return kSpecularFoldPasses;
+  }
+  return 0;
+}
+
 StatusOr<SimplifiedMesh> simplify_cut_to_draco(const OctreeStore& store, const Cut& cut, const fs::path& out,
                                                uint64_t memory_limit, double max_normal_error, bool progress,
-                                               double* seconds, double crease_angle_deg) {
+                                               double* seconds, double crease_angle_deg, int fold_passes) {
   auto t0 = std::chrono::steady_clock::now();
   SimplifyConfig sc;
   sc.crease_angle_deg = crease_angle_deg;
+  sc.fold_passes = fold_passes;
   sc.memory_limit = memory_limit;
   sc.progress = progress;
   RAYLOD_ASSIGN_OR_RETURN(SimplifyResult simplified, simplify(store, cut, sc));
@@ -426,7 +436,8 @@ StatusOr<RunResult> run_pipeline(Scene scene, const RunOptions& options, const L
       fs::path staged = staged_in(scratch);
       auto simplify_store = [&] {
         return simplify_cut_to_draco(*stores.stores[i], cut, staged, memory_limit, shading_normal_tolerance(scene),
-                                     options.progress, nullptr, scene.crease_angle_deg);
+                                     options.progress, nullptr, scene.crease_angle_deg,
+                                     fold_passes_for(scene, stores.objects, i));
       };
       auto simplified = simplify_store();
       if (!simplified.is_ok() && cache && staged_write_refused(simplified.status(), staged)) {

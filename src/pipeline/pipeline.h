@@ -10,6 +10,7 @@
 #include <functional>
 #include <memory>
 #include <optional>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -125,7 +126,11 @@ StatusOr<ProbeConfig> make_probe_config(const Scene& scene, uint64_t rays, doubl
 StatusOr<SimplifiedMesh> simplify_cut_to_draco(const OctreeStore& store, const Cut& cut, const std::filesystem::path& out,
                                                uint64_t memory_limit /* 0 = no limit */, double max_normal_error, bool progress,
                                                double* seconds = nullptr,
-                                               double crease_angle_deg = kDefaultCreaseAngleDeg);
+                                               double crease_angle_deg = kDefaultCreaseAngleDeg,
+                                               int fold_passes = 0);
+// SimplifyConfig::fold_passes for store `store` of a scene: kSpecularFoldPasses
+// if a mirror or glass object uses it, else 0.
+int fold_passes_for(const Scene& scene, std::span<const ProbeObject> objects, size_t store);
 
 // Whether a failed simplify_cut_to_draco into `staged` means the disk refused
 // that file (full, read-only, gone): a typed write failure (Status::code) of

@@ -452,7 +452,8 @@ StatusOr<ReportResult> run_report(const Scene& input_scene, const std::optional<
       RAYLOD_ASSIGN_OR_RETURN(SimplifiedMesh sm,
                               simplify_cut_to_draco(store, probe.cuts[0], drc, memory_limit,
                                                     shading_normal_tolerance(run.scene), false, &row.simplify_s,
-                                                    run.scene.crease_angle_deg));
+                                                    run.scene.crease_angle_deg,
+                                                    fold_passes_for(run.scene, stores.objects, 0)));
       row.triangles = sm.triangles;
       row.drc_bytes = sm.drc_bytes;
       RenderOptions o = ro;

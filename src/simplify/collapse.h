@@ -147,6 +147,8 @@ class CollapseBuilder {
 inline constexpr uint64_t kCollapseBytesPerTriangle = 12 + 12 + 4 + 12 + 12 + 12;
 inline constexpr uint64_t kCollapseBytesPerVertex = 12 + 12 + 8 + 4 + 2 * sizeof(NormalCluster) + 24 + 8;
 
+inline constexpr int kSpecularFoldPasses = 3;
+
 struct SimplifyConfig {
   QemSolveConfig qem;
   double crease_angle_deg = kDefaultCreaseAngleDeg;  // the normal rule (geometry/crease_normals.h)
@@ -154,8 +156,11 @@ struct SimplifyConfig {
   uint64_t memory_limit = 0;
   bool progress = false;  // show a progress bar over the store's pages
   // Passes that replace a cell whose representative turns a triangle over
-  // by its children (a finest cell is kept instead); 0 = collapse the cut as given.
-  int fold_passes = 3;
+  // by its children (a finest cell is kept instead); 0 = collapse the cut as
+  // given. The pipeline asks for kSpecularFoldPasses on meshes with a mirror
+  // or glass material: a turned-over triangle shows there as a sparkle, while
+  // opaque shading is two-sided and hides it.
+  int fold_passes = 0;
 };
 
 struct SimplifyEstimate {

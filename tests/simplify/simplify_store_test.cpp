@@ -123,7 +123,9 @@ TEST(SimplifyStore, CellsThatTurnTrianglesOverAreRefined) {
   ASSERT_GT(raw->stats.folded, 0u) << "the case must turn triangles over to test anything";
   EXPECT_EQ(raw->fold_passes, 0u);
 
-  auto fixed = simplify(*b.store, cut);
+  SimplifyConfig refine;
+  refine.fold_passes = kSpecularFoldPasses;
+  auto fixed = simplify(*b.store, cut, refine);
   ASSERT_TRUE(fixed.is_ok()) << fixed.status().message();
   EXPECT_EQ(fixed->stats.folded, 0u);
   EXPECT_GT(fixed->fold_passes, 0u);
