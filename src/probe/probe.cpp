@@ -18,7 +18,6 @@
 #include "core/progress.h"
 #include "core/system.h"
 #include "geometry/collapse_deviation.h"
-#include "geometry/optics.h"
 #include "probe/store_tracer.h"
 #include "scene/scene_camera.h"
 
@@ -92,29 +91,7 @@ struct PathRay {
   int skip_object = kNoObject;
   TriangleRef skip_ref;
   int32_t parent = -1;  // the mesh hit (index into the ray's hits) this ray leaves, or -1
-  int32_t from = -1;    // the event (mesh or ground hit) this ray leaves, or -1 for the camera
-  double weight = 1;    // path throughput so far (largest channel)
-  double turn = 0;      // how far a normal tilt at `from` turns this ray, per radian of tilt
 };
-
-// A surface the test ray reached, mesh or ground: what a direction error made
-// at an earlier surface of its path is compared with.
-struct PathEvent {
-  int32_t from = -1;   // the event whose ray reached this one, or -1
-  int32_t hit = -1;    // index into the ray's mesh hits, or -1 for the ground
-  double path = 0;     // path length from the camera
-  double footprint = 0;  // ||dP|| here, world units
-  double weight = 1;   // path throughput here (largest channel)
-  double turn = 0;     // the reaching ray's turn per radian of normal tilt at `from`
-};
-
-// How far the refracted direction turns per radian of normal tilt, the larger
-// of the two tilt axes: in the plane of incidence |1 - eta cos_i / cos_t|, about
-// an axis in it |eta cos_i - cos_t| (t = eta d + (eta cos_i - cos_t) n).
-double refraction_turn(double cos_i, double cos_t, double eta) {
-  if (!(cos_t > 0)) return kInf;
-  return std::max(std::abs(1.0 - eta * cos_i / cos_t), std::abs(eta * cos_i - cos_t));
-}
 
 struct WorldHit {
   double t = kInf;
@@ -169,7 +146,6 @@ class ProbeTracer {
     // The ray's own pixel angle: its beam widens by this per unit of path.
     const double beam = std::min(glm::length(first.rd.dd_dx), glm::length(first.rd.dd_dy));
     std::vector<PathRay> stack{first};
-    std::vector<PathEvent> events;
     while (!stack.empty()) {
       PathRay pr = std::move(stack.back());
       stack.pop_back();
@@ -205,12 +181,6 @@ class ProbeTracer {
       RayDifferential r = pr.rd;
       transfer(r, wh.t, sp.geometric_normal, config_.limits);
       const double path = pr.path_length + wh.t;
-      PathEvent ev;
-      ev.from = pr.from;
-      ev.path = path;
-      ev.footprint = r.has_differentials ? footprint(r) : beam * path;
-      ev.weight = pr.weight;
-      ev.turn = pr.turn;
 
       if (wh.object == kGround) {
         ++out.counters.v[ProbeRayCounters::hits_ground];
@@ -230,17 +200,20 @@ class ProbeTracer {
           ++out.counters.v[ProbeRayCounters::dropped];
         }
         h.parent = pr.parent;
-        h.path = path;
-        h.weight = pr.weight;
-        h.turn = pr.turn;
-        ev.hit = int32_t(out.hits.size());
         out.hits.push_back(h);
       }
-      events.push_back(ev);
 
       const Material& mat = scene_.materials[size_t(material)];
+      if (wh.object != kGround && mat.reflects()) {
+        // How finely the rays leaving this surface resolve directions: a
+        // normal tilt shows once it turns them by more than this.
+        const RayDifferential out_rd = reflect(r, sp, config_.limits);
+        out.hits.back().angular = out_rd.has_differentials
+                                      ? std::max(glm::length(out_rd.dd_dx), glm::length(out_rd.dd_dy))
+                                      : beam;
+      }
       if (pr.depth >= scene_.max_depth) continue;
-      auto spawn = [&](const RayDifferential& next, Kind kind, double weight, double turn) {
+      auto spawn = [&](const RayDifferential& next, Kind kind) {
         PathRay s;
         s.rd = next;
         s.depth = pr.depth + 1;
@@ -249,51 +222,31 @@ class ProbeTracer {
         s.skip_object = wh.object;
         s.skip_ref = wh.tri.ref;
         s.parent = wh.object != kGround ? int32_t(out.hits.size() - 1) : pr.parent;
-        s.from = int32_t(events.size() - 1);
-        s.weight = pr.weight * weight;
-        s.turn = turn;
         stack.push_back(std::move(s));
       };
-      // The renderer's weights (render/integrator.cpp scatter_specular): a
-      // mirror's reflectance, the glass's Fresnel terms and its tint on the way in.
       if (mat.refracts()) {
         Refraction rf = refract(r, sp, mat.ior, config_.limits);
         if (rf.total_internal_reflection) {
           ++out.counters.v[ProbeRayCounters::tir];
-          spawn(rf.ray, kReflection, 1.0, 2.0);
+          spawn(rf.ray, kReflection);
         } else {
-          const Vec3d& d = r.ray.direction;
-          const bool entering = glm::dot(d, sp.geometric_normal) < 0;
-          const double eta = dielectric_eta(entering, mat.ior);
-          const double cos_i = std::abs(glm::dot(d, sp.normal)), cos_t = std::abs(glm::dot(rf.ray.ray.direction, sp.normal));
-          const double fr = fresnel_dielectric(cos_i, eta);
-          const double tint = entering ? double(std::max({mat.tint.x, mat.tint.y, mat.tint.z})) : 1.0;
-          spawn(rf.ray, kRefraction, (1.0 - fr) * tint, refraction_turn(cos_i, cos_t, eta));
-          spawn(reflect(r, sp, config_.limits), kReflection, fr, 2.0);
+          spawn(rf.ray, kRefraction);
+          spawn(reflect(r, sp, config_.limits), kReflection);
         }
       } else if (mat.reflects()) {
-        spawn(reflect(r, sp, config_.limits), kReflection, double(mat.reflectance), 2.0);
+        spawn(reflect(r, sp, config_.limits), kReflection);
       }
     }
-    // The largest normal tilt each mirror or glass hit can take. A tilt t
-    // turns a ray leaving the hit by turn * t; a surface that ray's path
-    // reaches D further on then moves by about D * turn * t (the error is not
-    // focused with the beam: a thin glass shell's second wall cancels the
-    // beam's spread, not the error). It shows once it passes that surface's
-    // footprint f, seen with the path's throughput w: t <= f / (D turn w),
-    // the smallest over every surface the hit's rays lead to. Rays that
-    // leave the scene see the constant background and bound nothing.
-    for (size_t j = 0; j < events.size(); ++j) {
-      const PathEvent& e = events[j];
-      for (int32_t below = int32_t(j), a = e.from; a >= 0; below = a, a = events[size_t(a)].from) {
-        const PathEvent& src = events[size_t(a)];
-        if (src.hit < 0) continue;
-        const double shift = (e.path - src.path) * events[size_t(below)].turn * e.weight;
-        if (!(shift > 0)) continue;
-        double& tilt = out.hits[size_t(src.hit)].tilt;
-        tilt = std::min(tilt, e.footprint / shift);
+    // A direction error made at a surface is only resolved as finely as the
+    // narrowest beam along the rest of its path: a later surface can focus
+    // the beam (the two walls of a thin glass shell nearly cancel each
+    // other's spread) while the error stays. Hits come after the hit their
+    // ray left, so one backward pass takes the minimum over each subtree.
+    for (size_t i = out.hits.size(); i-- > 0;)
+      if (out.hits[i].parent >= 0) {
+        double& a = out.hits[size_t(out.hits[i].parent)].angular;
+        a = std::min(a, out.hits[i].angular);
       }
-    }
     return out;
   }
 
@@ -580,7 +533,7 @@ StatusOr<ProbeResult> select_cuts(const ProbeTrace& trace, const Scene& scene, s
     cut.counters = result.counters;
 
     // Measured footprints at the finest level, attached to the hit triangles' corner cells.
-    struct Measured { double f = kInf; double tilt = kInf; uint32_t hits = 0; };
+    struct Measured { double f = kInf; double angular = kInf; uint32_t hits = 0; };
     std::unordered_map<uint64_t, Measured> measured;
     double min_fp = kInf;
     uint64_t store_hits = 0;
@@ -596,7 +549,7 @@ StatusOr<ProbeResult> select_cuts(const ProbeTrace& trace, const Scene& scene, s
         if ((k > 0 && codes[k] == codes[0]) || (k > 1 && codes[k] == codes[1])) continue;
         Measured& e = measured[codes[k]];
         e.f = std::min(e.f, f);
-        e.tilt = std::min(e.tilt, h.tilt);
+        e.angular = std::min(e.angular, h.angular);
         ++e.hits;
       }
     }
@@ -631,34 +584,33 @@ StatusOr<ProbeResult> select_cuts(const ProbeTrace& trace, const Scene& scene, s
     const bool deviation = config.criterion == CutCriterion::Deviation;
     const bool bound_normals = deviation && store_specular;
 
-    // need() and the largest normal tilt bottom-up: measured or estimated at level
+    // need() and the angular need bottom-up: measured or estimated at level
     // Q, min over children above.
-    std::vector<std::vector<double>> need(size_t(Q) + 1), tilt(size_t(Q) + 1);
+    std::vector<std::vector<double>> need(size_t(Q) + 1), angular(size_t(Q) + 1);
     {
       const auto nodes = st.level(Q);
       need[size_t(Q)].assign(nodes.size(), kInf);
-      if (bound_normals) tilt[size_t(Q)].assign(nodes.size(), kInf);
+      if (bound_normals) angular[size_t(Q)].assign(nodes.size(), kInf);
       tbb::parallel_for(tbb::blocked_range<size_t>(0, nodes.size(), 1024), [&](const tbb::blocked_range<size_t>& r) {
         for (size_t i = r.begin(); i != r.end(); ++i) {
           auto it = measured.find(nodes[i].code);
           need[size_t(Q)][i] = it != measured.end() ? it->second.f : estimate(CellKey{uint32_t(Q), nodes[i].code});
-          // Unreached mirror or glass cells: a mirror's turn of the pixel
-          // angle as magnified as the most magnified measured paths (a path
-          // reaching a surface D past the cell has f >= a m D there).
-          if (bound_normals) tilt[size_t(Q)][i] = it != measured.end() ? it->second.tilt : 0.5 * a_min * m;
+          // Unreached mirror or glass cells: the pixel angle, as magnified
+          // as the most magnified measured paths.
+          if (bound_normals) angular[size_t(Q)][i] = it != measured.end() ? it->second.angular : a_min * m;
         }
       });
     }
     for (int L = Q - 1; L >= 0; --L) {
       const auto parents = st.level(L), children = st.level(L + 1);
       need[size_t(L)].assign(parents.size(), kInf);
-      if (bound_normals) tilt[size_t(L)].assign(parents.size(), kInf);
+      if (bound_normals) angular[size_t(L)].assign(parents.size(), kInf);
       size_t j = 0;
       for (size_t i = 0; i < parents.size(); ++i) {
         while (j < children.size() && (children[j].code >> 3) < parents[i].code) ++j;
         for (; j < children.size() && (children[j].code >> 3) == parents[i].code; ++j) {
           need[size_t(L)][i] = std::min(need[size_t(L)][i], need[size_t(L) + 1][j]);
-          if (bound_normals) tilt[size_t(L)][i] = std::min(tilt[size_t(L)][i], tilt[size_t(L) + 1][j]);
+          if (bound_normals) angular[size_t(L)][i] = std::min(angular[size_t(L)][i], angular[size_t(L) + 1][j]);
         }
       }
     }
@@ -693,7 +645,7 @@ StatusOr<ProbeResult> select_cuts(const ProbeTrace& trace, const Scene& scene, s
           const Bbox cell = st.cell_bounds(CellKey{uint32_t(L), nodes[i].code});
           const CollapseDeviation dev = collapse_deviation(nodes[i], Bbox{cell.lo - origin, cell.hi - origin}, qem);
           if (dev.position > config.tolerance_px * f) { verdict[i] = 2; continue; }
-          if (bound_normals && dev.normal > config.tolerance_px * tilt[size_t(L)][i]) { verdict[i] = 3; continue; }
+          if (bound_normals && 2.0 * dev.normal > config.tolerance_px * angular[size_t(L)][i]) { verdict[i] = 3; continue; }
           verdict[i] = 1;
         }
       });

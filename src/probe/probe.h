@@ -47,15 +47,11 @@
 //     corners) is at most tolerance_px * need(cell), i.e. the collapsed
 //     surface stays within tolerance_px pixels of the input wherever a ray
 //     sees it, silhouettes included; AND, on mirror and glass objects, the
-//     normal deviation is at most tolerance_px times the largest tilt the
-//     rays leaving that surface can take: a tilt t turns a reflected ray by
-//     2t and a refracted one by a factor of Snell's law, which moves a
-//     surface the path reaches D further on by D * turn * t; that must stay
-//     below the footprint f there, weighted by the path's throughput w (the
-//     renderer's reflectance, Fresnel and tint terms), so t <= f / (D turn w),
-//     the smallest over the rest of every path (ProbeHit::tilt) and over the
-//     hits in the cell; unreached cells take a mirror's turn of the pixel
-//     angle, a_min * m / 2. K then only caps how large a cell may get relative to the
+//     reflected ray's turn 2 * normal_deviation is at most tolerance_px times
+//     the angular spread ||dD|| of the rays leaving that surface, taken
+//     as the smallest along the rest of each path (a later surface may focus
+//     the beam while the error stays); the smallest measured at hits in the
+//     cell, else a_min * m for unreached cells. K then only caps how large a cell may get relative to the
 //     footprint (bounding what a quadric cannot see, such as open rims).
 //
 // Cells that no ray path can reach -- outside the view frustum in a scene
@@ -146,14 +142,10 @@ struct ProbeHit {
   std::array<Vec3d, 3> corners{};  // hit triangle's corners, store coordinates
   double footprint = 0;            // ||dP|| in store units; if estimated, without the factor m
   double ratio = -1;               // f / (a_ray * path length) of a measured secondary hit
-  // Mirror/glass hit: the largest normal tilt (radians) whose turn of the
-  // rays leaving it moves every later surface on their paths by at most its
-  // footprint, weighted by the path's throughput (probe.cpp trace_test_ray).
-  double tilt = std::numeric_limits<double>::infinity();
+  // Mirror/glass hit: the smallest ||dD|| of the rays leaving it and of
+  // every later mirror/glass hit on their paths.
+  double angular = std::numeric_limits<double>::infinity();
   int32_t parent = -1;             // index in ProbeTrace::hits of the hit whose ray made this one, or -1
-  double path = 0;                 // path length from the camera, world units
-  double weight = 1;               // path throughput at this hit (largest channel of the renderer's weights)
-  double turn = 0;                 // turn of the ray that made this hit per radian of normal tilt at its parent
   bool estimated = false;          // differentials dropped: footprint from the beam
 };
 
