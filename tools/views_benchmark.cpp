@@ -19,6 +19,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <string>
 #include <vector>
@@ -75,6 +76,12 @@ Status run(int argc, char** argv) {
       if (i + 1 >= argc) return {};
       return argv[++i];
     };
+    if (a == "--help" || a == "-h") {
+      std::printf("views_benchmark [SCENE] [--orbit 16] [--rays 5000] [--cache DIR] [--out DIR] [--no-full] [--json FILE]\n"
+                  "Compares raylod run --orbit N per view (fresh cache, then all cache hits) with --shared-cut:\n"
+                  "time per stage and per view, triangles, and PSNR per view against the full mesh.\n");
+      std::exit(0);
+    }
     if (a == "--orbit") orbit = std::atoi(value().c_str());
     else if (a == "--rays") rays = std::strtoull(value().c_str(), nullptr, 10);
     else if (a == "--cache") cache = value();

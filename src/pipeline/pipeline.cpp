@@ -28,8 +28,6 @@
 namespace raylod {
 namespace fs = std::filesystem;
 
-namespace {
-
 double seconds_since(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
@@ -37,6 +35,8 @@ double seconds_since(std::chrono::steady_clock::time_point t0) {
 void say(const LogFn& log, const std::string& text) {
   if (log) log(text);
 }
+
+namespace {
 
 std::string fmt(const char* f, double v) {
   char buf[64];

@@ -5,6 +5,7 @@
 // `raylod report` share.
 #pragma once
 
+#include <chrono>
 #include <cstdint>
 #include <filesystem>
 #include <functional>
@@ -26,6 +27,11 @@
 namespace raylod {
 
 using LogFn = std::function<void(const std::string&)>;
+
+// Helpers the pipeline's stages share: seconds since t0 (steady clock), and
+// a line to the log if there is one.
+double seconds_since(std::chrono::steady_clock::time_point t0);
+void say(const LogFn& log, const std::string& text);
 
 // The stores of a scene's meshes, opened, with the objects that use them.
 struct SceneStores {

@@ -19,14 +19,6 @@ namespace fs = std::filesystem;
 
 namespace {
 
-double seconds_since(std::chrono::steady_clock::time_point t0) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-}
-
-void say(const LogFn& log, const std::string& text) {
-  if (log) log(text);
-}
-
 Scene with_camera(const Scene& scene, const Camera& camera) {
   Scene s = scene;
   s.camera = camera;

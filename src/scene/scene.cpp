@@ -303,25 +303,33 @@ Status parse_light(const Parser& p, const json& j, const std::string& where, Lig
   return {};
 }
 
+// Parses JSON text; errors name the source, and for a number out of the
+// double range the place (`root` when it is at the top).
+Status parse_json(const Parser& p, const std::string& text, const std::string& root, json& j) {
+  try {
+    j = json::parse(text);
+  } catch (const json::parse_error& e) {
+    return Status::error(p.source + ": not valid JSON: " + e.what());
+  } catch (const json::exception& e) {
+    // Valid syntax the parser still cannot hold (id 406: a number such as
+    // 1e400 overflows a double); a second, SAX pass finds where it is.
+    PathTracker where;
+    where.path = root;
+    (void)json::sax_parse(text, &where);
+    if (e.id == 406)
+      return p.fail(where.path, "the number " + where.token + " is out of range (beyond the largest double, about 1.8e308)");
+    return p.fail(where.path, std::string("cannot be read: ") + e.what());
+  }
+  return {};
+}
+
 }  // namespace
 
 StatusOr<Scene> parse_scene(const std::string& text, const std::filesystem::path& base_dir,
                             const std::string& source_name) {
   Parser p{source_name};
   json j;
-  try {
-    j = json::parse(text);
-  } catch (const json::parse_error& e) {
-    return Status::error(source_name + ": not valid JSON: " + e.what());
-  } catch (const json::exception& e) {
-    // Valid syntax the parser still cannot hold (id 406: a number such as
-    // 1e400 overflows a double); a second, SAX pass finds where it is.
-    PathTracker where;
-    (void)json::sax_parse(text, &where);
-    if (e.id == 406)
-      return p.fail(where.path, "the number " + where.token + " is out of range (beyond the largest double, about 1.8e308)");
-    return p.fail(where.path, std::string("cannot be read: ") + e.what());
-  }
+  RAYLOD_RETURN_IF_ERROR(parse_json(p, text, "scene", j));
   RAYLOD_RETURN_IF_ERROR(p.known_keys(j, "scene", {"camera", "materials", "objects", "ground", "lights", "background",
                                                   "spp", "max_depth", "seed", "crease_angle", "comment"}));
   Scene scene;
@@ -437,11 +445,7 @@ StatusOr<std::vector<Camera>> parse_views(const std::string& json_text, const Ca
                                           const std::string& source_name) {
   Parser p{source_name};
   json j;
-  try {
-    j = json::parse(json_text);
-  } catch (const json::exception& e) {
-    return Status::error(source_name + ": not valid JSON: " + e.what());
-  }
+  RAYLOD_RETURN_IF_ERROR(parse_json(p, json_text, "views", j));
   if (!j.is_array() || j.empty()) return Status::error(source_name + ": expected a non-empty JSON array of cameras");
   std::vector<Camera> views;
   for (size_t i = 0; i < j.size(); ++i) {
