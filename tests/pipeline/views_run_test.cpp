@@ -49,9 +49,9 @@ fs::path write_scene(const fs::path& dir, const std::string& camera = R"({"eye":
   return p;
 }
 
-test::CommandResult raylod(const Folder& f, const std::string& args) {
+test::CommandResult raylod(const Folder& f, const std::string& args, int threads = 2) {
   return test::run_command("RAYLOD_CACHE_DIR='" + (f.dir / "cache").string() + "' '" RAYLOD_EXE "' " + args +
-                           " --threads 2 -q");
+                           " --threads " + std::to_string(threads) + " -q");
 }
 
 TEST(NumberedImagePath, ReplacesTheLastRunOfHashesOrInsertsOne) {
@@ -154,6 +154,29 @@ TEST(ViewsRun, SharedCutRendersEveryViewFromOneMesh) {
     const fs::path in_run = f.dir / ("o_000" + std::to_string(i) + ".png");
     ASSERT_TRUE(fs::is_regular_file(in_run));
     EXPECT_EQ(slurp(alone), slurp(in_run)) << "view " << i;
+  }
+}
+
+// The same images and the same shared mesh on 1 and 2 threads.
+TEST(ViewsRun, SharedCutIsTheSameOnOneAndTwoThreads) {
+  Folder f("threads");
+  const fs::path scene = write_scene(f.dir);
+  std::string stats[2];
+  for (int threads : {1, 2}) {
+    const std::string n = std::to_string(threads);
+    auto r = raylod(f, "run '" + scene.string() + "' --orbit 3 --shared-cut --no-cache --rays 500 -o '" +
+                           (f.dir / ("t" + n + "_#.png")).string() + "' --stats-json '" + (f.dir / ("s" + n + ".json")).string() + "'",
+                    threads);
+    ASSERT_EQ(r.status, 0) << r.out;
+    auto j = nlohmann::json::parse(slurp(f.dir / ("s" + n + ".json")));
+    stats[threads - 1] = j["shared"]["triangles"].dump() + " " + j["shared"]["cells_marked"].dump() + " " +
+                         j["shared"]["meshes"][0]["drc_bytes"].dump();
+  }
+  EXPECT_EQ(stats[0], stats[1]);
+  for (int i = 0; i < 3; ++i) {
+    const std::string one = slurp(f.dir / ("t1_" + std::to_string(i) + ".png"));
+    EXPECT_FALSE(one.empty());
+    EXPECT_EQ(one, slurp(f.dir / ("t2_" + std::to_string(i) + ".png"))) << "view " << i;
   }
 }
 
