@@ -13,10 +13,44 @@
 #include "pipeline/image_compare.h"
 #include "pipeline/noise_floor.h"
 #include "pipeline/pipeline.h"
+#include "pipeline/views.h"
 #include "render/renderer.h"
+#include "scene/orbit.h"
 
 namespace raylod::cli {
 namespace {
+
+// --views FILE / --orbit N: every view rendered to a numbered image.
+Status run_view_sequence(const Args& args, Scene scene, const std::vector<Camera>& cameras, const RunOptions& opts,
+                         const std::filesystem::path& output, const LogFn& log) {
+  const bool shared = args.has("--shared-cut");
+  auto write_view = [&](size_t i, const Image& color) -> Status {
+    return write_image(numbered_image_path(output, i), color);
+  };
+  RAYLOD_ASSIGN_OR_RETURN(ViewsResult r, run_views(std::move(scene), cameras, opts, shared, write_view, log));
+  for (const std::string& w : r.warnings) std::fprintf(stderr, "raylod run: warning: %s\n", w.c_str());
+  std::printf("raylod run: %s, %zu views (%s)\n", args.positionals().empty() ? "embedded default scene" : args.positionals()[0].c_str(),
+              r.views.size(), shared ? "one shared cut" : "a cut per view, cached meshes reused");
+  std::printf("  build      %7.2f s  (%llu triangles)\n", r.build_seconds, (unsigned long long)r.triangles_in);
+  if (shared) {
+    uint64_t triangles = 0;
+    for (const SimplifiedMesh& m : r.shared_meshes) triangles += m.triangles;
+    std::printf("  shared cut %7.2f s  (select over all views' test rays), simplify %.2f s: %llu triangles\n",
+                r.shared_select_seconds, r.shared_simplify_seconds, (unsigned long long)triangles);
+    for (const SimplifiedMesh& m : r.shared_meshes) std::printf("             %s\n", m.cache_note.c_str());
+  }
+  std::printf("  view  triangles  mesh    probe s  simplify s  render s  image\n");
+  for (size_t i = 0; i < r.views.size(); ++i) {
+    const ViewStats& v = r.views[i];
+    std::printf("  %4zu  %9llu  %-6s  %7.2f  %10.2f  %8.2f  %s\n", i, (unsigned long long)v.triangles,
+                shared ? "shared" : v.cache_hit ? "hit" : "miss", v.probe, v.simplify, v.render, numbered_image_path(output, i).string().c_str());
+  }
+  std::printf("  total      %7.2f s, %.2f s per view; %zu of %zu views reused a simplified mesh (%s); peak memory %s\n",
+              r.total_seconds, r.seconds_per_view(), r.cache_reuse(), r.views.size(),
+              shared ? "the shared one, or the cache's" : "from the cache", format_bytes(r.peak_rss).c_str());
+  if (args.has("--stats-json")) RAYLOD_RETURN_IF_ERROR(write_file_atomic(args.get("--stats-json"), views_stats_json(r, opts)));
+  return {};
+}
 
 
 Status run_run(int argc, char** argv, bool& help) {
@@ -42,6 +76,13 @@ Status run_run(int argc, char** argv, bool& help) {
              {"--export-mesh", "", "also write the simplified meshes as a Draco-compressed glTF (.glb), one\n"
                                    "                              node per scene object, with the .drc's quantisation", true, "OUT.glb"},
              {"--crease-angle", "", kCreaseAngleHelp, true, "DEG"},
+             {"--views", "", "render every camera of a JSON list (the scene camera's fields; up, fov_y,\n"
+                             "                              width and height default to the scene's) to numbered images:\n"
+                             "                              -o out_####.png (without '#', _#### goes before the extension)", true, "FILE"},
+             {"--orbit", "", "render N views on a horizontal circle around the scene camera's look_at,\n"
+                             "                              through its eye, evenly spaced (numbered images as --views)", true, "N"},
+             {"--shared-cut", "", "with --views or --orbit: one cut with the finest need over all views,\n"
+                                  "                              simplified once, every view rendered from it", false, ""},
              {"--quiet", "-q", "no progress bars or log lines", false, ""}}));
   RAYLOD_RETURN_IF_ERROR(args.parse(argc, argv));
   if (args.help_requested()) {
@@ -50,7 +91,14 @@ Status run_run(int argc, char** argv, bool& help) {
     return {};
   }
   const std::filesystem::path output = args.get("--output", "raylod-run.png");
-  RAYLOD_RETURN_IF_ERROR(check_output_image(output));
+  const bool sequence = args.has("--views") || args.has("--orbit");
+  if (args.has("--views") && args.has("--orbit")) return Status::error("--views and --orbit exclude each other: give one");
+  if (args.has("--shared-cut") && !sequence) return Status::error("--shared-cut needs --views FILE or --orbit N");
+  if (sequence && args.has("--compare"))
+    return Status::error("--compare measures one view; with --views or --orbit render the full mesh per view "
+                         "(tools/views_benchmark.sh does)");
+  if (sequence && args.has("--export-mesh")) return Status::error("--export-mesh takes one view, not --views or --orbit");
+  RAYLOD_RETURN_IF_ERROR(check_output_image(sequence ? numbered_image_path(output, 0) : output));
 
   RunOptions opts;
   RAYLOD_ASSIGN_OR_RETURN(const MemoryBudget budget, memory_budget_from_args(args));
@@ -81,6 +129,17 @@ Status run_run(int argc, char** argv, bool& help) {
   if (!quiet) log = [](const std::string& m) { std::fprintf(stderr, "raylod run: %s\n", m.c_str()); };
 
   RAYLOD_ASSIGN_OR_RETURN(Scene scene, scene_from_args(args));
+  if (sequence) {
+    // The cameras are read (and checked) before anything is built or written.
+    std::vector<Camera> cameras;
+    if (args.has("--views")) {
+      RAYLOD_ASSIGN_OR_RETURN(cameras, load_views(args.get("--views"), scene.camera));
+    } else {
+      RAYLOD_ASSIGN_OR_RETURN(int64_t n, args.get_int("--orbit", 0, 1, 100000));
+      RAYLOD_ASSIGN_OR_RETURN(cameras, orbit_cameras(scene.camera, int(n)));
+    }
+    return run_view_sequence(args, std::move(scene), cameras, opts, output, log);
+  }
 
   RAYLOD_ASSIGN_OR_RETURN(RunResult r, run_pipeline(scene, opts, log));
   RAYLOD_RETURN_IF_ERROR(write_image(output, r.render.color));

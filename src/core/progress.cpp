@@ -43,6 +43,10 @@ void Progress::draw(bool final_line) {
   uint64_t done = done_.load(std::memory_order_relaxed);
   double seconds = std::chrono::duration<double>(now - start_).count();
   double frac = total_ ? std::min(1.0, double(done) / double(total_)) : 0.0;
+  // Time left, from the mean rate so far (once something is done).
+  char left[48] = "";
+  if (total_ && done > 0 && done < total_)
+    std::snprintf(left, sizeof left, ", %.0fs left", seconds * double(total_ - done) / double(done));
   if (tty_) {
     if (!final_line && now - last_draw_ < std::chrono::milliseconds(100)) return;
     char bar[31];
@@ -50,8 +54,8 @@ void Progress::draw(bool final_line) {
     for (int i = 0; i < 30; ++i) bar[i] = i < filled ? '#' : '.';
     bar[30] = 0;
     if (total_)
-      std::fprintf(stderr, "\r%-12s [%s] %5.1f%% %llu/%llu %s %.1fs", label_.c_str(), bar, 100 * frac,
-                   (unsigned long long)done, (unsigned long long)total_, unit_.c_str(), seconds);
+      std::fprintf(stderr, "\r%-12s [%s] %5.1f%% %llu/%llu %s %.1fs%s", label_.c_str(), bar, 100 * frac,
+                   (unsigned long long)done, (unsigned long long)total_, unit_.c_str(), seconds, left);
     else
       std::fprintf(stderr, "\r%-12s %llu %s %.1fs", label_.c_str(), (unsigned long long)done, unit_.c_str(), seconds);
     if (final_line) std::fputc('\n', stderr);
@@ -61,8 +65,8 @@ void Progress::draw(bool final_line) {
     if (!due) return;
     last_decile_ = decile;
     if (total_)
-      std::fprintf(stderr, "%s: %.0f%% (%llu/%llu %s, %.1fs)\n", label_.c_str(), 100 * frac,
-                   (unsigned long long)done, (unsigned long long)total_, unit_.c_str(), seconds);
+      std::fprintf(stderr, "%s: %.0f%% (%llu/%llu %s, %.1fs%s)\n", label_.c_str(), 100 * frac,
+                   (unsigned long long)done, (unsigned long long)total_, unit_.c_str(), seconds, left);
     else
       std::fprintf(stderr, "%s: %llu %s (%.1fs)\n", label_.c_str(), (unsigned long long)done, unit_.c_str(), seconds);
   }

@@ -1,4 +1,4 @@
-// Progress display: a bar redrawn in place on a terminal, plain lines
+// Progress display (count, elapsed time and time left): a bar redrawn in place on a terminal, plain lines
 // (at most one per 10% or per 5 s) when stderr is not a terminal.
 #pragma once
 

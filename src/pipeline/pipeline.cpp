@@ -28,8 +28,6 @@
 namespace raylod {
 namespace fs = std::filesystem;
 
-namespace {
-
 double seconds_since(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
@@ -37,6 +35,8 @@ double seconds_since(std::chrono::steady_clock::time_point t0) {
 void say(const LogFn& log, const std::string& text) {
   if (log) log(text);
 }
+
+namespace {
 
 std::string fmt(const char* f, double v) {
   char buf[64];
@@ -305,49 +305,85 @@ StatusOr<uint64_t> export_simplified_glb(const fs::path& out, const std::vector<
   return write_glb(out, glb_meshes, nodes);
 }
 
-StatusOr<RunResult> run_pipeline(Scene scene, const RunOptions& options, const LogFn& log) {
-  RunResult result;
+ScratchFiles::ScratchFiles(ScratchFiles&& other) noexcept : files_(std::move(other.files_)) { other.files_.clear(); }
+
+ScratchFiles& ScratchFiles::operator=(ScratchFiles&& other) noexcept {
+  if (this != &other) {
+    remove_all();
+    files_ = std::move(other.files_);
+    other.files_.clear();
+  }
+  return *this;
+}
+
+ScratchFiles::~ScratchFiles() { remove_all(); }
+
+void ScratchFiles::remove_all() {
+  for (const auto& f : files_) {
+    std::error_code ec;
+    fs::remove(f, ec);
+  }
+  files_.clear();
+}
+
+StatusOr<RunSession> open_run_session(Scene& scene, const RunOptions& options, const LogFn& log) {
+  RunSession session;
   const fs::path cache_dir = options.cache_dir.empty() ? default_cache_dir() : options.cache_dir;
   // One budget for the whole run (memory_budget.h): the build plans within
   // its total; simplify and render share what the program itself leaves.
-  const MemoryBudget budget = MemoryBudget::measured(options.memory_limit);
+  session.budget = MemoryBudget::measured(options.memory_limit);
   StoreOptions store_options;
-  store_options.memory_limit = budget.total;
-  const uint64_t memory_limit = budget.working();
+  store_options.memory_limit = session.budget.total;
+  session.memory_limit = session.budget.working();
 
   // A. Stores (method step A1), reused when current.
   say(log, "[1/4] build: octree stores");
-  RAYLOD_ASSIGN_OR_RETURN(SceneStores stores,
+  RAYLOD_ASSIGN_OR_RETURN(session.stores,
                           prepare_scene_stores(scene, options.mesh_override, store_options, cache_dir, log));
-  result.seconds.build = stores.seconds;
-  result.triangles_in = stores.triangles;
-  say(log, "stores ready: " + std::to_string(stores.triangles) + " triangles in " + std::to_string(stores.stores.size()) +
-               " store(s), " + fmt("%.2f s", stores.seconds));
+  say(log, "stores ready: " + std::to_string(session.stores.triangles) + " triangles in " +
+               std::to_string(session.stores.stores.size()) + " store(s), " + fmt("%.2f s", session.stores.seconds));
+  if (options.use_cache) {
+    auto c = SimplifiedCache::open(cache_dir, options.cache_limit);
+    if (c.is_ok()) session.cache.emplace(std::move(c.value()));
+    else session.warnings.push_back("cannot use the cache (" + c.status().message() + "); rendering without caching");
+  }
+  session.scratch = session.cache ? session.cache->dir() / "simplified" : fs::temp_directory_path();
+  remove_dead_staged_meshes(fs::temp_directory_path());
+  return session;
+}
 
-  // B. Probe (A2-A4); if the simplified meshes would not fit the memory
-  // limit, coarsen by doubling K until they do.
-  say(log, "[2/4] probe: " + std::to_string(options.rays) + " test rays");
-  RAYLOD_ASSIGN_OR_RETURN(ProbeConfig probe, make_probe_config(scene, options.rays, options.footprint_scale, budget,
-                                                              options.progress));
+StatusOr<ProbeConfig> run_probe_config(const RunSession& session, const Scene& scene, const RunOptions& options) {
+  RAYLOD_ASSIGN_OR_RETURN(ProbeConfig probe, make_probe_config(scene, options.rays, options.footprint_scale,
+                                                              session.budget, options.progress));
   probe.criterion = options.criterion;
   probe.tolerance_px = options.tolerance_px;
-  auto t_probe = std::chrono::steady_clock::now();
-  uint64_t previous_estimate = UINT64_MAX;
-  // The rays are traced once; coarsening only selects coarser cuts from them.
-  bool repaired = false;  // a store found corrupt is rebuilt once per run, then the stage retried
+  return probe;
+}
+
+StatusOr<ProbeTrace> trace_view(RunSession& session, const Scene& scene, const ProbeConfig& probe, const LogFn& log) {
+  SceneStores& stores = session.stores;
   auto traced = trace_probe(scene, stores.probe_stores, stores.objects, probe);
   if (!traced.is_ok()) {
-    RAYLOD_ASSIGN_OR_RETURN(bool retry, repair_corrupt_stores(stores, "probe", repaired, log));
+    RAYLOD_ASSIGN_OR_RETURN(bool retry, repair_corrupt_stores(stores, "probe", session.repaired, log));
     if (retry) traced = trace_probe(scene, stores.probe_stores, stores.objects, probe);
   }
-  RAYLOD_ASSIGN_OR_RETURN(ProbeTrace trace, std::move(traced));
+  return traced;
+}
+
+StatusOr<FittedCuts> select_fitting_cuts(RunSession& session, std::span<const ProbeView> views, const Scene& scene,
+                                         ProbeConfig probe, const RunOptions& options, const LogFn& log) {
+  const SceneStores& stores = session.stores;
+  const MemoryBudget& budget = session.budget;
+  const uint64_t memory_limit = session.memory_limit;
+  FittedCuts fitted;
+  uint64_t previous_estimate = UINT64_MAX;
   for (;;) {
-    RAYLOD_ASSIGN_OR_RETURN(result.probe, select_cuts(trace, scene, stores.probe_stores, stores.objects, probe));
+    RAYLOD_ASSIGN_OR_RETURN(fitted.probe, select_shared_cuts(views, scene, stores.probe_stores, stores.objects, probe));
     // What the later stages need: simplifying one store at a time (its mesh
     // under construction), then rendering all the simplified meshes.
     uint64_t estimate = 0, simplify_need = 0;
     for (size_t i = 0; i < stores.stores.size(); ++i) {
-      const SimplifyEstimate e = estimate_simplify(*stores.stores[i], result.probe.cuts[i]);
+      const SimplifyEstimate e = estimate_simplify(*stores.stores[i], fitted.probe.cuts[i]);
       estimate += e.triangles;
       simplify_need = std::max(simplify_need, e.bytes);
     }
@@ -357,13 +393,13 @@ StatusOr<RunResult> run_pipeline(Scene scene, const RunOptions& options, const L
     if (!budget.limited() || need <= memory_limit) break;
     // Stop once coarsening no longer helps (the estimate bottoms out at the
     // renderer's fixed overhead) or after max_coarsening_steps doublings.
-    if (result.coarsening_steps >= options.max_coarsening_steps || estimate >= previous_estimate)
+    if (fitted.coarsening_steps >= options.max_coarsening_steps || estimate >= previous_estimate)
       return Status::error("even at footprint scale " + fmt("%g", probe.footprint_scale) + " the simplified mesh (" +
                            std::to_string(estimate) + " triangles, " + format_bytes(need) + ") does not fit in the " +
                            format_bytes(memory_limit) + " the memory limit of " + format_bytes(budget.total) +
                            " leaves after the program's own " + format_bytes(budget.baseline));
     previous_estimate = estimate;
-    ++result.coarsening_steps;
+    ++fitted.coarsening_steps;
     // Both limits double: under the deviation criterion K alone may not bind.
     say(log, "the simplified mesh would need " + format_bytes(need) + " (about " + std::to_string(estimate) +
                  " triangles), over the " + format_bytes(memory_limit) + " the memory limit leaves" +
@@ -375,29 +411,18 @@ StatusOr<RunResult> run_pipeline(Scene scene, const RunOptions& options, const L
     probe.footprint_scale *= 2;
     probe.tolerance_px *= 2;
   }
-  result.footprint_scale = probe.footprint_scale;
-  result.cuts = result.probe.cuts;
-  result.seconds.probe = seconds_since(t_probe);
+  fitted.footprint_scale = probe.footprint_scale;
+  return fitted;
+}
 
-  // C. Simplify (A5), or reuse a cached simplified mesh that is fine enough.
-  say(log, "[3/4] simplify");
-  auto t_simplify = std::chrono::steady_clock::now();
-  std::optional<SimplifiedCache> cache;
-  if (options.use_cache) {
-    auto c = SimplifiedCache::open(cache_dir, options.cache_limit);
-    if (c.is_ok()) cache.emplace(std::move(c.value()));
-    else result.warnings.push_back("cannot use the cache (" + c.status().message() + "); rendering without caching");
-  }
-  fs::path scratch = cache ? cache->dir() / "simplified" : fs::temp_directory_path();
-  remove_dead_staged_meshes(fs::temp_directory_path());
-  result.cache_hit = true;
-  std::vector<fs::path> scratch_files;  // staged .drc files, removed after rendering
-  struct RemoveScratch {
-    std::vector<fs::path>& files;
-    ~RemoveScratch() { for (const auto& f : files) { std::error_code ec; fs::remove(f, ec); } }
-  } remove_scratch{scratch_files};
+StatusOr<StagedMeshes> simplify_or_reuse(RunSession& session, const Scene& scene, std::span<const Cut> cuts,
+                                         const RunOptions& options, const LogFn& log) {
+  SceneStores& stores = session.stores;
+  std::optional<SimplifiedCache>& cache = session.cache;
+  const uint64_t memory_limit = session.memory_limit;
+  StagedMeshes out;
   for (size_t i = 0; i < stores.stores.size(); ++i) {
-    const Cut& cut = result.cuts[i];
+    const Cut& cut = cuts[i];
     SimplifiedMesh sm;
     if (cache) {
       const std::string key = SimplifiedCache::key_for(cut, scene.crease_angle_deg);
@@ -414,26 +439,26 @@ StatusOr<RunResult> run_pipeline(Scene scene, const RunOptions& options, const L
       if (entry) {
         cache->touch(*entry);
         // Render from a link of our own: another run's eviction cannot pull it away.
-        AtomicOutput tmp(scratch / ("cached-" + std::to_string(::getpid()) + "-" + std::to_string(i) + ".drc"));
+        AtomicOutput tmp(session.scratch / ("cached-" + std::to_string(::getpid()) + "-" + std::to_string(i) + ".drc"));
         sm.drc = tmp.temp_path();
         sm.drc += ".drc";
         RAYLOD_RETURN_IF_ERROR(cache->checkout(*entry, sm.drc));
-        scratch_files.push_back(sm.drc);
+        out.scratch.add(sm.drc);
         sm.triangles = entry->triangles;
         sm.cache_hit = true;
         sm.cache_note = note;
       }
     }
     if (!sm.cache_hit) {
-      result.cache_hit = false;
+      out.cache_hit = false;
       auto staged_in = [&](const fs::path& dir) {
         AtomicOutput tmp(dir / ("simplified-" + std::to_string(::getpid()) + "-" + std::to_string(i) + ".drc"));
         fs::path staged = tmp.temp_path();
         staged += ".drc";
-        scratch_files.push_back(staged);  // removed after rendering, or after a failed write
+        out.scratch.add(staged);  // removed after rendering, or after a failed write
         return staged;
       };
-      fs::path staged = staged_in(scratch);
+      fs::path staged = staged_in(session.scratch);
       auto simplify_store = [&] {
         return simplify_cut_to_draco(*stores.stores[i], cut, staged, memory_limit, shading_normal_tolerance(scene),
                                      options.progress, nullptr, scene.crease_angle_deg,
@@ -443,22 +468,23 @@ StatusOr<RunResult> run_pipeline(Scene scene, const RunOptions& options, const L
       if (!simplified.is_ok() && cache && staged_write_refused(simplified.status(), staged)) {
         // The cache's disk refused the file (full, read-only): render from
         // the system's temporary folder, without caching.
-        result.warnings.push_back("cannot write into the cache (" + simplified.status().message() +
-                                  "); rendering without caching");
+        session.warnings.push_back("cannot write into the cache (" + simplified.status().message() +
+                                   "); rendering without caching");
         cache.reset();
-        staged = staged_in(fs::temp_directory_path());
+        session.scratch = fs::temp_directory_path();
+        staged = staged_in(session.scratch);
         simplified = simplify_store();
       }
       if (!simplified.is_ok()) {
-        RAYLOD_ASSIGN_OR_RETURN(bool retry, repair_corrupt_stores(stores, "simplify", repaired, log));
+        RAYLOD_ASSIGN_OR_RETURN(bool retry, repair_corrupt_stores(stores, "simplify", session.repaired, log));
         if (retry) simplified = simplify_store();
       }
       RAYLOD_ASSIGN_OR_RETURN(sm, std::move(simplified));
       if (sm.triangles == 0) {
         // Nothing to cache or render: the object is left out, and the user told why.
         sm.cache_note = "not cached (no triangles)";
-        result.warnings.push_back(stores.meshes[i].string() + ": " + sm.empty_reason + "; it is left out of the image");
-        result.meshes.push_back(sm);
+        session.warnings.push_back(stores.meshes[i].string() + ": " + sm.empty_reason + "; it is left out of the image");
+        out.meshes.push_back(sm);
         continue;
       }
       // Rendered from the staged file, which lives until after rendering.
@@ -467,8 +493,8 @@ StatusOr<RunResult> run_pipeline(Scene scene, const RunOptions& options, const L
         auto entry = cache->insert(cut, staged, sm.triangles, sm.max_position_error, scene.crease_angle_deg);
         if (!entry.is_ok()) {
           // A full cache disk costs the reuse, not the image.
-          result.warnings.push_back("cannot cache the simplified mesh (" + entry.status().message() +
-                                    "); rendering without caching");
+          session.warnings.push_back("cannot cache the simplified mesh (" + entry.status().message() +
+                                     "); rendering without caching");
         } else {
           std::error_code ec;
           sm.cache_note = fs::is_regular_file(entry->mesh, ec) ? "simplified and cached as " + entry->key
@@ -478,41 +504,82 @@ StatusOr<RunResult> run_pipeline(Scene scene, const RunOptions& options, const L
     }
     std::error_code ec;
     sm.drc_bytes = fs::file_size(sm.drc, ec);
-    result.triangles_out += sm.triangles;
-    say(log, stores.meshes[i].filename().string() + ": " + std::to_string(stores.stores[i]->header().triangle_count) + " -> " +
-                 std::to_string(sm.triangles) + " triangles; " + sm.cache_note);
-    result.meshes.push_back(sm);
+    out.triangles += sm.triangles;
+    say(log, stores.meshes[i].filename().string() + ": " + std::to_string(stores.stores[i]->header().triangle_count) +
+                 " -> " + std::to_string(sm.triangles) + " triangles; " + sm.cache_note);
+    out.meshes.push_back(sm);
   }
-  result.seconds.simplify = seconds_since(t_simplify);
-  if (!options.export_mesh.empty()) {
-    RAYLOD_ASSIGN_OR_RETURN(result.exported_bytes, export_simplified_glb(options.export_mesh, result.meshes, stores));
-    say(log, "exported the simplified meshes to " + options.export_mesh.string() + " (" + format_bytes(result.exported_bytes) + ")");
-  }
+  return out;
+}
 
-  // D. Render the simplified meshes. The stores' node tables and the trace
-  // are not needed any more: the render gets their memory.
-  stores.probe_stores.clear();
-  stores.stores.clear();
-  trace = ProbeTrace{};
-#if defined(__GLIBC__)
-  malloc_trim(0);
-#endif
-  say(log, "[4/4] render");
+StatusOr<RenderResult> render_simplified(const Scene& scene, std::span<const ProbeObject> objects,
+                                         std::span<const SimplifiedMesh> meshes, const RunOptions& options,
+                                         uint64_t memory_limit, const LogFn& log) {
   RenderOptions ro;
   ro.spp = options.spp;
   ro.memory_limit = memory_limit;
   ro.progress = options.progress;
   ro.log = log;
-  for (const auto& obj : stores.objects) {
-    const SimplifiedMesh& sm = result.meshes[obj.store];
+  for (const auto& obj : objects) {
+    const SimplifiedMesh& sm = meshes[obj.store];
     ro.mesh_override.push_back(sm.drc);
     ro.omit_object.push_back(sm.triangles == 0);
   }
-  auto t_render = std::chrono::steady_clock::now();
   fault_point("run.render");
-  RAYLOD_ASSIGN_OR_RETURN(result.render, render(scene, ro));
+  return render(scene, ro);
+}
+
+StatusOr<RunResult> run_pipeline(Scene scene, const RunOptions& options, const LogFn& log) {
+  RunResult result;
+  RAYLOD_ASSIGN_OR_RETURN(RunSession session, open_run_session(scene, options, log));
+  result.seconds.build = session.stores.seconds;
+  result.triangles_in = session.stores.triangles;
+
+  // B. Probe (A2-A4); if the simplified meshes would not fit the memory
+  // limit, coarsen by doubling K until they do. The rays are traced once;
+  // coarsening only selects coarser cuts from them.
+  say(log, "[2/4] probe: " + std::to_string(options.rays) + " test rays");
+  RAYLOD_ASSIGN_OR_RETURN(ProbeConfig probe, run_probe_config(session, scene, options));
+  auto t_probe = std::chrono::steady_clock::now();
+  RAYLOD_ASSIGN_OR_RETURN(ProbeTrace trace, trace_view(session, scene, probe, log));
+  const ProbeView view{&trace, scene.camera};
+  RAYLOD_ASSIGN_OR_RETURN(FittedCuts fitted,
+                          select_fitting_cuts(session, std::span<const ProbeView>(&view, 1), scene, probe, options, log));
+  result.probe = std::move(fitted.probe);
+  result.footprint_scale = fitted.footprint_scale;
+  result.coarsening_steps = fitted.coarsening_steps;
+  result.cuts = result.probe.cuts;
+  result.seconds.probe = seconds_since(t_probe);
+
+  // C. Simplify (A5), or reuse a cached simplified mesh that is fine enough.
+  say(log, "[3/4] simplify");
+  auto t_simplify = std::chrono::steady_clock::now();
+  RAYLOD_ASSIGN_OR_RETURN(StagedMeshes staged, simplify_or_reuse(session, scene, result.cuts, options, log));
+  result.meshes = staged.meshes;
+  result.triangles_out = staged.triangles;
+  result.cache_hit = staged.cache_hit;
+  result.seconds.simplify = seconds_since(t_simplify);
+  if (!options.export_mesh.empty()) {
+    RAYLOD_ASSIGN_OR_RETURN(result.exported_bytes,
+                            export_simplified_glb(options.export_mesh, result.meshes, session.stores));
+    say(log, "exported the simplified meshes to " + options.export_mesh.string() + " (" + format_bytes(result.exported_bytes) + ")");
+  }
+
+  // D. Render the simplified meshes. The stores' node tables and the trace
+  // are not needed any more: the render gets their memory.
+  session.stores.probe_stores.clear();
+  session.stores.stores.clear();
+  trace = ProbeTrace{};
+#if defined(__GLIBC__)
+  malloc_trim(0);
+#endif
+  say(log, "[4/4] render");
+  auto t_render = std::chrono::steady_clock::now();
+  RAYLOD_ASSIGN_OR_RETURN(result.render, render_simplified(scene, session.stores.objects, result.meshes, options,
+                                                           session.memory_limit, log));
   result.seconds.render = seconds_since(t_render);
   result.peak_rss = peak_rss_bytes();
+  result.warnings = session.warnings;
   return result;
 }
 

@@ -5,6 +5,7 @@
 // `raylod report` share.
 #pragma once
 
+#include <chrono>
 #include <cstdint>
 #include <filesystem>
 #include <functional>
@@ -16,6 +17,7 @@
 
 #include "core/memory_budget.h"
 #include "core/status.h"
+#include "pipeline/simplified_cache.h"
 #include "probe/probe.h"
 #include "render/renderer.h"
 #include "scene/scene.h"
@@ -25,6 +27,11 @@
 namespace raylod {
 
 using LogFn = std::function<void(const std::string&)>;
+
+// Helpers the pipeline's stages share: seconds since t0 (steady clock), and
+// a line to the log if there is one.
+double seconds_since(std::chrono::steady_clock::time_point t0);
+void say(const LogFn& log, const std::string& text);
 
 // The stores of a scene's meshes, opened, with the objects that use them.
 struct SceneStores {
@@ -100,6 +107,69 @@ std::filesystem::path store_path_for(const std::filesystem::path& mesh, const st
                                      const StoreOptions& options, std::string* note = nullptr);
 
 StatusOr<RunResult> run_pipeline(Scene scene, const RunOptions& options, const LogFn& log);
+
+// The stages of `raylod run`, shared by one view (run_pipeline) and a view
+// sequence (pipeline/views.h). A session holds what they share: the stores
+// (built once), the memory budget and the cache.
+struct RunSession {
+  SceneStores stores;
+  MemoryBudget budget;
+  uint64_t memory_limit = 0;                 // budget.working(): what simplify and render get
+  std::optional<SimplifiedCache> cache;      // none with --no-cache, or when the cache refused
+  std::filesystem::path scratch;             // where simplified meshes are staged
+  bool repaired = false;                     // a store found corrupt is rebuilt once per session
+  std::vector<std::string> warnings;         // printed whatever the log level
+};
+
+// Builds or reuses the stores (stage A) and opens the cache.
+StatusOr<RunSession> open_run_session(Scene& scene, const RunOptions& options, const LogFn& log);
+// The probe configuration of options within the session's budget.
+StatusOr<ProbeConfig> run_probe_config(const RunSession& session, const Scene& scene, const RunOptions& options);
+// Traces the test rays of scene.camera; a store found corrupt is rebuilt and the trace retried.
+StatusOr<ProbeTrace> trace_view(RunSession& session, const Scene& scene, const ProbeConfig& probe, const LogFn& log);
+
+struct FittedCuts {
+  ProbeResult probe;
+  double footprint_scale = 1;  // K used (after any coarsening for memory)
+  int coarsening_steps = 0;
+};
+// Selects the cuts of the views (select_shared_cuts; one view: select_cuts),
+// coarsening them (doubling K and the tolerance) until the simplified meshes
+// fit the session's memory.
+StatusOr<FittedCuts> select_fitting_cuts(RunSession& session, std::span<const ProbeView> views, const Scene& scene,
+                                         ProbeConfig probe, const RunOptions& options, const LogFn& log);
+
+// Files removed when the owner goes (staged simplified meshes).
+class ScratchFiles {
+ public:
+  ScratchFiles() = default;
+  ScratchFiles(ScratchFiles&& other) noexcept;
+  ScratchFiles& operator=(ScratchFiles&& other) noexcept;
+  ScratchFiles(const ScratchFiles&) = delete;
+  ScratchFiles& operator=(const ScratchFiles&) = delete;
+  ~ScratchFiles();
+  void add(const std::filesystem::path& file) { files_.push_back(file); }
+
+ private:
+  void remove_all();
+  std::vector<std::filesystem::path> files_;
+};
+
+// The simplified meshes of a set of cuts, staged for rendering.
+struct StagedMeshes {
+  std::vector<SimplifiedMesh> meshes;  // one per store
+  uint64_t triangles = 0;
+  bool cache_hit = true;               // every mesh came from the cache
+  ScratchFiles scratch;                // the staged files, removed with this
+};
+// Stage C: per store, the cached mesh of the cut or one at least as fine
+// (simplified_cache.h), else simplifies it (and caches it).
+StatusOr<StagedMeshes> simplify_or_reuse(RunSession& session, const Scene& scene, std::span<const Cut> cuts,
+                                         const RunOptions& options, const LogFn& log);
+// Stage D: renders scene.camera's view of the simplified meshes.
+StatusOr<RenderResult> render_simplified(const Scene& scene, std::span<const ProbeObject> objects,
+                                         std::span<const SimplifiedMesh> meshes, const RunOptions& options,
+                                         uint64_t memory_limit, const LogFn& log);
 
 // Writes the simplified meshes (their Draco bytes unchanged, so with the
 // .drc's quantisation) as one .glb: one glTF mesh per store with triangles,

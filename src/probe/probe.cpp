@@ -492,27 +492,83 @@ StatusOr<ProbeTrace> trace_probe(const Scene& scene, std::span<const ProbeStore>
   return result;
 }
 
+namespace {
+
+// One view: probe_key of its camera; several: a hash of their keys in order.
+std::string shared_probe_key(std::span<const ProbeView> views, const Scene& scene, const OctreeStore& store,
+                             std::span<const ProbeObject> objects, size_t store_index, const ProbeConfig& config) {
+  Scene view_scene = scene;
+  std::string keys;
+  for (const ProbeView& v : views) {
+    view_scene.camera = v.camera;
+    keys += probe_key(view_scene, store, objects, store_index, config);
+  }
+  if (views.size() == 1) return keys;
+  char buf[17];
+  std::snprintf(buf, sizeof(buf), "%016llx", static_cast<unsigned long long>(fnv1a64(keys.data(), keys.size())));
+  return buf;
+}
+
+}  // namespace
+
 StatusOr<ProbeResult> select_cuts(const ProbeTrace& trace, const Scene& scene, std::span<const ProbeStore> stores,
                                   std::span<const ProbeObject> objects, const ProbeConfig& config) {
+  const ProbeView view{&trace, scene.camera};
+  return select_shared_cuts(std::span<const ProbeView>(&view, 1), scene, stores, objects, config);
+}
+
+namespace {
+
+// What the unreached-cell policy needs of one view (probe.h).
+struct ViewFacts {
+  const ProbeTrace* trace = nullptr;
+  PinholeCamera cam;
+  Frustum frustum;
+  double a_min = kInf;  // smallest angle between neighbouring pixels' rays (at the image corners)
+  double m = 1;         // the trace's magnification
+};
+
+ViewFacts make_view_facts(const ProbeView& v) {
+  ViewFacts f;
+  f.trace = v.trace;
+  f.cam = make_pinhole_camera(v.camera);
+  f.frustum = make_frustum(f.cam);
+  for (double px : {0.0, 0.5 * f.cam.width, double(f.cam.width)})
+    for (double py : {0.0, 0.5 * f.cam.height, double(f.cam.height)}) {
+      const RayDerivatives d = f.cam.derivatives(px, py);
+      f.a_min = std::min({f.a_min, glm::length(d.dd_dx), glm::length(d.dd_dy)});
+    }
+  f.m = v.trace->magnification;
+  return f;
+}
+
+}  // namespace
+
+StatusOr<ProbeResult> select_shared_cuts(std::span<const ProbeView> views, const Scene& scene,
+                                         std::span<const ProbeStore> stores, std::span<const ProbeObject> objects,
+                                         const ProbeConfig& config) {
   RAYLOD_RETURN_IF_ERROR(check_probe_inputs(scene, stores, objects, config));
+  if (views.empty()) return Status::error("probe: no views to select a cut for");
+  for (const ProbeView& v : views)
+    if (!v.trace) return Status::error("probe: a view has no trace");
   const auto t_select = std::chrono::steady_clock::now();
   ProbeResult result;
-  result.counters = trace.counters;
-  result.magnification = trace.magnification;
-  result.trace_seconds = trace.trace_seconds;
-  const double m = trace.magnification;
+  std::vector<ViewFacts> facts;
+  for (const ProbeView& v : views) facts.push_back(make_view_facts(v));
+  // Counters add up over the views; the magnification is the smallest.
+  result.magnification = kInf;
+  for (const ProbeView& v : views) {
+    for (const auto& [name, value] : v.trace->counters)
+      if (name != "magnification_ppm") result.counters[name] += value;
+    result.magnification = std::min(result.magnification, v.trace->magnification);
+    result.trace_seconds += v.trace->trace_seconds;
+  }
+  result.counters["magnification_ppm"] = uint64_t(std::llround(result.magnification * 1e6));
+  uint64_t total_rays = 0;
+  for (const ProbeView& v : views) total_rays += v.trace->rays;
   std::vector<ObjectXf> xf;
   for (const ProbeObject& o : objects) xf.push_back(make_object_xf(o));
 
-  // Scene facts the policy needs.
-  const PinholeCamera cam = make_pinhole_camera(scene.camera);
-  const Frustum frustum = make_frustum(cam);
-  double a_min = kInf;  // smallest angle between neighbouring pixels' rays (at the image corners)
-  for (double px : {0.0, 0.5 * cam.width, double(cam.width)})
-    for (double py : {0.0, 0.5 * cam.height, double(cam.height)}) {
-      const RayDerivatives d = cam.derivatives(px, py);
-      a_min = std::min({a_min, glm::length(d.dd_dx), glm::length(d.dd_dy)});
-    }
   bool specular = false;
   for (const ProbeObject& o : objects) specular |= scene.materials[size_t(o.material)].reflects();
   if (scene.ground) specular |= scene.materials[size_t(scene.ground->material)].reflects();
@@ -526,38 +582,42 @@ StatusOr<ProbeResult> select_cuts(const ProbeTrace& trace, const Scene& scene, s
     Cut cut;
     cut.store_hash = store_fingerprint(st);
     cut.store_path = stores[s].path.string();
-    cut.key = probe_key(scene, st, objects, s, config);
-    cut.rays = trace.rays;
-    cut.seed = trace.seed;
+    cut.key = shared_probe_key(views, scene, st, objects, s, config);
+    cut.rays = total_rays;
+    cut.seed = views[0].trace->seed;
     cut.footprint_scale = K;
     cut.counters = result.counters;
 
-    // Measured footprints at the finest level, attached to the hit triangles' corner cells.
+    // Measured footprints at the finest level, attached to the hit triangles'
+    // corner cells, per view.
     struct Measured { double f = kInf; double angular = kInf; uint32_t hits = 0; };
-    std::unordered_map<uint64_t, Measured> measured;
+    std::vector<std::unordered_map<uint64_t, Measured>> measured(views.size());
     double min_fp = kInf;
     uint64_t store_hits = 0;
-    auto hit_footprint = [&](const HitRecord& h) { return h.estimated ? h.footprint * m : h.footprint; };
-    for (const HitRecord& h : trace.hits) {
-      if (xf[h.object].store != s) continue;
-      ++store_hits;
-      const double f = hit_footprint(h);
-      min_fp = std::min(min_fp, f);
-      uint64_t codes[3];
-      for (int k = 0; k < 3; ++k) {
-        codes[k] = st.cell_of(h.corners[k], Q).code;
-        if ((k > 0 && codes[k] == codes[0]) || (k > 1 && codes[k] == codes[1])) continue;
-        Measured& e = measured[codes[k]];
-        e.f = std::min(e.f, f);
-        e.angular = std::min(e.angular, h.angular);
-        ++e.hits;
+    auto hit_footprint = [&](const HitRecord& h, double m) { return h.estimated ? h.footprint * m : h.footprint; };
+    for (size_t v = 0; v < views.size(); ++v)
+      for (const HitRecord& h : views[v].trace->hits) {
+        if (xf[h.object].store != s) continue;
+        ++store_hits;
+        const double f = hit_footprint(h, facts[v].m);
+        min_fp = std::min(min_fp, f);
+        uint64_t codes[3];
+        for (int k = 0; k < 3; ++k) {
+          codes[k] = st.cell_of(h.corners[k], Q).code;
+          if ((k > 0 && codes[k] == codes[0]) || (k > 1 && codes[k] == codes[1])) continue;
+          Measured& e = measured[v][codes[k]];
+          e.f = std::min(e.f, f);
+          e.angular = std::min(e.angular, h.angular);
+          ++e.hits;
+        }
       }
-    }
     cut.min_footprint = std::isfinite(min_fp) ? float(min_fp) : 0.0f;
     cut.counters["store_hits"] = store_hits;
 
-    // The policy's estimate for a cell no ray reached (probe.h).
-    auto estimate = [&](const CellKey& key) {
+    // The policy's estimate for a cell no ray of view `view` reached (probe.h).
+    auto estimate = [&](const ViewFacts& view, const CellKey& key) {
+      const PinholeCamera& cam = view.cam;
+      const double m = view.m;
       const Bbox b = st.cell_bounds(key);
       double need = kInf;
       for (const ObjectXf& x : xf) {
@@ -568,8 +628,8 @@ StatusOr<ProbeResult> select_cuts(const ProbeTrace& trace, const Scene& scene, s
           c[i] = Vec3d(x.m * glm::dvec4(i & 1 ? b.hi.x : b.lo.x, i & 2 ? b.hi.y : b.lo.y, i & 4 ? b.hi.z : b.lo.z, 1.0));
           wb.expand(c[i]);
         }
-        double e = a_min * distance_to_box(cam.eye, wb) / x.sigma;
-        if (specular || !frustum.outside(c)) e *= m;
+        double e = view.a_min * distance_to_box(cam.eye, wb) / x.sigma;
+        if (specular || !view.frustum.outside(c)) e *= m;
         else if (lights) e *= config.shadow_factor;
         else e = kInf;
         need = std::min(need, e);
@@ -584,8 +644,8 @@ StatusOr<ProbeResult> select_cuts(const ProbeTrace& trace, const Scene& scene, s
     const bool deviation = config.criterion == CutCriterion::Deviation;
     const bool bound_normals = deviation && store_specular;
 
-    // need() and the angular need bottom-up: measured or estimated at level
-    // Q, min over children above.
+    // need() and the angular need bottom-up: at level Q the finest over the
+    // views of each view's measured or estimated need, min over children above.
     std::vector<std::vector<double>> need(size_t(Q) + 1), angular(size_t(Q) + 1);
     {
       const auto nodes = st.level(Q);
@@ -593,11 +653,16 @@ StatusOr<ProbeResult> select_cuts(const ProbeTrace& trace, const Scene& scene, s
       if (bound_normals) angular[size_t(Q)].assign(nodes.size(), kInf);
       tbb::parallel_for(tbb::blocked_range<size_t>(0, nodes.size(), 1024), [&](const tbb::blocked_range<size_t>& r) {
         for (size_t i = r.begin(); i != r.end(); ++i) {
-          auto it = measured.find(nodes[i].code);
-          need[size_t(Q)][i] = it != measured.end() ? it->second.f : estimate(CellKey{uint32_t(Q), nodes[i].code});
-          // Unreached mirror or glass cells: the pixel angle, as magnified
-          // as the most magnified measured paths.
-          if (bound_normals) angular[size_t(Q)][i] = it != measured.end() ? it->second.angular : a_min * m;
+          double f = kInf, a = kInf;
+          for (size_t v = 0; v < views.size(); ++v) {
+            auto it = measured[v].find(nodes[i].code);
+            f = std::min(f, it != measured[v].end() ? it->second.f : estimate(facts[v], CellKey{uint32_t(Q), nodes[i].code}));
+            // Unreached mirror or glass cells: the pixel angle, as magnified
+            // as the most magnified measured paths.
+            if (bound_normals) a = std::min(a, it != measured[v].end() ? it->second.angular : facts[v].a_min * facts[v].m);
+          }
+          need[size_t(Q)][i] = f;
+          if (bound_normals) angular[size_t(Q)][i] = a;
         }
       });
     }
@@ -667,26 +732,27 @@ StatusOr<ProbeResult> select_cuts(const ProbeTrace& trace, const Scene& scene, s
     auto pack = [](uint32_t level, uint64_t code) { return (uint64_t(level) << 58) ^ code; };
     for (size_t i = 0; i < cut.cells.size(); ++i) cell_index[pack(cut.cells[i].key.level, cut.cells[i].key.code)] = i;
     uint64_t hit_cells = 0;
-    for (const HitRecord& h : trace.hits) {
-      if (xf[h.object].store != s) continue;
-      size_t found[3];
-      int nfound = 0;
-      for (int k = 0; k < 3; ++k) {
-        const uint64_t code = st.cell_of(h.corners[k], Q).code;
-        for (int L = Q; L >= 0; --L) {
-          auto it = cell_index.find(pack(uint32_t(L), code >> (3 * (Q - L))));
-          if (it == cell_index.end()) continue;
-          if (std::find(found, found + nfound, it->second) == found + nfound) found[nfound++] = it->second;
-          break;
+    for (size_t v = 0; v < views.size(); ++v)
+      for (const HitRecord& h : views[v].trace->hits) {
+        if (xf[h.object].store != s) continue;
+        size_t found[3];
+        int nfound = 0;
+        for (int k = 0; k < 3; ++k) {
+          const uint64_t code = st.cell_of(h.corners[k], Q).code;
+          for (int L = Q; L >= 0; --L) {
+            auto it = cell_index.find(pack(uint32_t(L), code >> (3 * (Q - L))));
+            if (it == cell_index.end()) continue;
+            if (std::find(found, found + nfound, it->second) == found + nfound) found[nfound++] = it->second;
+            break;
+          }
+        }
+        for (int k = 0; k < nfound; ++k) {
+          CollapsedCell& c = cut.cells[found[k]];
+          const float f = float(hit_footprint(h, facts[v].m));
+          c.min_footprint = c.hits == 0 ? f : std::min(c.min_footprint, f);
+          ++c.hits;
         }
       }
-      for (int k = 0; k < nfound; ++k) {
-        CollapsedCell& c = cut.cells[found[k]];
-        const float f = float(hit_footprint(h));
-        c.min_footprint = c.hits == 0 ? f : std::min(c.min_footprint, f);
-        ++c.hits;
-      }
-    }
     for (const CollapsedCell& c : cut.cells) hit_cells += c.hits > 0;
     cut.counters["cells_marked"] = cut.cells.size();
     cut.counters["cells_marked_with_hits"] = hit_cells;

@@ -168,6 +168,26 @@ StatusOr<ProbeTrace> trace_probe(const Scene& scene, std::span<const ProbeStore>
 StatusOr<ProbeResult> select_cuts(const ProbeTrace& trace, const Scene& scene, std::span<const ProbeStore> stores,
                                   std::span<const ProbeObject> objects, const ProbeConfig& config);
 
+// One view of several (`raylod run --shared-cut`): its traced test rays and
+// the camera they were traced from (trace_probe with scene.camera = camera).
+struct ProbeView {
+  const ProbeTrace* trace = nullptr;
+  Camera camera;
+};
+
+// One cut per store for all the views at once: a cell's need is the finest
+// over the views, each view contributing what select_cuts would use for it
+// alone (its measured footprints, or for a cell its rays did not reach, the
+// policy's estimate from its own eye, frustum and magnification; likewise the
+// angular need on mirrors and glass). Since every test is monotone in the
+// need, every cell the shared cut collapses is also collapsed (itself or
+// through an ancestor) by each view's own cut. The result does not depend on
+// the order of the views or on threads. With one view it is select_cuts
+// exactly (same cells and key).
+StatusOr<ProbeResult> select_shared_cuts(std::span<const ProbeView> views, const Scene& scene,
+                                         std::span<const ProbeStore> stores, std::span<const ProbeObject> objects,
+                                         const ProbeConfig& config);
+
 // Both: trace, then select.
 StatusOr<ProbeResult> run_probe(const Scene& scene, std::span<const ProbeStore> stores,
                                 std::span<const ProbeObject> objects, const ProbeConfig& config);

@@ -140,21 +140,23 @@ class PathTracker final : public json::json_sax_t {
   std::vector<Frame> frames_;
 };
 
-Status parse_camera(const Parser& p, const json& j, Camera& cam) {
-  RAYLOD_RETURN_IF_ERROR(p.known_keys(j, "camera", {"eye", "look_at", "up", "fov_y", "width", "height"}));
-  if (!j.contains("eye") || !j.contains("look_at")) return p.fail("camera", "needs 'eye' and 'look_at'");
-  RAYLOD_RETURN_IF_ERROR(p.vec3(j["eye"], "camera.eye", cam.eye));
-  RAYLOD_RETURN_IF_ERROR(p.vec3(j["look_at"], "camera.look_at", cam.look_at));
-  if (j.contains("up")) RAYLOD_RETURN_IF_ERROR(p.vec3(j["up"], "camera.up", cam.up));
-  if (j.contains("fov_y")) RAYLOD_RETURN_IF_ERROR(p.number(j["fov_y"], "camera.fov_y", cam.fov_y_deg));
+// `where` names the camera in messages: "camera" in a scene, "[3]" in a views file.
+Status parse_camera(const Parser& p, const json& j, const std::string& where, Camera& cam) {
+  const std::string at = where + ".";
+  RAYLOD_RETURN_IF_ERROR(p.known_keys(j, where, {"eye", "look_at", "up", "fov_y", "width", "height"}));
+  if (!j.contains("eye") || !j.contains("look_at")) return p.fail(where, "needs 'eye' and 'look_at'");
+  RAYLOD_RETURN_IF_ERROR(p.vec3(j["eye"], at + "eye", cam.eye));
+  RAYLOD_RETURN_IF_ERROR(p.vec3(j["look_at"], at + "look_at", cam.look_at));
+  if (j.contains("up")) RAYLOD_RETURN_IF_ERROR(p.vec3(j["up"], at + "up", cam.up));
+  if (j.contains("fov_y")) RAYLOD_RETURN_IF_ERROR(p.number(j["fov_y"], at + "fov_y", cam.fov_y_deg));
   int64_t v;
-  if (j.contains("width")) { RAYLOD_RETURN_IF_ERROR(p.integer(j["width"], "camera.width", 1, 32768, v)); cam.width = int(v); }
-  if (j.contains("height")) { RAYLOD_RETURN_IF_ERROR(p.integer(j["height"], "camera.height", 1, 32768, v)); cam.height = int(v); }
-  if (!(cam.fov_y_deg > 0 && cam.fov_y_deg < 180)) return p.fail("camera.fov_y", "must be in (0, 180) degrees");
+  if (j.contains("width")) { RAYLOD_RETURN_IF_ERROR(p.integer(j["width"], at + "width", 1, 32768, v)); cam.width = int(v); }
+  if (j.contains("height")) { RAYLOD_RETURN_IF_ERROR(p.integer(j["height"], at + "height", 1, 32768, v)); cam.height = int(v); }
+  if (!(cam.fov_y_deg > 0 && cam.fov_y_deg < 180)) return p.fail(at + "fov_y", "must be in (0, 180) degrees");
   Vec3d view = cam.look_at - cam.eye;
-  if (glm::length(view) == 0) return p.fail("camera", "eye and look_at coincide");
+  if (glm::length(view) == 0) return p.fail(where, "eye and look_at coincide");
   if (glm::length(glm::cross(view, cam.up)) <= 1e-9 * glm::length(view) * glm::length(cam.up))
-    return p.fail("camera.up", "is zero or parallel to the viewing direction");
+    return p.fail(at + "up", "is zero or parallel to the viewing direction");
   return {};
 }
 
@@ -301,30 +303,38 @@ Status parse_light(const Parser& p, const json& j, const std::string& where, Lig
   return {};
 }
 
+// Parses JSON text; errors name the source, and for a number out of the
+// double range the place (`root` when it is at the top).
+Status parse_json(const Parser& p, const std::string& text, const std::string& root, json& j) {
+  try {
+    j = json::parse(text);
+  } catch (const json::parse_error& e) {
+    return Status::error(p.source + ": not valid JSON: " + e.what());
+  } catch (const json::exception& e) {
+    // Valid syntax the parser still cannot hold (id 406: a number such as
+    // 1e400 overflows a double); a second, SAX pass finds where it is.
+    PathTracker where;
+    where.path = root;
+    (void)json::sax_parse(text, &where);
+    if (e.id == 406)
+      return p.fail(where.path, "the number " + where.token + " is out of range (beyond the largest double, about 1.8e308)");
+    return p.fail(where.path, std::string("cannot be read: ") + e.what());
+  }
+  return {};
+}
+
 }  // namespace
 
 StatusOr<Scene> parse_scene(const std::string& text, const std::filesystem::path& base_dir,
                             const std::string& source_name) {
   Parser p{source_name};
   json j;
-  try {
-    j = json::parse(text);
-  } catch (const json::parse_error& e) {
-    return Status::error(source_name + ": not valid JSON: " + e.what());
-  } catch (const json::exception& e) {
-    // Valid syntax the parser still cannot hold (id 406: a number such as
-    // 1e400 overflows a double); a second, SAX pass finds where it is.
-    PathTracker where;
-    (void)json::sax_parse(text, &where);
-    if (e.id == 406)
-      return p.fail(where.path, "the number " + where.token + " is out of range (beyond the largest double, about 1.8e308)");
-    return p.fail(where.path, std::string("cannot be read: ") + e.what());
-  }
+  RAYLOD_RETURN_IF_ERROR(parse_json(p, text, "scene", j));
   RAYLOD_RETURN_IF_ERROR(p.known_keys(j, "scene", {"camera", "materials", "objects", "ground", "lights", "background",
                                                   "spp", "max_depth", "seed", "crease_angle", "comment"}));
   Scene scene;
   if (!j.contains("camera")) return p.fail("scene", "missing 'camera'");
-  RAYLOD_RETURN_IF_ERROR(parse_camera(p, j["camera"], scene.camera));
+  RAYLOD_RETURN_IF_ERROR(parse_camera(p, j["camera"], "camera", scene.camera));
 
   std::map<std::string, int> material_index;
   if (!j.contains("materials") || !j["materials"].is_object() || j["materials"].empty())
@@ -429,6 +439,30 @@ StatusOr<Scene> load_scene(const std::filesystem::path& path) {
   auto scene = parse_scene(ss.str(), dir.empty() ? std::filesystem::path(".") : dir, path.string());
   if (scene) scene->source = path;
   return scene;
+}
+
+StatusOr<std::vector<Camera>> parse_views(const std::string& json_text, const Camera& defaults,
+                                          const std::string& source_name) {
+  Parser p{source_name};
+  json j;
+  RAYLOD_RETURN_IF_ERROR(parse_json(p, json_text, "views", j));
+  if (!j.is_array() || j.empty()) return Status::error(source_name + ": expected a non-empty JSON array of cameras");
+  std::vector<Camera> views;
+  for (size_t i = 0; i < j.size(); ++i) {
+    Camera cam = defaults;
+    RAYLOD_RETURN_IF_ERROR(parse_camera(p, j[i], "[" + std::to_string(i) + "]", cam));
+    views.push_back(cam);
+  }
+  return views;
+}
+
+StatusOr<std::vector<Camera>> load_views(const std::filesystem::path& path, const Camera& defaults) {
+  if (Status st = check_regular_file(path); !st) return st;
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return Status::error(path.string() + ": cannot open views file");
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return parse_views(ss.str(), defaults, path.string());
 }
 
 const std::string& default_scene_json() {

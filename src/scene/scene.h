@@ -108,6 +108,13 @@ struct Scene {
 StatusOr<Scene> parse_scene(const std::string& json_text, const std::filesystem::path& base_dir,
                             const std::string& source_name);
 StatusOr<Scene> load_scene(const std::filesystem::path& path);
+// A views file (`raylod run --views`): a JSON array of cameras with the
+// scene's camera fields; the fields an element leaves out (up, fov_y, width,
+// height) are taken from `defaults` (the scene's camera). Errors name the
+// source and the element ("views.json: [3].eye: expected an array of 3 numbers").
+StatusOr<std::vector<Camera>> parse_views(const std::string& json_text, const Camera& defaults,
+                                          const std::string& source_name);
+StatusOr<std::vector<Camera>> load_views(const std::filesystem::path& path, const Camera& defaults);
 // The default scene compiled into the binary (data/default_scene.json).
 StatusOr<Scene> default_scene();
 const std::string& default_scene_json();

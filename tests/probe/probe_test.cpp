@@ -4,6 +4,7 @@
 // thread-count determinism and the properties of the cut.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cstdlib>
 #include <cstring>
 #include <fstream>
@@ -574,6 +575,135 @@ TEST(ProbeDeviation, CurvedCellsKeepTheirDeviationBelowTheTolerance) {
     }
     previous = corners;
   }
+}
+
+// --shared-cut: one cut over several views' traces.
+struct SharedViews {
+  std::vector<ProbeTrace> traces;
+  std::vector<Camera> cameras;
+  std::vector<ProbeView> views() const {
+    std::vector<ProbeView> v;
+    for (size_t i = 0; i < traces.size(); ++i) v.push_back(ProbeView{&traces[i], cameras[i]});
+    return v;
+  }
+};
+
+ProbeConfig shared_config() {
+  ProbeConfig c;
+  c.rays = 1500;
+  c.seed = 7;
+  c.footprint_scale = 8;
+  c.cache_bytes = uint64_t(64) << 20;
+  return c;
+}
+
+// Three views of the teapot (two around it, one close up), traced in an arena of `threads`.
+SharedViews trace_views(const Scene& scene, const Built& b, int threads) {
+  SharedViews out;
+  out.cameras = {scene.camera, scene.camera, scene.camera};
+  out.cameras[1].eye = Vec3d(-8.5, 4.8, 6.5);
+  out.cameras[2].eye = kLook + (kEye - kLook) * 0.35;
+  ProbeStore store{b.store.get(), b.store_path};
+  ProbeObject object{0, glm::dmat4(1.0), 0};
+  tbb::task_arena(threads).execute([&] {
+    for (const Camera& c : out.cameras) {
+      Scene s = scene;
+      s.camera = c;
+      auto t = trace_probe(s, std::span<const ProbeStore>(&store, 1), std::span<const ProbeObject>(&object, 1),
+                           shared_config());
+      EXPECT_TRUE(t.is_ok()) << t.status().message();
+      out.traces.push_back(t.is_ok() ? std::move(t.value()) : ProbeTrace{});
+    }
+  });
+  return out;
+}
+
+StatusOr<ProbeResult> select(std::span<const ProbeView> views, const Scene& scene, const Built& b, int threads = 2) {
+  ProbeStore store{b.store.get(), b.store_path};
+  ProbeObject object{0, glm::dmat4(1.0), 0};
+  StatusOr<ProbeResult> r = Status::error("not run");
+  tbb::task_arena(threads).execute([&] {
+    r = select_shared_cuts(views, scene, std::span<const ProbeStore>(&store, 1), std::span<const ProbeObject>(&object, 1),
+                           shared_config());
+  });
+  return r;
+}
+
+std::vector<CellKey> cells_of(const Cut& cut) {
+  std::vector<CellKey> keys;
+  for (const CollapsedCell& c : cut.cells) keys.push_back(c.key);
+  return keys;
+}
+
+// Whether `cell` or one of its ancestors is in `cut` (cut cells sorted by key).
+bool collapsed_by(const Cut& cut, const CellKey& cell) {
+  for (uint32_t level = 0; level <= cell.level; ++level) {
+    const CellKey k{level, cell.code >> (3 * (cell.level - level))};
+    if (std::binary_search(cut.cells.begin(), cut.cells.end(), CollapsedCell{k, 0.0f, 0},
+                           [](const CollapsedCell& a, const CollapsedCell& b) { return a.key < b.key; }))
+      return true;
+  }
+  return false;
+}
+
+TEST(SharedCut, OneViewIsSelectCutsExactly) {
+  const Built& b = teapot();
+  const Scene scene = make_scene(MaterialType::Diffuse, kEye, kLook);
+  const SharedViews v = trace_views(scene, b, 2);
+  const std::vector<ProbeView> views = v.views();
+  auto shared = select(std::span<const ProbeView>(views.data(), 1), scene, b);
+  ProbeStore store{b.store.get(), b.store_path};
+  ProbeObject object{0, glm::dmat4(1.0), 0};
+  auto single = select_cuts(v.traces[0], scene, std::span<const ProbeStore>(&store, 1),
+                            std::span<const ProbeObject>(&object, 1), shared_config());
+  ASSERT_TRUE(shared.is_ok() && single.is_ok());
+  EXPECT_EQ(shared->cuts[0].key, single->cuts[0].key);
+  EXPECT_EQ(cells_of(shared->cuts[0]), cells_of(single->cuts[0]));
+  EXPECT_EQ(shared->cuts[0].min_footprint, single->cuts[0].min_footprint);
+}
+
+// Property: every cell the shared cut collapses is collapsed (itself or
+// through an ancestor) by each view's own cut, for diffuse and glass (whose
+// normal bound uses the angular need too).
+TEST(SharedCut, AtLeastAsFineAsEveryViewsOwnCutInEveryCell) {
+  const Built& b = teapot();
+  for (MaterialType type : {MaterialType::Diffuse, MaterialType::Glass}) {
+    const Scene scene = make_scene(type, kEye, kLook);
+    const SharedViews v = trace_views(scene, b, 2);
+    const std::vector<ProbeView> views = v.views();
+    auto shared = select(views, scene, b);
+    ASSERT_TRUE(shared.is_ok()) << shared.status().message();
+    const Cut& cut = shared->cuts[0];
+    ASSERT_FALSE(cut.cells.empty());
+    size_t finer_somewhere = 0;
+    for (size_t i = 0; i < views.size(); ++i) {
+      Scene s = scene;
+      s.camera = v.cameras[i];
+      auto own = select(std::span<const ProbeView>(&views[i], 1), s, b);
+      ASSERT_TRUE(own.is_ok());
+      for (const CollapsedCell& c : cut.cells)
+        ASSERT_TRUE(collapsed_by(own->cuts[0], c.key)) << "view " << i << ": level " << c.key.level << " code " << c.key.code;
+      finer_somewhere += cells_of(own->cuts[0]) != cells_of(cut);
+    }
+    EXPECT_GT(finer_somewhere, 0u) << "the views should not all need the same cut";
+    EXPECT_EQ(cut.rays, 3 * shared_config().rays);
+  }
+}
+
+TEST(SharedCut, SameForOneAndTwoThreadsAndAnyViewOrder) {
+  const Built& b = teapot();
+  const Scene scene = make_scene(MaterialType::Glass, kEye, kLook);
+  const SharedViews one = trace_views(scene, b, 1), two = trace_views(scene, b, 2);
+  const std::vector<ProbeView> v1 = one.views(), v2 = two.views();
+  auto a = select(v1, scene, b, 1);
+  auto c = select(v2, scene, b, 2);
+  ASSERT_TRUE(a.is_ok() && c.is_ok());
+  EXPECT_EQ(cells_of(a->cuts[0]), cells_of(c->cuts[0]));
+  EXPECT_EQ(a->cuts[0].key, c->cuts[0].key);
+  std::vector<ProbeView> reversed(v2.rbegin(), v2.rend());
+  auto r = select(reversed, scene, b, 2);
+  ASSERT_TRUE(r.is_ok());
+  EXPECT_EQ(cells_of(r->cuts[0]), cells_of(a->cuts[0]));
 }
 
 }  // namespace
