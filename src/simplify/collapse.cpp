@@ -233,6 +233,7 @@ void CollapseBuilder::add(const TriangleBatch& batch, std::span<const uint32_t> 
       }
     }
     ++stats_.input_triangles;
+    stats_.input_degenerate += !(area2 > 0);
     if (id[0] == id[1] || id[1] == id[2] || id[0] == id[2]) { ++stats_.dropped_collapsed; continue; }
     auto pos = [&](uint32_t i) -> const Vec3& { return i < nreps ? rep_pos_[i] : kept_pos_[i - nreps]; };
     if (zero_area(pos(id[0]), pos(id[1]), pos(id[2]))) { ++stats_.dropped_zero_area; continue; }
@@ -471,7 +472,7 @@ std::string why_simplified_mesh_is_empty(const SimplifyResult& result, const Cut
   const CollapseStats& s = result.stats;
   const std::string n = std::to_string(s.input_triangles);
   if (s.input_triangles == 0) return "the store holds no triangles";
-  if (cut.cells.empty() || s.dropped_zero_area == s.input_triangles)
+  if (cut.cells.empty() || s.dropped_zero_area == s.input_triangles || s.input_degenerate == s.input_triangles)
     return "all " + n + " triangles are degenerate (zero area or repeated corners)";
   return "all " + n + " triangles collapsed: the cut merged every vertex into " + std::to_string(result.cut_cells) +
          " cell(s) finer than the view resolves (the whole mesh is about a pixel or less here)";

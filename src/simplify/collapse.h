@@ -93,6 +93,7 @@ struct CollapseStats {
   uint64_t output_triangles = 0;
   uint64_t dropped_collapsed = 0;   // two corners became the same output vertex
   uint64_t dropped_zero_area = 0;   // distinct vertices, exactly zero area
+  uint64_t input_degenerate = 0;    // input triangles with exactly zero area (whatever the cut did to them)
   uint64_t dropped_duplicate = 0;   // same vertices and orientation as an earlier triangle
   uint64_t reverse_twins = 0;       // kept triangles whose reverse-wound twin is also kept
   uint64_t output_vertices = 0;
