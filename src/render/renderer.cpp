@@ -308,30 +308,54 @@ RenderResult render_embree_scene(const EmbreeScene& geometry, const Scene& scene
     for (int t = r.begin(); t != r.end(); ++t) {
       const int x0 = (t % tiles_x) * tile, y0 = (t / tiles_x) * tile;
       const int x1 = std::min(width, x0 + tile), y1 = std::min(height, y0 + tile);
-      for (int y = y0; y < y1; ++y) {
-        for (int x = x0; x < x1; ++x) {
-          uint64_t state = pixel_state(scene.seed, x, y);
-          Vec3 sum(0.0f);
-          CameraSample first;
+      // 4x4 pixel blocks (clipped to the tile): sample s of every pixel of a
+      // block is one camera packet. Each pixel keeps its own random stream,
+      // so the image does not depend on the blocking (nor on threads).
+      constexpr int kBlock = 4;
+      static_assert(kBlock * kBlock == EmbreeScene::kPacketSize);
+      for (int by = y0; by < y1; by += kBlock) {
+        for (int bx = x0; bx < x1; bx += kBlock) {
+          const int bx1 = std::min(x1, bx + kBlock), by1 = std::min(y1, by + kBlock);
+          const int n = (bx1 - bx) * (by1 - by);
+          uint64_t state[EmbreeScene::kPacketSize];
+          Vec3 sum[EmbreeScene::kPacketSize];
+          glm::dvec2 pos[EmbreeScene::kPacketSize];
+          CameraSample cs[EmbreeScene::kPacketSize], first[EmbreeScene::kPacketSize];
+          for (int i = 0; i < n; ++i) {
+            state[i] = pixel_state(scene.seed, bx + i % (bx1 - bx), by + i / (bx1 - bx));
+            sum[i] = Vec3(0.0f);
+          }
           // Stratified jittered samples: one in each of the sx * sy cells.
           for (int s = 0; s < spp; ++s) {
-            const double jx = uniform01(state), jy = uniform01(state);
-            const double px = x + ((s % sx) + jx) / sx, py = y + ((s / sx) + jy) / sy;
-            CameraSample cs = integrator.sample(px, py, local);
-            sum += cs.color;
-            if (s == 0) first = cs;
+            for (int i = 0; i < n; ++i) {
+              const double jx = uniform01(state[i]), jy = uniform01(state[i]);
+              pos[i] = glm::dvec2(bx + i % (bx1 - bx) + ((s % sx) + jx) / sx, by + i / (bx1 - bx) + ((s / sx) + jy) / sy);
+            }
+            if (options.camera_packets) {
+              integrator.sample_packet({pos, size_t(n)}, cs, local);
+            } else {
+              for (int i = 0; i < n; ++i) cs[i] = integrator.sample(pos[i].x, pos[i].y, local);
+            }
+            for (int i = 0; i < n; ++i) {
+              sum[i] += cs[i].color;
+              if (s == 0) first[i] = cs[i];
+            }
           }
-          float* c = result.color.at(x, y);
-          const Vec3 mean = sum / float(spp);
-          c[0] = mean.x; c[1] = mean.y; c[2] = mean.z;
-          // AOVs come from the pixel's first sample (no blending across edges).
-          if (options.aov_depth) *result.depth.at(x, y) = first.hit ? float(first.depth) : 0.0f;
-          if (options.aov_normal) {
-            float* n = result.normal.at(x, y);
-            n[0] = first.normal.x; n[1] = first.normal.y; n[2] = first.normal.z;
+          for (int i = 0; i < n; ++i) {
+            const int x = bx + i % (bx1 - bx), y = by + i / (bx1 - bx);
+            float* c = result.color.at(x, y);
+            const Vec3 mean = sum[i] / float(spp);
+            c[0] = mean.x; c[1] = mean.y; c[2] = mean.z;
+            // AOVs come from the pixel's first sample (no blending across edges).
+            if (options.aov_depth) *result.depth.at(x, y) = first[i].hit ? float(first[i].depth) : 0.0f;
+            if (options.aov_normal) {
+              float* nrm = result.normal.at(x, y);
+              nrm[0] = first[i].normal.x; nrm[1] = first[i].normal.y; nrm[2] = first[i].normal.z;
+            }
+            if (options.aov_triangle_id && first[i].hit)
+              result.triangle_id[size_t(y) * width + x] =
+                  uint32_t(std::min<uint64_t>(first[i].triangle, kNoTriangle - 1));
           }
-          if (options.aov_triangle_id && first.hit)
-            result.triangle_id[size_t(y) * width + x] = uint32_t(std::min<uint64_t>(first.triangle, kNoTriangle - 1));
         }
       }
       if (progress) progress->advance(1);
