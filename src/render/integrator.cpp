@@ -152,17 +152,22 @@ CameraSample Integrator::sample(double px, double py, RayCounters& counters) con
   return out;
 }
 
-void Integrator::sample_packet(std::span<const glm::dvec2> pixels, CameraSample* out, RayCounters& counters) const {
-  constexpr int kMax = EmbreeScene::kPacketSize;
-  assert(pixels.size() <= size_t(kMax));
-  const int n = int(pixels.size());
-  Ray rays[kMax];
-  Hit hits[kMax];
-  bool found[kMax];
-  for (int i = 0; i < n; ++i) rays[i] = camera_.generate(pixels[size_t(i)].x, pixels[size_t(i)].y);
+void Integrator::trace_camera_packet(std::span<const glm::dvec2> pixels, CameraPacket& packet,
+                                     RayCounters& counters) const {
+  assert(pixels.size() <= size_t(EmbreeScene::kPacketSize));
+  const int n = packet.size = int(pixels.size());
+  for (int i = 0; i < n; ++i) packet.rays[i] = camera_.generate(pixels[size_t(i)].x, pixels[size_t(i)].y);
   counters.camera += uint64_t(n);
-  geometry_.intersect_packet({rays, size_t(n)}, kInf, true, hits, found);
-  prefetch_shading_data(geometry_, hits, found, n);
+  geometry_.intersect_packet({packet.rays, size_t(n)}, kInf, true, packet.hits, packet.found);
+  prefetch_shading_data(geometry_, packet.hits, packet.found, n);
+}
+
+void Integrator::shade_camera_packet(const CameraPacket& packet, CameraSample* out, RayCounters& counters) const {
+  constexpr int kMax = EmbreeScene::kPacketSize;
+  const int n = packet.size;
+  const Ray* rays = packet.rays;
+  const Hit* hits = packet.hits;
+  const bool* found = packet.found;
 
   // Surface terms per lane; the shadow rays of all lanes, lane by lane and in
   // light order, so that each lane sums its lights in the order shade() does.

@@ -98,11 +98,21 @@ class Integrator {
   // Traces the camera ray through continuous pixel position (px, py).
   CameraSample sample(double px, double py, RayCounters& counters) const;
   // The camera rays through up to EmbreeScene::kPacketSize pixel positions
-  // (a pixel block) as one coherent packet, and the shadow rays of their
-  // hits as occlusion packets; reflection and refraction rays go one by one.
-  // out[i] is what sample(pixels[i].x, pixels[i].y) returns: the same rays,
-  // the same hits and the same floating-point operations in the same order.
-  void sample_packet(std::span<const glm::dvec2> pixels, CameraSample* out, RayCounters& counters) const;
+  // (a pixel block) traced as one coherent packet, in two steps so that a
+  // caller can trace the next packet before shading this one: trace starts
+  // the fetches of the hits' vertex data (prefetch), shade then finds them in
+  // cache. shade_camera_packet traces the shadow rays of the hits as
+  // occlusion packets; reflection and refraction rays go one by one. out[i]
+  // is what sample(pixels[i].x, pixels[i].y) returns: the same rays, the same
+  // hits and the same floating-point operations in the same order.
+  struct CameraPacket {
+    int size = 0;
+    Ray rays[EmbreeScene::kPacketSize];
+    Hit hits[EmbreeScene::kPacketSize];
+    bool found[EmbreeScene::kPacketSize];
+  };
+  void trace_camera_packet(std::span<const glm::dvec2> pixels, CameraPacket& packet, RayCounters& counters) const;
+  void shade_camera_packet(const CameraPacket& packet, CameraSample* out, RayCounters& counters) const;
   // Radiance arriving along ray; depth = bounces so far (0 for camera rays).
   Vec3 radiance(const Ray& ray, int depth, const Vec3& throughput, RayCounters& counters) const;
 

@@ -1,7 +1,7 @@
 // Packet tracing (EmbreeScene::intersect_packet / occluded_packet and
-// Integrator::sample_packet) against the single-ray path: the same hits, the
-// same image bytes, for any thread count and for tiles that are not whole
-// packets.
+// Integrator::trace_camera_packet / shade_camera_packet, pipelined by the
+// renderer) against the single-ray path: the same hits, the same image bytes,
+// for any thread count and for tiles that are not whole packets.
 #include <gtest/gtest.h>
 
 #include <bit>
