@@ -3,6 +3,7 @@
 #include "render/embree_scene.h"
 
 #include <atomic>
+#include <cassert>
 #include <bit>
 #include <chrono>
 #include <cmath>
@@ -324,6 +325,69 @@ bool EmbreeScene::occluded(const Ray& ray, double tnear, double tfar) const {
   r.flags = 0;
   rtcOccluded1(scene_, &ctx, &r);
   return r.tfar < 0;  // Embree sets tfar to -inf on a hit
+}
+
+namespace {
+// Ray i of an Embree SoA packet (RTCRay16 or the ray part of RTCRayHit16).
+void set_packet_ray(RTCRay16& r, int i, const Ray& ray, double tfar) {
+  r.org_x[i] = float(ray.origin.x);
+  r.org_y[i] = float(ray.origin.y);
+  r.org_z[i] = float(ray.origin.z);
+  r.dir_x[i] = float(ray.direction.x);
+  r.dir_y[i] = float(ray.direction.y);
+  r.dir_z[i] = float(ray.direction.z);
+  r.tnear[i] = 0.0f;
+  r.tfar[i] = float(tfar);
+  r.time[i] = 0;
+  r.mask[i] = 0xffffffffu;
+  r.id[i] = unsigned(i);
+  r.flags[i] = 0;
+}
+}  // namespace
+
+void EmbreeScene::intersect_packet(std::span<const Ray> rays, double tfar, bool coherent, Hit* hits,
+                                   bool* found) const {
+  assert(rays.size() <= size_t(kPacketSize));
+  if (rays.empty()) return;
+  RTCIntersectContext ctx;
+  rtcInitIntersectContext(&ctx);
+  if (coherent) ctx.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
+  alignas(64) RTCRayHit16 rh;
+  alignas(64) int valid[kPacketSize];
+  for (int i = 0; i < kPacketSize; ++i) {
+    const bool active = size_t(i) < rays.size();
+    valid[i] = active ? -1 : 0;
+    // Inactive lanes repeat ray 0 so that their fields are finite.
+    set_packet_ray(rh.ray, i, rays[active ? size_t(i) : 0], tfar);
+    rh.hit.geomID[i] = RTC_INVALID_GEOMETRY_ID;
+    rh.hit.instID[0][i] = RTC_INVALID_GEOMETRY_ID;
+  }
+  rtcIntersect16(valid, scene_, &ctx, &rh);
+  for (size_t i = 0; i < rays.size(); ++i) {
+    found[i] = rh.hit.geomID[i] != RTC_INVALID_GEOMETRY_ID;
+    if (!found[i]) continue;
+    hits[i].t = rh.ray.tfar[i];
+    hits[i].geom = rh.hit.geomID[i];
+    hits[i].prim = rh.hit.primID[i];
+    hits[i].u = rh.hit.u[i];
+    hits[i].v = rh.hit.v[i];
+  }
+}
+
+void EmbreeScene::occluded_packet(std::span<const Ray> rays, const double* tfar, bool* occluded) const {
+  assert(rays.size() <= size_t(kPacketSize));
+  if (rays.empty()) return;
+  RTCIntersectContext ctx;
+  rtcInitIntersectContext(&ctx);
+  alignas(64) RTCRay16 r;
+  alignas(64) int valid[kPacketSize];
+  for (int i = 0; i < kPacketSize; ++i) {
+    const bool active = size_t(i) < rays.size();
+    valid[i] = active ? -1 : 0;
+    set_packet_ray(r, i, rays[active ? size_t(i) : 0], tfar[active ? i : 0]);
+  }
+  rtcOccluded16(valid, scene_, &ctx, &r);
+  for (size_t i = 0; i < rays.size(); ++i) occluded[i] = r.tfar[i] < 0;  // -inf on a hit
 }
 
 SurfacePoint surface_point(const EmbreeScene& scene, const Hit& hit, bool with_edge_distance) {

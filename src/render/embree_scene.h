@@ -115,6 +115,18 @@ class EmbreeScene {
   // True if anything lies on the ray within (tnear, tfar).
   bool occluded(const Ray& ray, double tnear, double tfar) const;
 
+  // Up to kPacketSize rays as one Embree packet (rtcIntersect16 /
+  // rtcOccluded16), tnear = 0. Lanes past rays.size() are inactive. Embree
+  // evaluates the same ray-triangle test per lane as intersect() and
+  // occluded(), so the results match the single-ray calls (tested in
+  // tests/render/packet_test.cpp). coherent: the rays start near each other
+  // with similar directions (camera rays of a pixel block).
+  static constexpr int kPacketSize = 16;
+  // found[i] = rays[i] hit something on (0, tfar); hits[i] is set only then.
+  void intersect_packet(std::span<const Ray> rays, double tfar, bool coherent, Hit* hits, bool* found) const;
+  // occluded[i] = something lies on rays[i] within (0, tfar[i]).
+  void occluded_packet(std::span<const Ray> rays, const double* tfar, bool* occluded) const;
+
  private:
   EmbreeScene() = default;
   RTCDevice device_ = nullptr;

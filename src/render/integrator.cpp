@@ -3,6 +3,7 @@
 #include "render/integrator.h"
 
 #include <algorithm>
+#include <cassert>
 #include <cmath>
 #include <limits>
 
@@ -12,6 +13,24 @@ namespace {
 constexpr double kInf = std::numeric_limits<double>::infinity();
 bool nonzero(const Vec3& c) { return c.x > 0 || c.y > 0 || c.z > 0; }
 float max_channel(const Vec3& c) { return std::max({c.x, c.y, c.z}); }
+
+// Starts the shading fetches of a packet's hits at once -- index rows, then
+// the corners' positions and normals -- so that their cache misses overlap
+// instead of stalling surface_point() lane after lane (on large meshes these
+// fetches, not the traversal, are most of the cost of a camera ray).
+void prefetch_shading_data(const EmbreeScene& geometry, const Hit* hits, const bool* found, int n) {
+  for (int i = 0; i < n; ++i)
+    if (found[i]) __builtin_prefetch(&geometry.mesh(hits[i].geom).indices[size_t(hits[i].prim) * 3]);
+  for (int i = 0; i < n; ++i) {
+    if (!found[i]) continue;
+    const TriangleMesh& m = geometry.mesh(hits[i].geom);
+    const uint32_t* tri = &m.indices[size_t(hits[i].prim) * 3];
+    for (int k = 0; k < 3; ++k) {
+      __builtin_prefetch(&m.positions[tri[k]]);
+      if (!m.normals.empty()) __builtin_prefetch(&m.normals[tri[k]]);
+    }
+  }
+}
 }  // namespace
 
 std::string Effects::describe() const {
@@ -80,70 +99,13 @@ Integrator::Integrator(const EmbreeScene& geometry, const Scene& scene, const Pi
                        const Effects& effects, const IntegratorConfig& config)
     : geometry_(geometry), scene_(scene), camera_(camera), effects_(effects), config_(config) {}
 
-CameraSample Integrator::sample(double px, double py, RayCounters& counters) const {
-  CameraSample out;
-  const Ray ray = camera_.generate(px, py);
-  ++counters.camera;
-  Hit hit;
-  if (!geometry_.intersect(ray, 0.0, kInf, hit)) {
-    out.color = scene_.background;
-    return out;
-  }
-  const SurfacePoint sp = surface_point(geometry_, hit, config_.wireframe);
-  out.hit = true;
-  out.depth = hit.t;
-  out.triangle = geometry_.triangle_id(hit.geom, hit.prim);
-  Vec3d n = glm::dot(sp.shading, ray.direction) < 0 ? sp.shading : -sp.shading;
-  out.normal = Vec3(n);
-  out.color = shade(ray, hit, sp, 0, Vec3(1.0f), counters);
-  if (config_.wireframe && sp.edge_distance < 0.5 * hit.t * camera_.pixel_angle()) out.color *= 0.12f;
-  return out;
-}
-
-Vec3 Integrator::radiance(const Ray& ray, int depth, const Vec3& throughput, RayCounters& counters) const {
-  Hit hit;
-  if (!geometry_.intersect(ray, 0.0, kInf, hit)) return scene_.background;
-  return shade(ray, hit, surface_point(geometry_, hit), depth, throughput, counters);
-}
-
-Vec3 Integrator::shade(const Ray& ray, const Hit& hit, const SurfacePoint& sp, int depth, const Vec3& throughput,
-                       RayCounters& counters) const {
-  const Material& m = scene_.materials[size_t(geometry_.mesh(hit.geom).material)];
-  const Vec3d& dir = ray.direction;
-  const double offset = ray_offset(sp.position, config_.offset_scale);
-  Vec3 result(0.0f);
-
-  const bool has_diffuse = nonzero(m.color);
-  if (has_diffuse) result += config_.ambient * scene_.background * m.color;
-  if ((effects_.diffuse && has_diffuse) || (effects_.glossy && nonzero(m.specular))) {
-    // Opaque shading is two-sided: light the side the ray came from.
-    const Vec3d ng = glm::dot(dir, sp.geometric) < 0 ? sp.geometric : -sp.geometric;
-    Vec3d ns = glm::dot(dir, sp.shading) < 0 ? sp.shading : -sp.shading;
-    result += direct_light(m, dir, sp.position, ng, ns, offset, counters);
-  }
-
-  if (depth >= config_.max_depth || !m.reflects()) return result;
-  const SpecularScatter s = scatter_specular(m, dir, sp, offset);
-  if (s.reflects && effects_.reflection) {
-    const Vec3 t = throughput * s.reflect_weight;
-    if (max_channel(t) >= config_.min_throughput) {
-      ++counters.reflection;
-      result += s.reflect_weight * radiance(s.reflected, depth + 1, t, counters);
-    }
-  }
-  if (s.refracts && effects_.refraction) {
-    const Vec3 t = throughput * s.refract_weight;
-    if (max_channel(t) >= config_.min_throughput) {
-      ++counters.refraction;
-      result += s.refract_weight * radiance(s.refracted, depth + 1, t, counters);
-    }
-  }
-  return result;
-}
-
-Vec3 Integrator::direct_light(const Material& m, const Vec3d& dir, const Vec3d& p, const Vec3d& ng, const Vec3d& ns,
-                              double offset, RayCounters& counters) const {
-  Vec3 sum(0.0f);
+template <class Emit>
+void Integrator::shadow_queries(const Material& m, const Vec3d& dir, const SurfacePoint& sp, double offset,
+                                Emit&& emit) const {
+  // Opaque shading is two-sided: light the side the ray came from.
+  const Vec3d ng = glm::dot(dir, sp.geometric) < 0 ? sp.geometric : -sp.geometric;
+  const Vec3d ns = glm::dot(dir, sp.shading) < 0 ? sp.shading : -sp.shading;
+  const Vec3d& p = sp.position;
   const bool diffuse = effects_.diffuse && nonzero(m.color);
   const bool glossy = effects_.glossy && nonzero(m.specular);
   for (const Light& light : scene_.lights) {
@@ -167,15 +129,161 @@ Vec3 Integrator::direct_light(const Material& m, const Vec3d& dir, const Vec3d& 
     if (cos_theta <= 0) continue;
     double spec = 0;
     if (glossy) spec = std::pow(std::max(0.0, glm::dot(reflect(-l, ns), -dir)), double(m.shininess));
-    ++counters.shadow;
-    const Ray shadow{p + offset * ng, l};
-    if (geometry_.occluded(shadow, 0.0, std::isfinite(dist) ? dist - 2 * offset : kInf)) continue;
     Vec3 c(0.0f);
     if (diffuse) c += m.color * float(cos_theta);
     if (spec > 0) c += m.specular * float(spec);
-    sum += c * e;
+    emit(ShadowQuery{Ray{p + offset * ng, l}, std::isfinite(dist) ? dist - 2 * offset : kInf, c * e});
   }
-  return sum;
+}
+
+CameraSample Integrator::sample(double px, double py, RayCounters& counters) const {
+  CameraSample out;
+  const Ray ray = camera_.generate(px, py);
+  ++counters.camera;
+  Hit hit;
+  if (!geometry_.intersect(ray, 0.0, kInf, hit)) {
+    out.color = scene_.background;
+    return out;
+  }
+  const SurfacePoint sp = surface_point(geometry_, hit, config_.wireframe);
+  record_camera_hit(ray, hit, sp, out);
+  out.color = shade(ray, hit, sp, 0, Vec3(1.0f), counters);
+  apply_wireframe(hit, sp, out);
+  return out;
+}
+
+void Integrator::trace_camera_packet(std::span<const glm::dvec2> pixels, CameraPacket& packet,
+                                     RayCounters& counters) const {
+  assert(pixels.size() <= size_t(EmbreeScene::kPacketSize));
+  const int n = packet.size = int(pixels.size());
+  for (int i = 0; i < n; ++i) packet.rays[i] = camera_.generate(pixels[size_t(i)].x, pixels[size_t(i)].y);
+  counters.camera += uint64_t(n);
+  geometry_.intersect_packet({packet.rays, size_t(n)}, kInf, true, packet.hits, packet.found);
+  prefetch_shading_data(geometry_, packet.hits, packet.found, n);
+}
+
+void Integrator::shade_camera_packet(const CameraPacket& packet, CameraSample* out, RayCounters& counters) const {
+  constexpr int kMax = EmbreeScene::kPacketSize;
+  const int n = packet.size;
+  const Ray* rays = packet.rays;
+  const Hit* hits = packet.hits;
+  const bool* found = packet.found;
+
+  // Surface terms per lane; the shadow rays of all lanes, lane by lane and in
+  // light order, so that each lane sums its lights in the order shade() does.
+  SurfacePoint sp[kMax];
+  double offset[kMax];
+  std::vector<ShadowQuery> queries;
+  std::vector<int> query_lane;
+  for (int i = 0; i < n; ++i) {
+    out[i] = CameraSample{};
+    if (!found[i]) {
+      out[i].color = scene_.background;
+      continue;
+    }
+    sp[i] = surface_point(geometry_, hits[i], config_.wireframe);
+    record_camera_hit(rays[i], hits[i], sp[i], out[i]);
+    const Material& m = material(hits[i]);
+    offset[i] = ray_offset(sp[i].position, config_.offset_scale);
+    out[i].color = ambient(m);
+    if (!lit(m)) continue;
+    shadow_queries(m, rays[i].direction, sp[i], offset[i], [&](const ShadowQuery& q) {
+      queries.push_back(q);
+      query_lane.push_back(i);
+    });
+  }
+  Vec3 direct[kMax];
+  std::fill(direct, direct + kMax, Vec3(0.0f));
+  counters.shadow += queries.size();
+  for (size_t first = 0; first < queries.size(); first += kMax) {
+    const size_t count = std::min(queries.size() - first, size_t(kMax));
+    Ray shadow[kMax];
+    double tfar[kMax];
+    bool occluded[kMax];
+    for (size_t k = 0; k < count; ++k) {
+      shadow[k] = queries[first + k].ray;
+      tfar[k] = queries[first + k].tfar;
+    }
+    geometry_.occluded_packet({shadow, count}, tfar, occluded);
+    for (size_t k = 0; k < count; ++k)
+      if (!occluded[k]) direct[query_lane[first + k]] += queries[first + k].contribution;
+  }
+  for (int i = 0; i < n; ++i) {
+    if (!found[i]) continue;
+    const Material& m = material(hits[i]);
+    if (lit(m)) out[i].color += direct[i];
+    add_specular(out[i].color, m, rays[i].direction, sp[i], offset[i], 0, Vec3(1.0f), counters);
+    apply_wireframe(hits[i], sp[i], out[i]);
+  }
+}
+
+void Integrator::record_camera_hit(const Ray& ray, const Hit& hit, const SurfacePoint& sp, CameraSample& out) const {
+  out.hit = true;
+  out.depth = hit.t;
+  out.triangle = geometry_.triangle_id(hit.geom, hit.prim);
+  const Vec3d n = glm::dot(sp.shading, ray.direction) < 0 ? sp.shading : -sp.shading;
+  out.normal = Vec3(n);
+}
+
+void Integrator::apply_wireframe(const Hit& hit, const SurfacePoint& sp, CameraSample& out) const {
+  if (config_.wireframe && sp.edge_distance < 0.5 * hit.t * camera_.pixel_angle()) out.color *= 0.12f;
+}
+
+Vec3 Integrator::radiance(const Ray& ray, int depth, const Vec3& throughput, RayCounters& counters) const {
+  Hit hit;
+  if (!geometry_.intersect(ray, 0.0, kInf, hit)) return scene_.background;
+  return shade(ray, hit, surface_point(geometry_, hit), depth, throughput, counters);
+}
+
+const Material& Integrator::material(const Hit& hit) const {
+  return scene_.materials[size_t(geometry_.mesh(hit.geom).material)];
+}
+
+Vec3 Integrator::ambient(const Material& m) const {
+  Vec3 result(0.0f);
+  if (nonzero(m.color)) result += config_.ambient * scene_.background * m.color;
+  return result;
+}
+
+bool Integrator::lit(const Material& m) const {
+  return (effects_.diffuse && nonzero(m.color)) || (effects_.glossy && nonzero(m.specular));
+}
+
+Vec3 Integrator::shade(const Ray& ray, const Hit& hit, const SurfacePoint& sp, int depth, const Vec3& throughput,
+                       RayCounters& counters) const {
+  const Material& m = material(hit);
+  const double offset = ray_offset(sp.position, config_.offset_scale);
+  Vec3 result = ambient(m);
+  if (lit(m)) {
+    Vec3 direct(0.0f);
+    shadow_queries(m, ray.direction, sp, offset, [&](const ShadowQuery& q) {
+      ++counters.shadow;
+      if (!geometry_.occluded(q.ray, 0.0, q.tfar)) direct += q.contribution;
+    });
+    result += direct;
+  }
+  add_specular(result, m, ray.direction, sp, offset, depth, throughput, counters);
+  return result;
+}
+
+void Integrator::add_specular(Vec3& result, const Material& m, const Vec3d& dir, const SurfacePoint& sp,
+                              double offset, int depth, const Vec3& throughput, RayCounters& counters) const {
+  if (depth >= config_.max_depth || !m.reflects()) return;
+  const SpecularScatter s = scatter_specular(m, dir, sp, offset);
+  if (s.reflects && effects_.reflection) {
+    const Vec3 t = throughput * s.reflect_weight;
+    if (max_channel(t) >= config_.min_throughput) {
+      ++counters.reflection;
+      result += s.reflect_weight * radiance(s.reflected, depth + 1, t, counters);
+    }
+  }
+  if (s.refracts && effects_.refraction) {
+    const Vec3 t = throughput * s.refract_weight;
+    if (max_channel(t) >= config_.min_throughput) {
+      ++counters.refraction;
+      result += s.refract_weight * radiance(s.refracted, depth + 1, t, counters);
+    }
+  }
 }
 
 std::vector<ChainVertex> trace_specular_chain(const EmbreeScene& geometry, const Scene& scene, Ray ray, int max_events,

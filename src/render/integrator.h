@@ -97,14 +97,50 @@ class Integrator {
              const IntegratorConfig& config);
   // Traces the camera ray through continuous pixel position (px, py).
   CameraSample sample(double px, double py, RayCounters& counters) const;
+  // The camera rays through up to EmbreeScene::kPacketSize pixel positions
+  // (a pixel block) traced as one coherent packet, in two steps so that a
+  // caller can trace the next packet before shading this one: trace starts
+  // the fetches of the hits' vertex data (prefetch), shade then finds them in
+  // cache. shade_camera_packet traces the shadow rays of the hits as
+  // occlusion packets; reflection and refraction rays go one by one. out[i]
+  // is what sample(pixels[i].x, pixels[i].y) returns: the same rays, the same
+  // hits and the same floating-point operations in the same order.
+  struct CameraPacket {
+    int size = 0;
+    Ray rays[EmbreeScene::kPacketSize];
+    Hit hits[EmbreeScene::kPacketSize];
+    bool found[EmbreeScene::kPacketSize];
+  };
+  void trace_camera_packet(std::span<const glm::dvec2> pixels, CameraPacket& packet, RayCounters& counters) const;
+  void shade_camera_packet(const CameraPacket& packet, CameraSample* out, RayCounters& counters) const;
   // Radiance arriving along ray; depth = bounces so far (0 for camera rays).
   Vec3 radiance(const Ray& ray, int depth, const Vec3& throughput, RayCounters& counters) const;
 
  private:
+  // A shadow ray of direct lighting, and what its light adds if nothing blocks it.
+  struct ShadowQuery {
+    Ray ray;
+    double tfar = 0;
+    Vec3 contribution{0};
+  };
+
   Vec3 shade(const Ray& ray, const Hit& hit, const SurfacePoint& sp, int depth, const Vec3& throughput,
              RayCounters& counters) const;
-  Vec3 direct_light(const Material& m, const Vec3d& dir, const Vec3d& p, const Vec3d& ng, const Vec3d& ns,
-                    double offset, RayCounters& counters) const;
+  const Material& material(const Hit& hit) const;
+  // Whitted's ambient term (no rays).
+  Vec3 ambient(const Material& m) const;
+  // True if the material is lit directly (and so spawns shadow rays).
+  bool lit(const Material& m) const;
+  // Calls emit(ShadowQuery) for each light that can reach the side of the
+  // surface the ray came from, in light order.
+  template <class Emit>
+  void shadow_queries(const Material& m, const Vec3d& dir, const SurfacePoint& sp, double offset, Emit&& emit) const;
+  // Adds the mirror and glass continuations to result (single rays).
+  void add_specular(Vec3& result, const Material& m, const Vec3d& dir, const SurfacePoint& sp, double offset,
+                    int depth, const Vec3& throughput, RayCounters& counters) const;
+  // The first-hit fields of a camera sample (everything but the colour).
+  void record_camera_hit(const Ray& ray, const Hit& hit, const SurfacePoint& sp, CameraSample& out) const;
+  void apply_wireframe(const Hit& hit, const SurfacePoint& sp, CameraSample& out) const;
 
   const EmbreeScene& geometry_;
   const Scene& scene_;

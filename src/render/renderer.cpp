@@ -308,32 +308,84 @@ RenderResult render_embree_scene(const EmbreeScene& geometry, const Scene& scene
     for (int t = r.begin(); t != r.end(); ++t) {
       const int x0 = (t % tiles_x) * tile, y0 = (t / tiles_x) * tile;
       const int x1 = std::min(width, x0 + tile), y1 = std::min(height, y0 + tile);
-      for (int y = y0; y < y1; ++y) {
-        for (int x = x0; x < x1; ++x) {
-          uint64_t state = pixel_state(scene.seed, x, y);
-          Vec3 sum(0.0f);
-          CameraSample first;
-          // Stratified jittered samples: one in each of the sx * sy cells.
-          for (int s = 0; s < spp; ++s) {
-            const double jx = uniform01(state), jy = uniform01(state);
-            const double px = x + ((s % sx) + jx) / sx, py = y + ((s / sx) + jy) / sy;
-            CameraSample cs = integrator.sample(px, py, local);
-            sum += cs.color;
-            if (s == 0) first = cs;
-          }
+      // 4x4 pixel blocks (clipped to the tile): sample s of every pixel of a
+      // block is one camera packet. Each pixel keeps its own random stream,
+      // so the image does not depend on the blocking (nor on threads).
+      // Packets are pipelined: packet j + 1 is traced (and its shading data
+      // prefetched) before packet j is shaded.
+      constexpr int kBlock = 4, kLanes = EmbreeScene::kPacketSize;
+      static_assert(kBlock * kBlock == kLanes);
+      struct Block {
+        int x0 = 0, y0 = 0, w = 0, n = 0;
+        uint64_t state[kLanes];
+        Vec3 sum[kLanes];
+        CameraSample first[kLanes];
+      };
+      struct Job {
+        int block = -1, s = 0;
+        glm::dvec2 pos[kLanes];
+        Integrator::CameraPacket packet;
+      };
+      Block blocks[2];  // block b in blocks[b % 2]: the one being traced and the one still being shaded
+      Job jobs[2];
+      int pending = -1;  // index into jobs of the traced, unshaded job
+      CameraSample cs[kLanes];
+      auto shade = [&](Job& job) {
+        Block& blk = blocks[job.block % 2];
+        if (options.camera_packets) {
+          integrator.shade_camera_packet(job.packet, cs, local);
+        } else {
+          for (int i = 0; i < blk.n; ++i) cs[i] = integrator.sample(job.pos[i].x, job.pos[i].y, local);
+        }
+        for (int i = 0; i < blk.n; ++i) {
+          blk.sum[i] += cs[i].color;
+          if (job.s == 0) blk.first[i] = cs[i];
+        }
+        if (job.s != spp - 1) return;
+        for (int i = 0; i < blk.n; ++i) {
+          const int x = blk.x0 + i % blk.w, y = blk.y0 + i / blk.w;
           float* c = result.color.at(x, y);
-          const Vec3 mean = sum / float(spp);
+          const Vec3 mean = blk.sum[i] / float(spp);
           c[0] = mean.x; c[1] = mean.y; c[2] = mean.z;
           // AOVs come from the pixel's first sample (no blending across edges).
-          if (options.aov_depth) *result.depth.at(x, y) = first.hit ? float(first.depth) : 0.0f;
+          const CameraSample& f = blk.first[i];
+          if (options.aov_depth) *result.depth.at(x, y) = f.hit ? float(f.depth) : 0.0f;
           if (options.aov_normal) {
-            float* n = result.normal.at(x, y);
-            n[0] = first.normal.x; n[1] = first.normal.y; n[2] = first.normal.z;
+            float* nrm = result.normal.at(x, y);
+            nrm[0] = f.normal.x; nrm[1] = f.normal.y; nrm[2] = f.normal.z;
           }
-          if (options.aov_triangle_id && first.hit)
-            result.triangle_id[size_t(y) * width + x] = uint32_t(std::min<uint64_t>(first.triangle, kNoTriangle - 1));
+          if (options.aov_triangle_id && f.hit)
+            result.triangle_id[size_t(y) * width + x] = uint32_t(std::min<uint64_t>(f.triangle, kNoTriangle - 1));
+        }
+      };
+      int b = 0;
+      for (int by = y0; by < y1; by += kBlock) {
+        for (int bx = x0; bx < x1; bx += kBlock, ++b) {
+          Block& blk = blocks[b % 2];
+          blk.x0 = bx;
+          blk.y0 = by;
+          blk.w = std::min(x1, bx + kBlock) - bx;
+          blk.n = blk.w * (std::min(y1, by + kBlock) - by);
+          for (int i = 0; i < blk.n; ++i) {
+            blk.state[i] = pixel_state(scene.seed, bx + i % blk.w, by + i / blk.w);
+            blk.sum[i] = Vec3(0.0f);
+          }
+          // Stratified jittered samples: one in each of the sx * sy cells.
+          for (int s = 0; s < spp; ++s) {
+            Job& job = jobs[pending == 0 ? 1 : 0];
+            job.block = b;
+            job.s = s;
+            for (int i = 0; i < blk.n; ++i) {
+              const double jx = uniform01(blk.state[i]), jy = uniform01(blk.state[i]);
+              job.pos[i] = glm::dvec2(bx + i % blk.w + ((s % sx) + jx) / sx, by + i / blk.w + ((s / sx) + jy) / sy);
+            }
+            if (options.camera_packets) integrator.trace_camera_packet({job.pos, size_t(blk.n)}, job.packet, local);
+            if (pending >= 0) shade(jobs[pending]);
+            pending = int(&job - jobs);
+          }
         }
       }
+      if (pending >= 0) shade(jobs[pending]);
       if (progress) progress->advance(1);
     }
     std::lock_guard<std::mutex> lock(counters_mutex);

@@ -43,6 +43,10 @@ struct RenderOptions {
   bool aov_normal = false;      // shading normal facing the camera, 3 channels
   bool aov_triangle_id = false; // global triangle id of the first hit (kNoTriangle where none)
   int tile_size = 32;
+  // Trace camera rays as 4x4 pixel packets (rtcIntersect16) and their
+  // shadow rays as occlusion packets; false: one ray at a time. Both give the
+  // same image (tests/render/packet_test.cpp); packets are faster.
+  bool camera_packets = true;
   bool progress = true;         // progress bars on stderr
   // Informational messages (effects on, BVH quality, ...); null = silent.
   std::function<void(const std::string&)> log;
