@@ -22,7 +22,8 @@ fuzz_dir="${RAYLOD_FUZZ_BUILD_DIR:-build-fuzz}"
 packages=(cmake g++ make pkg-config time
           libopenmesh-dev libdraco-dev libglm-dev libopenimageio-dev openimageio-tools
           libtbb-dev libembree-dev libgtest-dev libgmock-dev libbenchmark-dev
-          nlohmann-json3-dev libtinygltf-dev libmeshoptimizer-dev fonts-dejavu-core)
+          nlohmann-json3-dev libtinygltf-dev libmeshoptimizer-dev fonts-dejavu-core
+          libopenmpi-dev openmpi-bin)
 # libFuzzer comes with clang (its runtime is in libclang-rt-14-dev).
 case "$mode" in sanitize|fuzz) packages+=(clang libclang-rt-14-dev) ;; esac
 

@@ -14,6 +14,7 @@
 #include <tbb/global_control.h>
 
 #include "cli/cli.h"
+#include "core/cluster.h"
 
 namespace {
 
@@ -54,6 +55,8 @@ int main(int argc, char** argv) {
     std::printf("raylod %s\n", RAYLOD_VERSION);
     return 0;
   }
+  // Under mpirun, MPI for the whole command (core/cluster.h); otherwise nothing.
+  raylod::cluster::Session cluster(argc, argv);
   for (const auto& c : raylod::cli::commands()) {
     if (std::strcmp(c.name, argv[1]) == 0) {
       try {

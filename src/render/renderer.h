@@ -43,6 +43,14 @@ struct RenderOptions {
   bool aov_normal = false;      // shading normal facing the camera, 3 channels
   bool aov_triangle_id = false; // global triangle id of the first hit (kNoTriangle where none)
   int tile_size = 32;
+  // Render only the tiles t (in row-major tile order) with
+  // t % tile_ranks == tile_rank; the others stay 0.
+  int tile_rank = 0, tile_ranks = 1;
+  // Under mpirun (core/cluster.h): render() splits the tiles across the ranks
+  // (round robin: tile t on rank t % N) and gathers the pixels on rank 0; the
+  // other ranks' result holds only their own tiles and must not be written.
+  // Every rank calls render() with the same scene.
+  bool split_across_ranks = false;
   bool progress = true;         // progress bars on stderr
   // Informational messages (effects on, BVH quality, ...); null = silent.
   std::function<void(const std::string&)> log;
@@ -66,6 +74,8 @@ struct RenderStats {
 };
 // The stats as a JSON object (for --stats-json and benchmarks).
 std::string render_stats_json(const RenderStats& stats);
+// The inverse (the stats of views rendered on other ranks); absent fields stay 0.
+RenderStats render_stats_from_json(const std::string& json);
 
 inline constexpr uint32_t kNoTriangle = 0xffffffffu;
 
