@@ -101,7 +101,7 @@ void gather_view_stats(ViewsResult& out, const std::vector<size_t>& mine) {
       e["probe"].get_to(v.probe);
       e["simplify"].get_to(v.simplify);
       e["render"].get_to(v.render);
-      v.render_stats = render_stats_from_json(e["render_stats"].get<std::string>());
+      v.render_json = e["render_stats"].get<std::string>();
     }
     for (const json& w : p["warnings"])
       if (std::find(out.warnings.begin(), out.warnings.end(), w.get<std::string>()) == out.warnings.end())
@@ -254,7 +254,8 @@ std::string views_stats_json(const ViewsResult& r, const RunOptions& options) {
                      {"footprint_scale", v.footprint_scale},
                      {"coarsening_steps", v.coarsening_steps},
                      {"seconds", {{"probe", v.probe}, {"simplify", v.simplify}, {"render", v.render}, {"total", v.total()}}},
-                     {"render", json::parse(render_stats_json(v.render_stats))}});
+                     {"render", json::parse(v.render_json.empty() ? render_stats_json(v.render_stats)
+                                                                        : v.render_json)}});
   }
   const size_t n = r.views.size();
   json j;

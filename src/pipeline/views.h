@@ -30,6 +30,7 @@ struct ViewStats {
   double probe = 0, simplify = 0, render = 0;
   double total() const { return probe + simplify + render; }
   RenderStats render_stats;
+  std::string render_json;  // a view rendered on another rank: its render_stats as JSON (render_stats unset)
   int rank = 0;               // the MPI rank that rendered it (0 in one process)
 };
 

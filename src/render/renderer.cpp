@@ -140,52 +140,6 @@ std::string render_stats_json(const RenderStats& s) {
   return j.dump(2);
 }
 
-RenderStats render_stats_from_json(const std::string& text) {
-  const nlohmann::json j = nlohmann::json::parse(text, nullptr, false);
-  RenderStats s;
-  if (!j.is_object()) return s;
-  auto get = [&](const nlohmann::json& o, const char* key, auto& out) {
-    if (o.is_object() && o.contains(key)) o.at(key).get_to(out);
-  };
-  get(j, "width", s.width);
-  get(j, "height", s.height);
-  get(j, "spp", s.spp);
-  get(j, "threads", s.threads);
-  get(j, "triangles", s.triangles);
-  get(j, "vertices", s.vertices);
-  get(j, "bvh_quality", s.bvh_quality);
-  if (j.contains("effects")) {
-    const auto& e = j["effects"];
-    get(e, "lights", s.effects.lights);
-    get(e, "diffuse", s.effects.diffuse);
-    get(e, "glossy", s.effects.glossy);
-    get(e, "shadows", s.effects.shadows);
-    get(e, "reflection", s.effects.reflection);
-    get(e, "refraction", s.effects.refraction);
-  }
-  if (j.contains("rays")) {
-    const auto& r = j["rays"];
-    get(r, "camera", s.rays.camera);
-    get(r, "shadow", s.rays.shadow);
-    get(r, "reflection", s.rays.reflection);
-    get(r, "refraction", s.rays.refraction);
-  }
-  if (j.contains("seconds")) {
-    get(j["seconds"], "load", s.load_seconds);
-    get(j["seconds"], "bvh", s.bvh_seconds);
-    get(j["seconds"], "render", s.render_seconds);
-  }
-  if (j.contains("bytes")) {
-    const auto& b = j["bytes"];
-    get(b, "estimated", s.estimated_bytes);
-    get(b, "mesh", s.mesh_bytes);
-    get(b, "bvh", s.bvh_bytes);
-    get(b, "bvh_build_peak", s.bvh_peak_bytes);
-    get(b, "peak_rss", s.peak_rss);
-  }
-  return s;
-}
-
 // Per triangle: the welded mesh arrays (12 B of indices plus ~0.5 vertices
 // of 24 B with normals, and vector slack; measured 34-36 B) and Embree's
 // allocation peak during the build (BVH plus the builder's temporary

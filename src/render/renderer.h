@@ -74,8 +74,6 @@ struct RenderStats {
 };
 // The stats as a JSON object (for --stats-json and benchmarks).
 std::string render_stats_json(const RenderStats& stats);
-// The inverse (the stats of views rendered on other ranks); absent fields stay 0.
-RenderStats render_stats_from_json(const std::string& json);
 
 inline constexpr uint32_t kNoTriangle = 0xffffffffu;
 
