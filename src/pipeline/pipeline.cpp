@@ -390,18 +390,25 @@ namespace {
 // (plain values; every rank runs the same binary), then the counters.
 std::string pack_trace(const ProbeTrace& t) {
   static_assert(std::is_trivially_copyable_v<ProbeHit>);
-  std::string b = cluster::to_bytes(uint64_t(t.hits.size())) + cluster::to_bytes(t.trace_seconds);
+  std::string b = cluster::to_bytes(uint64_t(t.hits.size())) + cluster::to_bytes(t.trace_seconds) +
+                  cluster::to_bytes(t.rays) + cluster::to_bytes(t.seed) + cluster::to_bytes(t.magnification);
   b.append(reinterpret_cast<const char*>(t.hits.data()), t.hits.size() * sizeof(ProbeHit));
   for (const auto& [name, value] : t.counters)
     b += cluster::to_bytes(uint64_t(name.size())) + name + cluster::to_bytes(value);
   return b;
 }
 
+// A byte string preceded by its length.
+std::string packed_size(const std::string& b) { return cluster::to_bytes(uint64_t(b.size())) + b; }
+
 ProbeTrace unpack_trace(const std::string& b) {
   ProbeTrace t;
   const uint64_t hits = cluster::from_bytes<uint64_t>(b, 0);
   t.trace_seconds = cluster::from_bytes<double>(b, 8);
-  size_t at = 16;
+  t.rays = cluster::from_bytes<uint64_t>(b, 16);
+  t.seed = cluster::from_bytes<uint64_t>(b, 24);
+  t.magnification = cluster::from_bytes<double>(b, 32);
+  size_t at = 40;
   t.hits.resize(hits);
   std::memcpy(t.hits.data(), b.data() + at, hits * sizeof(ProbeHit));
   at += hits * sizeof(ProbeHit);
@@ -428,6 +435,38 @@ StatusOr<ProbeTrace> trace_probe_across_ranks(const Scene& scene, std::span<cons
   std::vector<ProbeTrace> shares;
   for (const std::string& p : parts) shares.push_back(unpack_trace(p));
   return merge_traces(std::move(shares), probe);
+}
+
+StatusOr<std::vector<ProbeTrace>> trace_views_across_ranks(RunSession& session, const Scene& scene,
+                                                           std::span<const Camera> cameras, const ProbeConfig& probe,
+                                                           const LogFn& log) {
+  std::vector<ProbeTrace> traces(cameras.size());
+  const size_t ranks = size_t(cluster::size()), rank = size_t(cluster::rank());
+  Status status;
+  std::string mine;
+  for (size_t i = rank; i < cameras.size() && status; i += ranks) {
+    say(log, "view " + std::to_string(i + 1) + "/" + std::to_string(cameras.size()) + ": probe, " +
+                 std::to_string(probe.rays) + " test rays");
+    Scene view_scene = scene;
+    view_scene.camera = cameras[i];
+    // No store repair under mpirun: ranks rebuilding a store at once would race.
+    auto traced = cluster::active()
+                      ? trace_probe(view_scene, session.stores.probe_stores, session.stores.objects, probe)
+                      : trace_view(session, view_scene, probe, log);
+    status = traced.status();
+    if (!status) break;
+    if (cluster::active()) mine += cluster::to_bytes(uint64_t(i)) + packed_size(pack_trace(*traced));
+    else traces[i] = std::move(traced.value());
+  }
+  RAYLOD_RETURN_IF_ERROR(cluster::agree(status));
+  if (!cluster::active()) return traces;
+  for (const std::string& part : cluster::allgather(mine))
+    for (size_t at = 0; at < part.size();) {
+      const uint64_t i = cluster::from_bytes<uint64_t>(part, at), n = cluster::from_bytes<uint64_t>(part, at + 8);
+      traces.at(i) = unpack_trace(part.substr(at + 16, n));
+      at += 16 + n;
+    }
+  return traces;
 }
 
 StatusOr<ProbeTrace> trace_view_across_ranks(RunSession& session, const Scene& scene, const ProbeConfig& probe,

@@ -140,6 +140,12 @@ StatusOr<ProbeTrace> trace_view(RunSession& session, const Scene& scene, const P
 // the whole trace, the same as one process's (merge_traces). Collective.
 StatusOr<ProbeTrace> trace_probe_across_ranks(const Scene& scene, std::span<const ProbeStore> stores,
                                               std::span<const ProbeObject> objects, const ProbeConfig& probe);
+// The test rays of every camera (trace_view per camera, `--shared-cut`):
+// under mpirun the cameras are dealt round robin, each rank tracing whole
+// views, and the traces gathered on every rank. Collective.
+StatusOr<std::vector<ProbeTrace>> trace_views_across_ranks(RunSession& session, const Scene& scene,
+                                                           std::span<const Camera> cameras, const ProbeConfig& probe,
+                                                           const LogFn& log);
 // trace_view with the test rays split across the ranks under mpirun, each
 // rank tracing a contiguous share; every rank gets the whole trace, the same
 // as one process's (merge_traces). One process: trace_view. Collective.

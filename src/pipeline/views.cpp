@@ -174,18 +174,13 @@ StatusOr<ViewsResult> run_views(Scene scene, std::span<const Camera> cameras, co
     };
     RAYLOD_RETURN_IF_ERROR(for_each_view(cameras.size(), one_view, progress, mine, out));
   } else {
-    // Every view's test rays (each view's split across the ranks), then one
-    // cut over all of them, the same on every rank.
-    std::vector<ProbeTrace> traces(cameras.size());
+    // Every view's test rays (the views dealt to the ranks), then one cut
+    // over all of them, the same on every rank.
     auto probe_config = run_probe_config(session, scene, inner);
     RAYLOD_RETURN_IF_ERROR(cluster::agree(probe_config.status()));
     const ProbeConfig probe = probe_config.value();
-    for (size_t i = 0; i < cameras.size(); ++i) {
-      say(log, "view " + std::to_string(i + 1) + of + ": probe, " + std::to_string(options.rays) + " test rays");
-      auto t = std::chrono::steady_clock::now();
-      RAYLOD_ASSIGN_OR_RETURN(traces[i], trace_view_across_ranks(session, with_camera(scene, cameras[i]), probe, log));
-      out.views[i].probe = seconds_since(t);
-    }
+    RAYLOD_ASSIGN_OR_RETURN(std::vector<ProbeTrace> traces, trace_views_across_ranks(session, scene, cameras, probe, log));
+    for (size_t i = 0; i < cameras.size(); ++i) out.views[i].probe = traces[i].trace_seconds;
     std::vector<ProbeView> views;
     for (size_t i = 0; i < cameras.size(); ++i) views.push_back(ProbeView{&traces[i], cameras[i]});
     say(log, "shared cut: the finest need over " + std::to_string(cameras.size()) + " views");
