@@ -9,6 +9,7 @@
 #include <chrono>
 #include <climits>
 #include <cstdlib>
+#include <string>
 #include <thread>
 
 #if RAYLOD_WITH_MPI
@@ -154,15 +155,21 @@ std::optional<Status> settle_failure(const Status& status) {
     if (w.collectives == 0) {
       shown = agree(status);
     } else {
-#if RAYLOD_WITH_MPI
-      std::fprintf(w.errors, "raylod: error on rank %d of %d: %s\n", w.rank, w.size, status.message().c_str());
-      std::fflush(w.errors);
-      MPI_Abort(MPI_COMM_WORLD, 1);
-#endif
+      abort_job("error on rank " + std::to_string(w.rank) + " of " + std::to_string(w.size) + ": " + status.message(), 1);
     }
   }
   if (w.rank != 0) return std::nullopt;
   return shown;
+}
+
+void abort_job(const std::string& message, int code) {
+  World& w = world();
+  std::fprintf(w.errors, "raylod: %s\n", message.c_str());
+  std::fflush(w.errors);
+#if RAYLOD_WITH_MPI
+  if (w.mpi) MPI_Abort(MPI_COMM_WORLD, code);
+#endif
+  std::exit(code);
 }
 
 std::vector<std::string> gather(const std::string& mine) {

@@ -64,6 +64,10 @@ bool failure_agreed();
 // or nullopt on ranks other than 0, which print nothing.
 std::optional<Status> settle_failure(const Status& status);
 
+// Ends the whole job at once (MPI_Abort), after printing `message` from
+// this rank; one process: exits with `code`.
+[[noreturn]] void abort_job(const std::string& message, int code);
+
 // Where this rank's messages go: stderr on rank 0; on the others, progress
 // and log lines are dropped (their stdout and stderr are /dev/null after
 // Session starts) and only error_output() reaches the terminal.
