@@ -3,8 +3,10 @@
 #include <cctype>
 #include <cmath>
 #include <cstdio>
+#include <optional>
 #include <sstream>
 
+#include "core/cluster.h"
 #include "core/system.h"
 
 namespace raylod::cli {
@@ -191,7 +193,9 @@ StatusOr<int> threads_from_argv(int argc, char** argv) {
 }
 
 int fail(const char* command, const Status& status) {
-  std::fprintf(stderr, "raylod %s: error: %s\n", command, status.message().c_str());
+  // Under mpirun the ranks settle the failure first; rank 0 prints it.
+  const std::optional<Status> shown = cluster::settle_failure(status);
+  if (shown) std::fprintf(cluster::error_output(), "raylod %s: error: %s\n", command, shown->message().c_str());
   return 1;
 }
 

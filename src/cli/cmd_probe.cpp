@@ -7,6 +7,7 @@
 #include <optional>
 
 #include "cli/cli.h"
+#include "core/cluster.h"
 #include "core/system.h"
 #include "pipeline/pipeline.h"
 #include "probe/probe.h"
@@ -31,6 +32,8 @@ int cmd_probe(int argc, char** argv) {
                   cli::threads_option(),
                   {"--memory-limit", "", "memory limit (default: a quarter of physical memory)", true, "SIZE"},
                   {"--output", "-o", "cut file to write (single-mesh scenes)", true, "CUT"}}));
+  // Under mpirun the test rays are split across the ranks; rank 0 writes the cut.
+  cluster::enlist();
   if (Status s = args.parse(argc, argv); !s) return cli::fail("probe", s);
   if (args.help_requested()) {
     std::printf("%s", args.help_text().c_str());
@@ -54,26 +57,34 @@ int cmd_probe(int argc, char** argv) {
   store_options.memory_limit = budget.total;
   std::optional<std::filesystem::path> mesh_override;
   if (args.has("--mesh")) mesh_override = std::filesystem::path(args.get("--mesh"));
-  auto prepared = prepare_scene_stores(scene, mesh_override, store_options, default_cache_dir(),
-                                       [](const std::string& m) { std::fprintf(stderr, "raylod probe: %s\n", m.c_str()); });
-  if (!prepared) return cli::fail("probe", prepared.status());
+  StatusOr<SceneStores> prepared = Status::error("the stores were not prepared");
+  const Status built = cluster::rank0_first([&] {
+    prepared = prepare_scene_stores(scene, mesh_override, store_options, default_cache_dir(),
+                                    [](const std::string& m) { std::fprintf(stderr, "raylod probe: %s\n", m.c_str()); });
+    return prepared.status();
+  });
+  if (!built) return cli::fail("probe", built);
   const SceneStores& ss = *prepared;
   const std::vector<std::filesystem::path>& meshes = ss.meshes;
   const std::vector<ProbeStore>& stores = ss.probe_stores;
   const std::vector<ProbeObject>& objects = ss.objects;
   if (args.has("--output") && meshes.size() > 1)
-    return cli::fail("probe", Status::error("-o names one cut, but the scene has " + std::to_string(meshes.size()) +
-                                            " meshes; omit -o to write one cut beside each store"));
+    return cli::fail("probe", cluster::agree(Status::error("-o names one cut, but the scene has " +
+                                                           std::to_string(meshes.size()) +
+                                                           " meshes; omit -o to write one cut beside each store")));
 
   auto config_or = make_probe_config(scene, uint64_t(*rays), cut_opts->footprint_scale, budget, true);
-  if (!config_or) return cli::fail("probe", config_or.status());
+  if (Status s = cluster::agree(config_or.status()); !s) return cli::fail("probe", s);
   ProbeConfig config = *config_or;
   config.seed = uint64_t(*seed);
   config.criterion = cut_opts->criterion;
   config.tolerance_px = cut_opts->tolerance_px;
 
-  auto result = run_probe(scene, stores, objects, config);
-  if (!result) return cli::fail("probe", result.status());
+  auto traced = trace_probe_across_ranks(scene, stores, objects, config);
+  if (!traced) return cli::fail("probe", traced.status());
+  auto result = select_cuts(*traced, scene, stores, objects, config);
+  if (Status s = cluster::agree(result.status()); !s) return cli::fail("probe", s);
+  if (!cluster::is_root()) return 0;  // every rank has the same cuts; rank 0 writes them
   const ProbeResult& r = *result;
   auto c = [&](const char* name) {
     auto it = r.counters.find(name);

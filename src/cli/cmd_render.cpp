@@ -3,6 +3,7 @@
 #include <sstream>
 
 #include "cli/cli.h"
+#include "core/cluster.h"
 #include "core/progress.h"
 #include "core/system.h"
 #include "gen/generate.h"
@@ -13,6 +14,8 @@ namespace raylod::cli {
 namespace {
 
 Status run_render(int argc, char** argv, bool& help) {
+  // Under mpirun the frame's tiles are split across the ranks (renderer.h).
+  cluster::enlist();
   Args args("render", "[SCENE] -o IMAGE [options]",
             "Ray traces SCENE (a JSON scene file; the embedded default scene if omitted) with the\n"
             "scene's meshes, or with --mesh in place of the first object's mesh, and writes IMAGE\n"
@@ -74,19 +77,23 @@ Status run_render(int argc, char** argv, bool& help) {
     scene.objects[0].mesh = mesh;
     scene.objects[0].generate.reset();
   }
-  RAYLOD_RETURN_IF_ERROR(resolve_generated_meshes(scene, default_cache_dir()));
+  RAYLOD_RETURN_IF_ERROR(cluster::rank0_first([&] { return resolve_generated_meshes(scene, default_cache_dir()); }));
 
+  opts.split_across_ranks = true;
   RAYLOD_ASSIGN_OR_RETURN(RenderResult result, render(scene, opts));
+  if (!cluster::is_root()) return {};  // rank 0 holds the whole frame and writes it
   RAYLOD_RETURN_IF_ERROR(write_image(output, result.color));
   RAYLOD_ASSIGN_OR_RETURN(auto aovs, write_aovs(output, result));
 
   const RenderStats& s = result.stats;
   std::fprintf(stderr,
-               "raylod render: wrote %s (%dx%d, %d spp, %d threads)\n"
+               "raylod render: wrote %s (%dx%d, %d spp, %d threads%s)\n"
                "raylod render: rays: camera %llu, shadow %llu, reflection %llu, refraction %llu; "
                "total %llu in %.2f s (%.2f Mrays/s)\n"
                "raylod render: load %.2f s, BVH %.2f s (%s), peak memory %s\n",
-               output.string().c_str(), s.width, s.height, s.spp, s.threads, (unsigned long long)s.rays.camera,
+               output.string().c_str(), s.width, s.height, s.spp, s.threads,
+               cluster::active() ? (" per rank, " + std::to_string(cluster::size()) + " ranks").c_str() : "",
+               (unsigned long long)s.rays.camera,
                (unsigned long long)s.rays.shadow, (unsigned long long)s.rays.reflection,
                (unsigned long long)s.rays.refraction, (unsigned long long)s.rays.total(), s.render_seconds,
                s.rays_per_second() * 1e-6, s.load_seconds, s.bvh_seconds, format_bytes(s.bvh_bytes).c_str(),

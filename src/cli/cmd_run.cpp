@@ -7,6 +7,7 @@
 #include <nlohmann/json.hpp>
 
 #include "cli/cli.h"
+#include "core/cluster.h"
 #include "core/progress.h"
 #include "core/system.h"
 #include "gen/generate.h"
@@ -28,10 +29,14 @@ Status run_view_sequence(const Args& args, Scene scene, const std::vector<Camera
     return write_image(numbered_image_path(output, i), color);
   };
   RAYLOD_ASSIGN_OR_RETURN(ViewsResult r, run_views(std::move(scene), cameras, opts, shared, write_view, log));
+  if (!cluster::is_root()) return {};  // rank 0 has every view's statistics
   for (const std::string& w : r.warnings) std::fprintf(stderr, "raylod run: warning: %s\n", w.c_str());
   std::printf("raylod run: %s, %zu views (%s)\n", args.positionals().empty() ? "embedded default scene" : args.positionals()[0].c_str(),
               r.views.size(), shared ? "one shared cut" : "a cut per view, cached meshes reused");
   std::printf("  build      %7.2f s  (%llu triangles)\n", r.build_seconds, (unsigned long long)r.triangles_in);
+  if (r.ranks > 1)
+    std::printf("  ranks      %d (views handed out %s; images written by the rank that rendered them)\n", r.ranks,
+                r.dynamic_handout ? "one at a time" : "round robin");
   if (shared) {
     uint64_t triangles = 0;
     for (const SimplifiedMesh& m : r.shared_meshes) triangles += m.triangles;
@@ -54,6 +59,9 @@ Status run_view_sequence(const Args& args, Scene scene, const std::vector<Camera
 
 
 Status run_run(int argc, char** argv, bool& help) {
+  // Under mpirun: views handed out to the ranks, or one view's test rays and
+  // tiles split across them (README, "Running on a cluster").
+  cluster::enlist();
   Args args("run", "[SCENE] -o IMAGE [options]",
             "Builds (or reuses) the octree store of the scene's mesh, traces test rays with ray\n"
             "differentials, collapses the cells no ray can resolve, and renders the simplified\n"
@@ -98,6 +106,8 @@ Status run_run(int argc, char** argv, bool& help) {
     return Status::error("--compare measures one view; with --views or --orbit render the full mesh per view "
                          "(tools/views_benchmark.sh does)");
   if (sequence && args.has("--export-mesh")) return Status::error("--export-mesh takes one view, not --views or --orbit");
+  if (cluster::active() && args.has("--compare"))
+    return Status::error("--compare runs in one process: run it without mpirun");
   RAYLOD_RETURN_IF_ERROR(check_output_image(sequence ? numbered_image_path(output, 0) : output));
 
   RunOptions opts;
@@ -142,6 +152,7 @@ Status run_run(int argc, char** argv, bool& help) {
   }
 
   RAYLOD_ASSIGN_OR_RETURN(RunResult r, run_pipeline(scene, opts, log));
+  if (!cluster::is_root()) return {};  // rank 0 holds the whole frame and writes it
   RAYLOD_RETURN_IF_ERROR(write_image(output, r.render.color));
   for (const std::string& w : r.warnings) std::fprintf(stderr, "raylod run: warning: %s\n", w.c_str());
 

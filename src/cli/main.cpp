@@ -14,6 +14,7 @@
 #include <tbb/global_control.h>
 
 #include "cli/cli.h"
+#include "core/cluster.h"
 
 namespace {
 
@@ -54,6 +55,8 @@ int main(int argc, char** argv) {
     std::printf("raylod %s\n", RAYLOD_VERSION);
     return 0;
   }
+  // Under mpirun, MPI for the whole command (core/cluster.h); otherwise nothing.
+  raylod::cluster::Session cluster(argc, argv);
   for (const auto& c : raylod::cli::commands()) {
     if (std::strcmp(c.name, argv[1]) == 0) {
       try {
@@ -65,6 +68,10 @@ int main(int argc, char** argv) {
         if (*threads > 0) parallelism.emplace(tbb::global_control::max_allowed_parallelism, size_t(*threads));
         return c.run(argc - 1, argv + 1);
       } catch (const std::exception& e) {
+        // Under mpirun the other ranks may be waiting for this one: end the job.
+        if (raylod::cluster::active())
+          raylod::cluster::abort_job(std::string(c.name) + ": internal error on rank " +
+                                     std::to_string(raylod::cluster::rank()) + ": " + e.what(), 3);
         std::fprintf(stderr, "raylod %s: internal error: %s\n", c.name, e.what());
         return 3;
       }

@@ -15,9 +15,13 @@
 #include <iterator>
 #include <map>
 #include <sstream>
+#include <cstring>
+#include <tuple>
+#include <type_traits>
 
 #include <nlohmann/json.hpp>
 
+#include "core/cluster.h"
 #include "core/fault_point.h"
 #include "core/system.h"
 #include "gen/generate.h"
@@ -338,8 +342,18 @@ StatusOr<RunSession> open_run_session(Scene& scene, const RunOptions& options, c
 
   // A. Stores (method step A1), reused when current.
   say(log, "[1/4] build: octree stores");
-  RAYLOD_ASSIGN_OR_RETURN(session.stores,
-                          prepare_scene_stores(scene, options.mesh_override, store_options, cache_dir, log));
+  // Under mpirun rank 0 builds (or checks) the stores; the others wait, then open them.
+  StatusOr<SceneStores> stores = Status::error("the stores were not prepared");
+  RAYLOD_RETURN_IF_ERROR(cluster::rank0_first([&] {
+    stores = prepare_scene_stores(scene, options.mesh_override, store_options, cache_dir, log);
+    return stores.status();
+  }));
+  session.stores = std::move(stores.value());
+  if (cluster::active()) {
+    // Rank 0's budget everywhere: the same coarsening and the same BVH layout on every rank.
+    cluster::broadcast_value(session.budget);
+    session.memory_limit = session.budget.working();
+  }
   say(log, "stores ready: " + std::to_string(session.stores.triangles) + " triangles in " +
                std::to_string(session.stores.stores.size()) + " store(s), " + fmt("%.2f s", session.stores.seconds));
   if (options.use_cache) {
@@ -368,6 +382,98 @@ StatusOr<ProbeTrace> trace_view(RunSession& session, const Scene& scene, const P
     if (retry) traced = trace_probe(scene, stores.probe_stores, stores.objects, probe);
   }
   return traced;
+}
+
+namespace {
+
+// A trace as bytes, for gathering the ranks' shares: the hits as they are
+// (plain values; every rank runs the same binary), then the counters.
+std::string pack_trace(const ProbeTrace& t) {
+  static_assert(std::is_trivially_copyable_v<ProbeHit>);
+  std::string b = cluster::to_bytes(uint64_t(t.hits.size())) + cluster::to_bytes(t.trace_seconds) +
+                  cluster::to_bytes(t.rays) + cluster::to_bytes(t.seed) + cluster::to_bytes(t.magnification);
+  b.append(reinterpret_cast<const char*>(t.hits.data()), t.hits.size() * sizeof(ProbeHit));
+  for (const auto& [name, value] : t.counters)
+    b += cluster::to_bytes(uint64_t(name.size())) + name + cluster::to_bytes(value);
+  return b;
+}
+
+// A byte string preceded by its length.
+std::string packed_size(const std::string& b) { return cluster::to_bytes(uint64_t(b.size())) + b; }
+
+ProbeTrace unpack_trace(const std::string& b) {
+  ProbeTrace t;
+  const uint64_t hits = cluster::from_bytes<uint64_t>(b, 0);
+  t.trace_seconds = cluster::from_bytes<double>(b, 8);
+  t.rays = cluster::from_bytes<uint64_t>(b, 16);
+  t.seed = cluster::from_bytes<uint64_t>(b, 24);
+  t.magnification = cluster::from_bytes<double>(b, 32);
+  size_t at = 40;
+  t.hits.resize(hits);
+  std::memcpy(t.hits.data(), b.data() + at, hits * sizeof(ProbeHit));
+  at += hits * sizeof(ProbeHit);
+  while (at + 8 <= b.size()) {
+    const uint64_t n = cluster::from_bytes<uint64_t>(b, at);
+    std::string name = b.substr(at + 8, n);
+    t.counters[name] = cluster::from_bytes<uint64_t>(b, at + 8 + n);
+    at += 16 + n;
+  }
+  return t;
+}
+
+}  // namespace
+
+StatusOr<ProbeTrace> trace_probe_across_ranks(const Scene& scene, std::span<const ProbeStore> stores,
+                                              std::span<const ProbeObject> objects, const ProbeConfig& probe) {
+  if (!cluster::active()) return trace_probe(scene, stores, objects, probe);
+  ProbeConfig mine = probe;
+  std::tie(mine.first_ray, mine.end_ray) = cluster::share(probe.rays, cluster::rank(), cluster::size());
+  auto traced = trace_probe(scene, stores, objects, mine);
+  RAYLOD_RETURN_IF_ERROR(cluster::agree(traced.status()));
+  const std::vector<std::string> parts = cluster::allgather(pack_trace(*traced));
+  traced = ProbeTrace{};
+  std::vector<ProbeTrace> shares;
+  for (const std::string& p : parts) shares.push_back(unpack_trace(p));
+  return merge_traces(std::move(shares), probe);
+}
+
+StatusOr<std::vector<ProbeTrace>> trace_views_across_ranks(RunSession& session, const Scene& scene,
+                                                           std::span<const Camera> cameras, const ProbeConfig& probe,
+                                                           const LogFn& log) {
+  std::vector<ProbeTrace> traces(cameras.size());
+  const size_t ranks = size_t(cluster::size()), rank = size_t(cluster::rank());
+  Status status;
+  std::string mine;
+  for (size_t i = rank; i < cameras.size() && status; i += ranks) {
+    say(log, "view " + std::to_string(i + 1) + "/" + std::to_string(cameras.size()) + ": probe, " +
+                 std::to_string(probe.rays) + " test rays");
+    Scene view_scene = scene;
+    view_scene.camera = cameras[i];
+    // No store repair under mpirun: ranks rebuilding a store at once would race.
+    auto traced = cluster::active()
+                      ? trace_probe(view_scene, session.stores.probe_stores, session.stores.objects, probe)
+                      : trace_view(session, view_scene, probe, log);
+    status = traced.status();
+    if (!status) break;
+    if (cluster::active()) mine += cluster::to_bytes(uint64_t(i)) + packed_size(pack_trace(*traced));
+    else traces[i] = std::move(traced.value());
+  }
+  RAYLOD_RETURN_IF_ERROR(cluster::agree(status));
+  if (!cluster::active()) return traces;
+  for (const std::string& part : cluster::allgather(mine))
+    for (size_t at = 0; at < part.size();) {
+      const uint64_t i = cluster::from_bytes<uint64_t>(part, at), n = cluster::from_bytes<uint64_t>(part, at + 8);
+      traces.at(i) = unpack_trace(part.substr(at + 16, n));
+      at += 16 + n;
+    }
+  return traces;
+}
+
+StatusOr<ProbeTrace> trace_view_across_ranks(RunSession& session, const Scene& scene, const ProbeConfig& probe,
+                                             const LogFn& log) {
+  if (!cluster::active()) return trace_view(session, scene, probe, log);
+  // No store repair here: ranks rebuilding a store at once would race.
+  return trace_probe_across_ranks(scene, session.stores.probe_stores, session.stores.objects, probe);
 }
 
 StatusOr<FittedCuts> select_fitting_cuts(RunSession& session, std::span<const ProbeView> views, const Scene& scene,
@@ -433,7 +539,8 @@ StatusOr<StagedMeshes> simplify_or_reuse(RunSession& session, const Scene& scene
       } else {
         if (!note.empty()) say(log, note);
         std::string why;
-        entry = cache->find_reusable(cut, draco_error_bound(cut, *stores.stores[i]), &why, scene.crease_angle_deg);
+        entry = cache->find_reusable(cut, draco_error_bound(cut, *stores.stores[i]), &why, scene.crease_angle_deg,
+                                     session.reusable ? &*session.reusable : nullptr);
         if (entry) note = "reusing " + entry->key + ": " + why;
       }
       if (entry) {
@@ -512,10 +619,22 @@ StatusOr<StagedMeshes> simplify_or_reuse(RunSession& session, const Scene& scene
   return out;
 }
 
+StatusOr<StagedMeshes> simplify_or_reuse_on_ranks(RunSession& session, const Scene& scene, std::span<const Cut> cuts,
+                                                  const RunOptions& options, const LogFn& log) {
+  if (!cluster::active()) return simplify_or_reuse(session, scene, cuts, options, log);
+  StatusOr<StagedMeshes> staged = Status::error("the simplified meshes were not staged");
+  RAYLOD_RETURN_IF_ERROR(cluster::rank0_first([&] {
+    staged = simplify_or_reuse(session, scene, cuts, options, log);
+    return staged.status();
+  }));
+  return staged;
+}
+
 StatusOr<RenderResult> render_simplified(const Scene& scene, std::span<const ProbeObject> objects,
                                          std::span<const SimplifiedMesh> meshes, const RunOptions& options,
-                                         uint64_t memory_limit, const LogFn& log) {
+                                         uint64_t memory_limit, const LogFn& log, bool split_across_ranks) {
   RenderOptions ro;
+  ro.split_across_ranks = split_across_ranks;
   ro.spp = options.spp;
   ro.memory_limit = memory_limit;
   ro.progress = options.progress;
@@ -539,12 +658,16 @@ StatusOr<RunResult> run_pipeline(Scene scene, const RunOptions& options, const L
   // limit, coarsen by doubling K until they do. The rays are traced once;
   // coarsening only selects coarser cuts from them.
   say(log, "[2/4] probe: " + std::to_string(options.rays) + " test rays");
-  RAYLOD_ASSIGN_OR_RETURN(ProbeConfig probe, run_probe_config(session, scene, options));
+  // Under mpirun the ranks agree after each step that can fail on one of them.
+  auto probe_config = run_probe_config(session, scene, options);
+  RAYLOD_RETURN_IF_ERROR(cluster::agree(probe_config.status()));
+  const ProbeConfig probe = probe_config.value();
   auto t_probe = std::chrono::steady_clock::now();
-  RAYLOD_ASSIGN_OR_RETURN(ProbeTrace trace, trace_view(session, scene, probe, log));
+  RAYLOD_ASSIGN_OR_RETURN(ProbeTrace trace, trace_view_across_ranks(session, scene, probe, log));
   const ProbeView view{&trace, scene.camera};
-  RAYLOD_ASSIGN_OR_RETURN(FittedCuts fitted,
-                          select_fitting_cuts(session, std::span<const ProbeView>(&view, 1), scene, probe, options, log));
+  auto selected = select_fitting_cuts(session, std::span<const ProbeView>(&view, 1), scene, probe, options, log);
+  RAYLOD_RETURN_IF_ERROR(cluster::agree(selected.status()));
+  FittedCuts fitted = std::move(selected.value());
   result.probe = std::move(fitted.probe);
   result.footprint_scale = fitted.footprint_scale;
   result.coarsening_steps = fitted.coarsening_steps;
@@ -554,14 +677,17 @@ StatusOr<RunResult> run_pipeline(Scene scene, const RunOptions& options, const L
   // C. Simplify (A5), or reuse a cached simplified mesh that is fine enough.
   say(log, "[3/4] simplify");
   auto t_simplify = std::chrono::steady_clock::now();
-  RAYLOD_ASSIGN_OR_RETURN(StagedMeshes staged, simplify_or_reuse(session, scene, result.cuts, options, log));
+  RAYLOD_ASSIGN_OR_RETURN(StagedMeshes staged, simplify_or_reuse_on_ranks(session, scene, result.cuts, options, log));
   result.meshes = staged.meshes;
   result.triangles_out = staged.triangles;
   result.cache_hit = staged.cache_hit;
   result.seconds.simplify = seconds_since(t_simplify);
   if (!options.export_mesh.empty()) {
-    RAYLOD_ASSIGN_OR_RETURN(result.exported_bytes,
-                            export_simplified_glb(options.export_mesh, result.meshes, session.stores));
+    // Rank 0 writes it (the others' meshes are the same bytes).
+    StatusOr<uint64_t> exported = uint64_t(0);
+    if (cluster::is_root()) exported = export_simplified_glb(options.export_mesh, result.meshes, session.stores);
+    RAYLOD_RETURN_IF_ERROR(cluster::agree(exported.status()));
+    result.exported_bytes = exported.value();
     say(log, "exported the simplified meshes to " + options.export_mesh.string() + " (" + format_bytes(result.exported_bytes) + ")");
   }
 
@@ -576,7 +702,7 @@ StatusOr<RunResult> run_pipeline(Scene scene, const RunOptions& options, const L
   say(log, "[4/4] render");
   auto t_render = std::chrono::steady_clock::now();
   RAYLOD_ASSIGN_OR_RETURN(result.render, render_simplified(scene, session.stores.objects, result.meshes, options,
-                                                           session.memory_limit, log));
+                                                           session.memory_limit, log, /*split_across_ranks=*/true));
   result.seconds.render = seconds_since(t_render);
   result.peak_rss = peak_rss_bytes();
   result.warnings = session.warnings;

@@ -11,6 +11,7 @@
 #include <functional>
 #include <memory>
 #include <optional>
+#include <set>
 #include <span>
 #include <string>
 #include <vector>
@@ -119,14 +120,37 @@ struct RunSession {
   std::filesystem::path scratch;             // where simplified meshes are staged
   bool repaired = false;                     // a store found corrupt is rebuilt once per session
   std::vector<std::string> warnings;         // printed whatever the log level
+  // If set, simplify_or_reuse reuses (beyond exact hits) only the cache
+  // entries with these keys: a view sequence sets it to the entries the cache
+  // held when the run began, so that no view depends on which views ran
+  // before it (or on another rank).
+  std::optional<std::set<std::string>> reusable;
 };
 
-// Builds or reuses the stores (stage A) and opens the cache.
+// Builds or reuses the stores (stage A) and opens the cache. Under mpirun
+// (core/cluster.h) rank 0 builds, the others wait and then open the stores,
+// and every rank takes rank 0's memory budget (so all select the same cuts).
 StatusOr<RunSession> open_run_session(Scene& scene, const RunOptions& options, const LogFn& log);
 // The probe configuration of options within the session's budget.
 StatusOr<ProbeConfig> run_probe_config(const RunSession& session, const Scene& scene, const RunOptions& options);
 // Traces the test rays of scene.camera; a store found corrupt is rebuilt and the trace retried.
 StatusOr<ProbeTrace> trace_view(RunSession& session, const Scene& scene, const ProbeConfig& probe, const LogFn& log);
+// trace_probe with the test rays split across the ranks under mpirun, each
+// rank tracing a contiguous share (ProbeConfig::first_ray); every rank gets
+// the whole trace, the same as one process's (merge_traces). Collective.
+StatusOr<ProbeTrace> trace_probe_across_ranks(const Scene& scene, std::span<const ProbeStore> stores,
+                                              std::span<const ProbeObject> objects, const ProbeConfig& probe);
+// The test rays of every camera (trace_view per camera, `--shared-cut`):
+// under mpirun the cameras are dealt round robin, each rank tracing whole
+// views, and the traces gathered on every rank. Collective.
+StatusOr<std::vector<ProbeTrace>> trace_views_across_ranks(RunSession& session, const Scene& scene,
+                                                           std::span<const Camera> cameras, const ProbeConfig& probe,
+                                                           const LogFn& log);
+// trace_view with the test rays split across the ranks under mpirun, each
+// rank tracing a contiguous share; every rank gets the whole trace, the same
+// as one process's (merge_traces). One process: trace_view. Collective.
+StatusOr<ProbeTrace> trace_view_across_ranks(RunSession& session, const Scene& scene, const ProbeConfig& probe,
+                                             const LogFn& log);
 
 struct FittedCuts {
   ProbeResult probe;
@@ -166,10 +190,16 @@ struct StagedMeshes {
 // (simplified_cache.h), else simplifies it (and caches it).
 StatusOr<StagedMeshes> simplify_or_reuse(RunSession& session, const Scene& scene, std::span<const Cut> cuts,
                                          const RunOptions& options, const LogFn& log);
-// Stage D: renders scene.camera's view of the simplified meshes.
+// simplify_or_reuse for cuts every rank holds (the same on all): rank 0
+// first, which puts the meshes in the cache; then the other ranks, which
+// find them there (or, without a cache, simplify the same bytes). Collective.
+StatusOr<StagedMeshes> simplify_or_reuse_on_ranks(RunSession& session, const Scene& scene, std::span<const Cut> cuts,
+                                                  const RunOptions& options, const LogFn& log);
+// Stage D: renders scene.camera's view of the simplified meshes; with
+// split_across_ranks, the tiles across the ranks (RenderOptions).
 StatusOr<RenderResult> render_simplified(const Scene& scene, std::span<const ProbeObject> objects,
                                          std::span<const SimplifiedMesh> meshes, const RunOptions& options,
-                                         uint64_t memory_limit, const LogFn& log);
+                                         uint64_t memory_limit, const LogFn& log, bool split_across_ranks = false);
 
 // Writes the simplified meshes (their Draco bytes unchanged, so with the
 // .drc's quantisation) as one .glb: one glTF mesh per store with triangles,

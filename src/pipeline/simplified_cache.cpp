@@ -208,7 +208,8 @@ std::optional<CacheEntry> SimplifiedCache::find_exact(const std::string& key, st
 }
 
 std::optional<CacheEntry> SimplifiedCache::find_reusable(const Cut& wanted, double max_position_error,
-                                                         std::string* why, double crease_angle_deg) {
+                                                         std::string* why, double crease_angle_deg,
+                                                         const std::set<std::string>* candidates) {
   CacheLock lock(dir_);
   // Candidates by the cheap checks first (metadata and cut); only the chosen
   // one is hashed, and a corrupt one is removed and the next tried.
@@ -216,6 +217,7 @@ std::optional<CacheEntry> SimplifiedCache::find_reusable(const Cut& wanted, doub
   for (const auto& e : entries()) {
     if (e.store_hash != wanted.store_hash || e.max_position_error > max_position_error * (1 + 1e-9)) continue;
     if (!(e.crease_angle_deg == crease_angle_deg)) continue;  // another normal rule (or an old entry)
+    if (candidates && !candidates->count(e.key)) continue;
     auto cut = read_cut(e.cut);
     if (!cut.is_ok()) {  // corrupt or missing: the entry can never be reused
       remove_entry_files(dir_ / "simplified", e.key);

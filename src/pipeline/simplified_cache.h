@@ -17,6 +17,7 @@
 #include <filesystem>
 #include <optional>
 #include <string>
+#include <set>
 #include <vector>
 
 #include "core/status.h"
@@ -66,9 +67,11 @@ class SimplifiedCache {
   // The coarsest verified entry for the same store whose cut is at least as
   // fine as `wanted` needs and whose quantisation error is at most
   // `max_position_error`; `why` says which and why.
-  // Only entries made with the same crease angle qualify.
+  // Only entries made with the same crease angle qualify, and, if
+  // `candidates` is given, only entries whose key it holds.
   std::optional<CacheEntry> find_reusable(const Cut& wanted, double max_position_error, std::string* why = nullptr,
-                                          double crease_angle_deg = kDefaultCreaseAngleDeg);
+                                          double crease_angle_deg = kDefaultCreaseAngleDeg,
+                                          const std::set<std::string>* candidates = nullptr);
   // Copies a finished .drc (written elsewhere, e.g. a temporary file) into the
   // cache with its cut, then evicts least-recently-used entries over the limit.
   StatusOr<CacheEntry> insert(const Cut& cut, const std::filesystem::path& drc_file, uint64_t triangles,

@@ -7,10 +7,13 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <functional>
 #include <optional>
+#include <set>
 
 #include <nlohmann/json.hpp>
 
+#include "core/cluster.h"
 #include "core/progress.h"
 #include "core/system.h"
 
@@ -48,6 +51,65 @@ void free_probe_memory(RunSession& session) {
 #endif
 }
 
+// Renders the views the work queue hands this rank (every view, in order, on
+// one process), stopping at the first failure; then the ranks agree.
+Status for_each_view(size_t count, const std::function<Status(size_t)>& view, std::optional<Progress>& progress,
+                     std::vector<size_t>& done, ViewsResult& out) {
+  Status failed;
+  {
+    cluster::WorkQueue queue(count);
+    out.ranks = cluster::size();
+    out.dynamic_handout = queue.dynamic() || !cluster::active();
+    while (const std::optional<uint64_t> i = queue.next()) {
+      out.views[size_t(*i)].rank = cluster::rank();
+      failed = view(size_t(*i));
+      if (!failed) {
+        queue.stop();
+        break;
+      }
+      done.push_back(size_t(*i));
+      if (progress) progress->advance(1);
+    }
+  }
+  return cluster::agree(failed);
+}
+
+// Under mpirun: the statistics of the views the other ranks rendered, their
+// warnings and peak memory, onto rank 0 (as JSON).
+void gather_view_stats(ViewsResult& out, const std::vector<size_t>& mine) {
+  if (!cluster::active()) return;
+  using nlohmann::json;
+  json j = {{"views", json::array()}, {"warnings", out.warnings}, {"peak_rss", out.peak_rss}};
+  for (size_t i : mine) {
+    const ViewStats& v = out.views[i];
+    j["views"].push_back({{"index", i}, {"rank", v.rank}, {"triangles", v.triangles}, {"cache_hit", v.cache_hit},
+                          {"cache_notes", v.cache_notes}, {"footprint_scale", v.footprint_scale},
+                          {"coarsening_steps", v.coarsening_steps}, {"probe", v.probe}, {"simplify", v.simplify},
+                          {"render", v.render}, {"render_stats", render_stats_json(v.render_stats)}});
+  }
+  const std::vector<std::string> parts = cluster::gather(j.dump());
+  for (size_t r = 1; r < parts.size(); ++r) {
+    const json p = json::parse(parts[r]);
+    for (const json& e : p["views"]) {
+      ViewStats& v = out.views.at(e["index"].get<size_t>());
+      e["rank"].get_to(v.rank);
+      e["triangles"].get_to(v.triangles);
+      e["cache_hit"].get_to(v.cache_hit);
+      e["cache_notes"].get_to(v.cache_notes);
+      e["footprint_scale"].get_to(v.footprint_scale);
+      e["coarsening_steps"].get_to(v.coarsening_steps);
+      e["probe"].get_to(v.probe);
+      e["simplify"].get_to(v.simplify);
+      e["render"].get_to(v.render);
+      v.render_json = e["render_stats"].get<std::string>();
+    }
+    for (const json& w : p["warnings"])
+      if (std::find(out.warnings.begin(), out.warnings.end(), w.get<std::string>()) == out.warnings.end())
+        out.warnings.push_back(w.get<std::string>());
+    out.peak_rss = std::max(out.peak_rss, p["peak_rss"].get<uint64_t>());
+  }
+}
+
 }  // namespace
 
 size_t ViewsResult::cache_reuse() const {
@@ -76,9 +138,20 @@ StatusOr<ViewsResult> run_views(Scene scene, std::span<const Camera> cameras, co
   std::optional<Progress> progress;
   if (options.progress) progress.emplace("views", cameras.size(), "views");
   const std::string of = "/" + std::to_string(cameras.size());
+  std::vector<size_t> mine;  // the views this rank rendered
 
   if (!shared_cut) {
-    for (size_t i = 0; i < cameras.size(); ++i) {
+    // A view reuses only what the cache held before the run (or the mesh of
+    // its own cut): its image does not depend on the views before it, nor on
+    // how the views are spread over ranks.
+    session.reusable = std::set<std::string>();
+    std::string keys;
+    if (cluster::is_root() && session.cache)
+      for (const CacheEntry& e : session.cache->entries()) keys += e.key + "\n";
+    cluster::broadcast(keys);
+    for (size_t at = 0, nl; (nl = keys.find('\n', at)) != std::string::npos; at = nl + 1)
+      session.reusable->insert(keys.substr(at, nl - at));
+    auto one_view = [&](size_t i) -> Status {
       ViewStats& v = out.views[i];
       const Scene view_scene = with_camera(scene, cameras[i]);
       say(log, "view " + std::to_string(i + 1) + of + ": probe, " + std::to_string(options.rays) + " test rays");
@@ -97,24 +170,24 @@ StatusOr<ViewsResult> run_views(Scene scene, std::span<const Camera> cameras, co
       v.triangles = staged.triangles;
       v.cache_hit = staged.cache_hit;
       for (const SimplifiedMesh& m : staged.meshes) v.cache_notes.push_back(m.cache_note);
-      RAYLOD_RETURN_IF_ERROR(render_view(session, scene, cameras[i], staged.meshes, inner, i, on_image, log, v));
-      if (progress) progress->advance(1);
-    }
+      return render_view(session, scene, cameras[i], staged.meshes, inner, i, on_image, log, v);
+    };
+    RAYLOD_RETURN_IF_ERROR(for_each_view(cameras.size(), one_view, progress, mine, out));
   } else {
-    // Every view's test rays, then one cut over all of them.
-    std::vector<ProbeTrace> traces(cameras.size());
-    RAYLOD_ASSIGN_OR_RETURN(ProbeConfig probe, run_probe_config(session, scene, inner));
-    for (size_t i = 0; i < cameras.size(); ++i) {
-      say(log, "view " + std::to_string(i + 1) + of + ": probe, " + std::to_string(options.rays) + " test rays");
-      auto t = std::chrono::steady_clock::now();
-      RAYLOD_ASSIGN_OR_RETURN(traces[i], trace_view(session, with_camera(scene, cameras[i]), probe, log));
-      out.views[i].probe = seconds_since(t);
-    }
+    // Every view's test rays (the views dealt to the ranks), then one cut
+    // over all of them, the same on every rank.
+    auto probe_config = run_probe_config(session, scene, inner);
+    RAYLOD_RETURN_IF_ERROR(cluster::agree(probe_config.status()));
+    const ProbeConfig probe = probe_config.value();
+    RAYLOD_ASSIGN_OR_RETURN(std::vector<ProbeTrace> traces, trace_views_across_ranks(session, scene, cameras, probe, log));
+    for (size_t i = 0; i < cameras.size(); ++i) out.views[i].probe = traces[i].trace_seconds;
     std::vector<ProbeView> views;
     for (size_t i = 0; i < cameras.size(); ++i) views.push_back(ProbeView{&traces[i], cameras[i]});
     say(log, "shared cut: the finest need over " + std::to_string(cameras.size()) + " views");
     auto t = std::chrono::steady_clock::now();
-    RAYLOD_ASSIGN_OR_RETURN(FittedCuts fitted, select_fitting_cuts(session, views, scene, probe, inner, log));
+    auto selected = select_fitting_cuts(session, views, scene, probe, inner, log);
+    RAYLOD_RETURN_IF_ERROR(cluster::agree(selected.status()));
+    const FittedCuts fitted = std::move(selected.value());
     out.shared_select_seconds = seconds_since(t);
     out.shared_cuts = fitted.probe.cuts;
     // The shading normals' tolerance follows the finest pixel of all views.
@@ -122,15 +195,15 @@ StatusOr<ViewsResult> run_views(Scene scene, std::span<const Camera> cameras, co
     for (const Camera& c : cameras)
       if (pixel_angle(c) < pixel_angle(*finest)) finest = &c;
     t = std::chrono::steady_clock::now();
-    RAYLOD_ASSIGN_OR_RETURN(StagedMeshes staged,
-                            simplify_or_reuse(session, with_camera(scene, *finest), fitted.probe.cuts, inner, log));
+    RAYLOD_ASSIGN_OR_RETURN(StagedMeshes staged, simplify_or_reuse_on_ranks(session, with_camera(scene, *finest),
+                                                                          fitted.probe.cuts, inner, log));
     out.shared_simplify_seconds = seconds_since(t);
     out.shared_meshes = staged.meshes;
     // The render gets the memory of the stores' node tables and the traces.
     views.clear();
     traces.clear();
     free_probe_memory(session);
-    for (size_t i = 0; i < cameras.size(); ++i) {
+    auto one_view = [&](size_t i) -> Status {
       ViewStats& v = out.views[i];
       v.footprint_scale = fitted.footprint_scale;
       v.coarsening_steps = fitted.coarsening_steps;
@@ -138,14 +211,15 @@ StatusOr<ViewsResult> run_views(Scene scene, std::span<const Camera> cameras, co
       v.cache_hit = staged.cache_hit;
       for (const SimplifiedMesh& m : staged.meshes) v.cache_notes.push_back(m.cache_note);
       say(log, "view " + std::to_string(i + 1) + of + ": render");
-      RAYLOD_RETURN_IF_ERROR(render_view(session, scene, cameras[i], staged.meshes, inner, i, on_image, log, v));
-      if (progress) progress->advance(1);
-    }
+      return render_view(session, scene, cameras[i], staged.meshes, inner, i, on_image, log, v);
+    };
+    RAYLOD_RETURN_IF_ERROR(for_each_view(cameras.size(), one_view, progress, mine, out));
   }
   if (progress) progress->finish();
-  out.total_seconds = seconds_since(t_start);
   out.peak_rss = peak_rss_bytes();
   out.warnings = session.warnings;
+  gather_view_stats(out, mine);
+  out.total_seconds = seconds_since(t_start);
   return out;
 }
 
@@ -165,6 +239,7 @@ std::string views_stats_json(const ViewsResult& r, const RunOptions& options) {
     tri_max = std::max(tri_max, v.triangles);
     tri_sum += v.triangles;
     views.push_back({{"index", i},
+                     {"rank", v.rank},
                      {"camera", {{"eye", vec(c.eye)}, {"look_at", vec(c.look_at)}, {"up", vec(c.up)},
                                  {"fov_y", c.fov_y_deg}, {"width", c.width}, {"height", c.height}}},
                      {"triangles", v.triangles},
@@ -174,11 +249,14 @@ std::string views_stats_json(const ViewsResult& r, const RunOptions& options) {
                      {"footprint_scale", v.footprint_scale},
                      {"coarsening_steps", v.coarsening_steps},
                      {"seconds", {{"probe", v.probe}, {"simplify", v.simplify}, {"render", v.render}, {"total", v.total()}}},
-                     {"render", json::parse(render_stats_json(v.render_stats))}});
+                     {"render", json::parse(v.render_json.empty() ? render_stats_json(v.render_stats)
+                                                                        : v.render_json)}});
   }
   const size_t n = r.views.size();
   json j;
   j["mode"] = r.shared_cut ? "shared_cut" : "per_view";
+  j["ranks"] = r.ranks;
+  j["view_handout"] = r.ranks == 1 ? "in order" : r.dynamic_handout ? "dynamic" : "round robin";
   j["triangles_in"] = r.triangles_in;
   j["rays"] = options.rays;
   j["footprint_scale_requested"] = options.footprint_scale;

@@ -30,6 +30,8 @@ struct ViewStats {
   double probe = 0, simplify = 0, render = 0;
   double total() const { return probe + simplify + render; }
   RenderStats render_stats;
+  std::string render_json;  // a view rendered on another rank: its render_stats as JSON (render_stats unset)
+  int rank = 0;               // the MPI rank that rendered it (0 in one process)
 };
 
 struct ViewsResult {
@@ -42,6 +44,8 @@ struct ViewsResult {
   double shared_select_seconds = 0, shared_simplify_seconds = 0;
   std::vector<SimplifiedMesh> shared_meshes;
   std::vector<Cut> shared_cuts;
+  int ranks = 1;              // MPI ranks the views were spread over (core/cluster.h)
+  bool dynamic_handout = true;  // views handed out one at a time (else round robin)
   double total_seconds = 0;   // wall clock, build included
   uint64_t peak_rss = 0;
   std::vector<std::string> warnings;

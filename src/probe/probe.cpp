@@ -419,6 +419,25 @@ Status check_probe_inputs(const Scene& scene, std::span<const ProbeStore> stores
 
 }  // namespace
 
+namespace {
+
+// The policy's magnification m: a low quantile of measured secondary hits.
+void set_magnification(ProbeTrace& trace, const ProbeConfig& config) {
+  std::vector<double> ratios;
+  for (const HitRecord& h : trace.hits)
+    if (h.ratio >= 0) ratios.push_back(h.ratio);
+  double m = 1;
+  if (!ratios.empty()) {
+    std::sort(ratios.begin(), ratios.end());
+    const size_t q = size_t(std::floor(config.calibration_quantile * double(ratios.size() - 1)));
+    m = std::min(1.0, ratios[q]);
+  }
+  trace.magnification = m;
+  trace.counters["magnification_ppm"] = uint64_t(std::llround(m * 1e6));
+}
+
+}  // namespace
+
 StatusOr<ProbeTrace> trace_probe(const Scene& scene, std::span<const ProbeStore> stores,
                                  std::span<const ProbeObject> objects, const ProbeConfig& config) {
   RAYLOD_RETURN_IF_ERROR(check_probe_inputs(scene, stores, objects, config));
@@ -428,22 +447,26 @@ StatusOr<ProbeTrace> trace_probe(const Scene& scene, std::span<const ProbeStore>
 
   // A2/A3: trace the test rays. Each ray has its own seed and its own result
   // slot, so the outcome does not depend on the number of threads.
-  std::vector<RayOutcome> outcomes(config.rays);
+  const uint64_t first = std::min(config.first_ray, config.rays);
+  const uint64_t end = config.end_ray == 0 ? config.rays : std::clamp(config.end_ray, first, config.rays);
+  const uint64_t n = end - first;
+  std::vector<RayOutcome> outcomes(n);
   // Trace in the Morton order of the rays' pixels, so that neighbouring rays
   // (which mostly need the same pages) run close together in time and the
   // page cache serves them; results stay in their own slots, by ray index.
-  std::vector<std::pair<uint64_t, uint64_t>> order(config.rays);
-  for (uint64_t i = 0; i < config.rays; ++i) {
+  std::vector<std::pair<uint64_t, uint64_t>> order(n);
+  for (uint64_t i = 0; i < n; ++i) {
     double px, py;
-    const Vec2 pixel = tracer.pixel_of(i, px, py);
+    const Vec2 pixel = tracer.pixel_of(first + i, px, py);
     order[i] = {morton_encode(uint32_t(pixel.x), uint32_t(pixel.y), 0), i};
   }
   std::sort(order.begin(), order.end());
   {
     std::optional<Progress> progress;
-    if (config.progress) progress.emplace("probe", config.rays, "rays");
-    tbb::parallel_for(tbb::blocked_range<uint64_t>(0, config.rays, 16), [&](const tbb::blocked_range<uint64_t>& r) {
-      for (uint64_t i = r.begin(); i != r.end(); ++i) outcomes[order[i].second] = tracer.trace_test_ray(order[i].second);
+    if (config.progress) progress.emplace("probe", n, "rays");
+    tbb::parallel_for(tbb::blocked_range<uint64_t>(0, n, 16), [&](const tbb::blocked_range<uint64_t>& r) {
+      for (uint64_t i = r.begin(); i != r.end(); ++i)
+        outcomes[order[i].second] = tracer.trace_test_ray(first + order[i].second);
       if (progress) progress->advance(r.size());
     });
     if (progress) progress->finish();
@@ -474,22 +497,35 @@ StatusOr<ProbeTrace> trace_probe(const Scene& scene, std::span<const ProbeStore>
   }
   result.rays = config.rays;
   result.seed = config.seed;
-
-  // The policy's magnification m: a low quantile of measured secondary hits.
-  std::vector<double> ratios;
-  for (const HitRecord& h : result.hits)
-    if (h.ratio >= 0) ratios.push_back(h.ratio);
-  double m = 1;
-  if (!ratios.empty()) {
-    std::sort(ratios.begin(), ratios.end());
-    const size_t q = size_t(std::floor(config.calibration_quantile * double(ratios.size() - 1)));
-    m = std::min(1.0, ratios[q]);
-  }
-  result.magnification = m;
-  result.counters["magnification_ppm"] = uint64_t(std::llround(m * 1e6));
-
+  set_magnification(result, config);
   result.trace_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
   return result;
+}
+
+ProbeTrace merge_traces(std::vector<ProbeTrace> shares, const ProbeConfig& config) {
+  ProbeTrace result;
+  size_t hits = 0;
+  for (const ProbeTrace& t : shares) hits += t.hits.size();
+  result.hits.reserve(hits);
+  for (ProbeTrace& t : shares) {
+    const int32_t offset = int32_t(result.hits.size());
+    for (ProbeHit h : t.hits) {
+      if (h.parent >= 0) h.parent += offset;
+      result.hits.push_back(h);
+    }
+    t.hits = {};
+    for (const auto& [name, value] : t.counters)
+      if (name != "magnification_ppm") result.counters[name] += value;
+    result.trace_seconds = std::max(result.trace_seconds, t.trace_seconds);
+  }
+  result.rays = config.rays;
+  result.seed = config.seed;
+  set_magnification(result, config);
+  return result;
+}
+
+bool is_page_cache_counter(const std::string& name) {
+  return name == "pages_read" || name == "bytes_read" || name.rfind("cache_", 0) == 0;
 }
 
 namespace {
@@ -586,7 +622,8 @@ StatusOr<ProbeResult> select_shared_cuts(std::span<const ProbeView> views, const
     cut.rays = total_rays;
     cut.seed = views[0].trace->seed;
     cut.footprint_scale = K;
-    cut.counters = result.counters;
+    for (const auto& [name, value] : result.counters)
+      if (!is_page_cache_counter(name)) cut.counters[name] = value;
 
     // Measured footprints at the finest level, attached to the hit triangles'
     // corner cells, per view.

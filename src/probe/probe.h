@@ -112,6 +112,9 @@ struct ProbeConfig {
   double calibration_quantile = 0.02;  // of the secondary hits' magnification (policy above)
   double shadow_factor = 4.0;          // unreachable cells in scenes with lights
   bool progress = false;               // progress bar on stderr
+  // Trace only test rays [first_ray, end_ray) of the `rays` (one rank's share
+  // under mpirun; merge_traces joins the shares); end_ray 0 = all of them.
+  uint64_t first_ray = 0, end_ray = 0;
 };
 
 // A store to probe, and where it lives (recorded in the cut).
@@ -166,6 +169,18 @@ struct ProbeTrace {
 // cannot be read (a corrupt store is reported, never traced through).
 StatusOr<ProbeTrace> trace_probe(const Scene& scene, std::span<const ProbeStore> stores,
                                  std::span<const ProbeObject> objects, const ProbeConfig& config);
+// The shares of one probe traced separately (ProbeConfig::first_ray/end_ray),
+// in ray order, joined into the trace of all the rays: the same hits in the
+// same order, the same magnification and the same ray counters as tracing
+// them at once (each test ray's outcome depends only on its index and the
+// seed). Page-cache counters add up (each share read its own pages).
+ProbeTrace merge_traces(std::vector<ProbeTrace> shares, const ProbeConfig& config);
+
+// The page-cache counters of a trace (pages_read, bytes_read, cache_*): how
+// the pages were read, not what the rays found. They are left out of the
+// cuts, so a cut's bytes depend only on the test rays.
+bool is_page_cache_counter(const std::string& name);
+
 // Selects one cut per store from a trace (A4) by config's criterion, K and
 // tolerance (config's rays and seed are not used: the trace's are recorded).
 StatusOr<ProbeResult> select_cuts(const ProbeTrace& trace, const Scene& scene, std::span<const ProbeStore> stores,

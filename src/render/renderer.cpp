@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstring>
 #include <fstream>
 #include <mutex>
 #include <optional>
@@ -17,6 +18,7 @@
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
+#include "core/cluster.h"
 #include "core/fault_point.h"
 #include "core/parallelism.h"
 #include "core/progress.h"
@@ -299,13 +301,17 @@ RenderResult render_embree_scene(const EmbreeScene& geometry, const Scene& scene
 
   const int tile = std::max(1, options.tile_size);
   const int tiles_x = (width + tile - 1) / tile, tiles_y = (height + tile - 1) / tile;
+  const int ranks = std::max(1, options.tile_ranks), first_tile = std::clamp(options.tile_rank, 0, ranks - 1);
+  // This rank's tiles: first_tile, first_tile + ranks, ...
+  const int my_tiles = (tiles_x * tiles_y - first_tile + ranks - 1) / ranks;
   std::optional<Progress> progress;
-  if (options.progress) progress.emplace("render", uint64_t(tiles_x) * tiles_y, "tiles");
+  if (options.progress) progress.emplace("render", uint64_t(my_tiles), "tiles");
   std::mutex counters_mutex;
   RayCounters counters;
-  tbb::parallel_for(tbb::blocked_range<int>(0, tiles_x * tiles_y, 1), [&](const tbb::blocked_range<int>& r) {
+  tbb::parallel_for(tbb::blocked_range<int>(0, my_tiles, 1), [&](const tbb::blocked_range<int>& r) {
     RayCounters local;
-    for (int t = r.begin(); t != r.end(); ++t) {
+    for (int k = r.begin(); k != r.end(); ++k) {
+      const int t = first_tile + k * ranks;
       const int x0 = (t % tiles_x) * tile, y0 = (t / tiles_x) * tile;
       const int x1 = std::min(width, x0 + tile), y1 = std::min(height, y0 + tile);
       // 4x4 pixel blocks (clipped to the tile): sample s of every pixel of a
@@ -413,16 +419,73 @@ RenderResult render_embree_scene(const EmbreeScene& geometry, const Scene& scene
   return result;
 }
 
+namespace {
+
+// Under mpirun: every rank's tiles (pixels of every buffer, in tile order)
+// and ray counters, gathered into rank 0's result.
+void gather_tiles(RenderResult& result, const RenderOptions& options) {
+  const int ranks = options.tile_ranks, tile = std::max(1, options.tile_size);
+  const int width = result.color.width, height = result.color.height;
+  const int tiles_x = (width + tile - 1) / tile, tiles = tiles_x * ((height + tile - 1) / tile);
+  // Visits rank r's tiles' pixels in order: f(x, y).
+  auto each_pixel = [&](int r, auto&& f) {
+    for (int t = r; t < tiles; t += ranks) {
+      const int x0 = (t % tiles_x) * tile, y0 = (t / tiles_x) * tile;
+      for (int y = y0; y < std::min(height, y0 + tile); ++y)
+        for (int x = x0; x < std::min(width, x0 + tile); ++x) f(x, y);
+    }
+  };
+  auto buffers = [&](RenderResult& res) {
+    std::vector<Image*> images{&res.color};
+    if (!res.depth.empty()) images.push_back(&res.depth);
+    if (!res.normal.empty()) images.push_back(&res.normal);
+    return images;
+  };
+  std::string mine = cluster::to_bytes(result.stats.rays);
+  each_pixel(options.tile_rank, [&](int x, int y) {
+    for (Image* im : buffers(result)) mine.append(reinterpret_cast<const char*>(im->at(x, y)), sizeof(float) * size_t(im->channels));
+    if (!result.triangle_id.empty()) mine += cluster::to_bytes(result.triangle_id[size_t(y) * width + x]);
+  });
+  const std::vector<std::string> parts = cluster::gather(mine);
+  if (!cluster::is_root()) return;
+  RayCounters total;
+  for (int r = 0; r < ranks; ++r) {
+    const std::string& part = parts[size_t(r)];
+    total += cluster::from_bytes<RayCounters>(part);
+    size_t at = sizeof(RayCounters);
+    each_pixel(r, [&](int x, int y) {
+      for (Image* im : buffers(result)) {
+        const size_t n = sizeof(float) * size_t(im->channels);
+        if (at + n <= part.size()) std::memcpy(im->at(x, y), part.data() + at, n);
+        at += n;
+      }
+      if (!result.triangle_id.empty()) result.triangle_id[size_t(y) * width + x] = cluster::from_bytes<uint32_t>(part, at);
+      at += result.triangle_id.empty() ? 0 : sizeof(uint32_t);
+    });
+  }
+  result.stats.rays = total;
+}
+
+}  // namespace
+
 StatusOr<RenderResult> render(const Scene& scene, const RenderOptions& options) {
   auto log = [&](const std::string& m) { if (options.log) options.log(m); };
+  // Under mpirun every rank loads the scene and builds its BVH; the ranks
+  // agree after each step, so one rank's failure ends all of them cleanly.
+  const bool split = options.split_across_ranks && cluster::active();
+  auto agreed = [&](const Status& s) { return split ? cluster::agree(s) : s; };
 
   RenderStats load_stats;
   BvhConfig bvh;
-  RAYLOD_ASSIGN_OR_RETURN(auto meshes, load_scene_meshes(scene, options, load_stats, &bvh));
+  auto loaded = load_scene_meshes(scene, options, load_stats, &bvh);
+  RAYLOD_RETURN_IF_ERROR(agreed(loaded.status()));
+  auto meshes = std::move(loaded.value());
   uint64_t tris = 0;
   for (const auto& m : meshes) tris += m.triangle_count();
   log("loaded " + std::to_string(tris) + " triangles in " + std::to_string(load_stats.load_seconds) + " s");
-  RAYLOD_ASSIGN_OR_RETURN(auto geometry, EmbreeScene::build(std::move(meshes), bvh));
+  auto built = EmbreeScene::build(std::move(meshes), bvh);
+  RAYLOD_RETURN_IF_ERROR(agreed(built.status()));
+  auto geometry = std::move(built.value());
   const BvhInfo& info = geometry->info();
   log("BVH (" + info.quality + " quality): " + format_bytes(info.bvh_bytes) + ", built in " +
       std::to_string(info.build_seconds) + " s; mesh arrays " + format_bytes(info.mesh_bytes));
@@ -431,7 +494,17 @@ StatusOr<RenderResult> render(const Scene& scene, const RenderOptions& options) 
     for (const auto& m : geometry->meshes()) used.push_back(m.material);
     log("effects on: " + effects_for(scene, used).describe());
   }
-  RenderResult result = render_embree_scene(*geometry, scene, options);
+  RenderOptions tiles = options;
+  if (split) {
+    tiles.tile_rank = cluster::rank();
+    tiles.tile_ranks = cluster::size();
+  }
+  const auto t_trace = std::chrono::steady_clock::now();
+  RenderResult result = render_embree_scene(*geometry, scene, tiles);
+  if (split) {
+    gather_tiles(result, tiles);
+    result.stats.render_seconds = seconds_since(t_trace);  // the whole frame's, gathering included
+  }
   result.stats.load_seconds = load_stats.load_seconds;
   result.stats.estimated_bytes = load_stats.estimated_bytes;
   result.stats.peak_rss = peak_rss_bytes();

@@ -47,6 +47,14 @@ struct RenderOptions {
   // shadow rays as occlusion packets; false: one ray at a time. Both give the
   // same image (tests/render/packet_test.cpp); packets are faster.
   bool camera_packets = true;
+  // Render only the tiles t (in row-major tile order) with
+  // t % tile_ranks == tile_rank; the others stay 0.
+  int tile_rank = 0, tile_ranks = 1;
+  // Under mpirun (core/cluster.h): render() splits the tiles across the ranks
+  // (round robin: tile t on rank t % N) and gathers the pixels on rank 0; the
+  // other ranks' result holds only their own tiles and must not be written.
+  // Every rank calls render() with the same scene.
+  bool split_across_ranks = false;
   bool progress = true;         // progress bars on stderr
   // Informational messages (effects on, BVH quality, ...); null = silent.
   std::function<void(const std::string&)> log;

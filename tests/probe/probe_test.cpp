@@ -8,6 +8,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <fstream>
+#include <iterator>
 #include <random>
 #include <set>
 
@@ -704,6 +705,64 @@ TEST(SharedCut, SameForOneAndTwoThreadsAndAnyViewOrder) {
   auto r = select(reversed, scene, b, 2);
   ASSERT_TRUE(r.is_ok());
   EXPECT_EQ(cells_of(r->cuts[0]), cells_of(a->cuts[0]));
+}
+
+// What `mpirun raylod probe` does: the test rays traced in shares (one per
+// rank, here uneven and with different page caches) and merged give the
+// trace of one process, and a cut file with the same bytes.
+TEST(ProbeShares, MergedSharesGiveTheSameTraceAndCutFile) {
+  const Built& b = teapot();
+  const Scene scene = make_scene(MaterialType::Glass, kEye, kLook);
+  ProbeStore store{b.store.get(), b.store_path};
+  ProbeObject object{0, glm::dmat4(1.0), 0};
+  const std::span<const ProbeStore> stores(&store, 1);
+  const std::span<const ProbeObject> objects(&object, 1);
+  ProbeConfig c;
+  c.rays = 1500;
+  c.seed = 11;
+  auto whole = trace_probe(scene, stores, objects, c);
+  ASSERT_TRUE(whole) << whole.status().message();
+  std::vector<ProbeTrace> shares;
+  const std::pair<uint64_t, uint64_t> ranges[] = {{0, 1}, {1, 700}, {700, 700}, {700, 1500}};
+  for (const auto& [first, end] : ranges) {
+    ProbeConfig share = c;
+    share.first_ray = first;
+    share.end_ray = end;
+    share.cache_bytes = first == 1 ? 1 : c.cache_bytes;  // one share re-reads every page
+    auto t = trace_probe(scene, stores, objects, share);
+    ASSERT_TRUE(t) << t.status().message();
+    shares.push_back(std::move(t.value()));
+  }
+  EXPECT_EQ(shares[2].hits.size(), 0u);
+  const ProbeTrace merged = merge_traces(std::move(shares), c);
+  ASSERT_EQ(merged.hits.size(), whole->hits.size());
+  size_t secondary = 0;
+  for (size_t i = 0; i < merged.hits.size(); ++i) {
+    const ProbeHit &x = merged.hits[i], &y = whole->hits[i];
+    ASSERT_TRUE(x.object == y.object && x.corners == y.corners && x.footprint == y.footprint && x.ratio == y.ratio &&
+                x.angular == y.angular && x.parent == y.parent && x.estimated == y.estimated)
+        << "hit " << i;
+    secondary += merged.hits[i].parent >= 0;
+  }
+  EXPECT_GT(secondary, 0u);  // parents are renumbered across shares
+  EXPECT_EQ(merged.magnification, whole->magnification);
+  for (const auto& [name, value] : whole->counters)
+    if (!is_page_cache_counter(name)) {
+      EXPECT_EQ(merged.counters.at(name), value) << name;
+    }
+
+  auto cut_whole = select_cuts(*whole, scene, stores, objects, c);
+  auto cut_merged = select_cuts(merged, scene, stores, objects, c);
+  ASSERT_TRUE(cut_whole && cut_merged);
+  const fs::path a = tmp_dir() / "whole.cut", m = tmp_dir() / "merged.cut";
+  ASSERT_TRUE(write_cut(a, cut_whole->cuts[0]));
+  ASSERT_TRUE(write_cut(m, cut_merged->cuts[0]));
+  auto slurp = [](const fs::path& p) {
+    std::ifstream in(p, std::ios::binary);
+    return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+  };
+  EXPECT_EQ(slurp(a), slurp(m));
+  EXPECT_FALSE(cut_whole->cuts[0].counters.count("pages_read"));  // how pages were read is not part of the cut
 }
 
 }  // namespace

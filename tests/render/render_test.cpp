@@ -261,6 +261,45 @@ TEST(Determinism, SameImageForOneAndTwoThreads) {
   EXPECT_EQ(a.stats.rays.refraction, b.stats.rays.refraction);
 }
 
+// What `mpirun raylod render` does on each rank: the tiles t with
+// t % ranks == rank, each pixel as the whole frame has it, and the rays of
+// the shares adding up to the frame's.
+TEST(TileShares, TheRanksTilesMakeTheFrame) {
+  Scene s = base_scene(50, 37);  // partial tiles at the right and bottom
+  s.camera.eye = {0.5, 2, 5};
+  s.camera.look_at = {0, 0.8, 0};
+  s.materials = {material("mirror", MaterialType::Mirror), material("floor", MaterialType::Diffuse)};
+  s.lights = {point_light({2, 5, 3}, 30)};
+  auto meshes = [&] {
+    std::vector<TriangleMesh> m;
+    m.push_back(make_sphere({0, 1, 0}, 0.8f, 16, 32, 0));
+    m.push_back(make_ground_mesh(Ground{0, 20, 1}, s.camera));
+    return m;
+  };
+  RenderOptions o = quiet_options();
+  o.tile_size = 8;
+  const RenderResult whole = render_meshes(meshes(), s, o);
+  const int ranks = 3, tiles_x = (50 + 7) / 8;
+  RayCounters rays;
+  std::vector<int> covered(size_t(50) * 37, 0);
+  for (int r = 0; r < ranks; ++r) {
+    o.tile_rank = r;
+    o.tile_ranks = ranks;
+    const RenderResult share = render_meshes(meshes(), s, o);
+    rays += share.stats.rays;
+    for (int y = 0; y < 37; ++y)
+      for (int x = 0; x < 50; ++x) {
+        const bool mine = ((y / 8) * tiles_x + x / 8) % ranks == r;
+        for (int c = 0; c < 3; ++c)
+          ASSERT_EQ(share.color.at(x, y)[c], mine ? whole.color.at(x, y)[c] : 0.0f) << x << "," << y << " rank " << r;
+        covered[size_t(y) * 50 + x] += mine;
+      }
+  }
+  EXPECT_EQ(std::count(covered.begin(), covered.end(), 1), 50 * 37);
+  EXPECT_EQ(rays.total(), whole.stats.rays.total());
+  EXPECT_EQ(rays.reflection, whole.stats.rays.reflection);
+}
+
 TEST(Aov, DepthNormalAndTriangleIdOfTheCentrePixel) {
   Scene s = base_scene(33, 33);
   s.camera.eye = {0, 0, 5};

@@ -1,0 +1,143 @@
+// Running on several processes with MPI (`mpirun -np N raylod ...`): the
+// only code that includes mpi.h (cluster.cpp). Built without MPI
+// (RAYLOD_WITH_MPI off), or started without mpirun, this is one process:
+// rank 0 of 1, every collective returns at once with the caller's own data.
+//
+// Every collective here waits lazily (a non-blocking MPI call tested every
+// few hundred microseconds, with sleeps between): a rank waiting for the
+// store build or for a slower rank does not spin a core that the busy rank
+// on the same node needs.
+//
+// Failures: a command that works on several ranks calls enlist() first; its
+// first collective on every rank is agree(). A rank that fails sooner (bad
+// arguments, a views file) then meets the others in that agree() through
+// cli::fail (settle_failure), so the job ends cleanly with one error, printed
+// by rank 0. A failure at a stage boundary is agreed the same way. A rank
+// that fails anywhere else ends the job with MPI_Abort, its error printed by
+// itself.
+#pragma once
+
+#include <cstdint>
+#include <cstdio>
+#include <cstring>
+#include <memory>
+#include <optional>
+#include <string>
+#include <type_traits>
+#include <vector>
+
+#include "core/status.h"
+
+namespace raylod::cluster {
+
+// Starts MPI when the process was started by mpirun (and raylod was built
+// with MPI); ends it when destroyed. One per process, in main.
+class Session {
+ public:
+  Session(int& argc, char**& argv);
+  ~Session();
+  Session(const Session&) = delete;
+  Session& operator=(const Session&) = delete;
+};
+
+int rank();
+int size();
+inline bool active() { return size() > 1; }
+inline bool is_root() { return rank() == 0; }
+// Whether raylod was built with MPI (RAYLOD_WITH_MPI).
+bool built_with_mpi();
+
+// Called by a command that works across ranks (run, render, probe), before
+// anything it does can fail: its failures are then settled among the ranks.
+void enlist();
+bool enlisted();
+
+// Collective: OK on every rank if `mine` is OK on every rank, else the error
+// of the lowest failing rank on every rank (its message). Marks the failure
+// as agreed.
+Status agree(const Status& mine);
+bool failure_agreed();
+// cli::fail's part: for an enlisted command on several ranks, settles a
+// failure that was not agreed yet -- through agree() if no collective has
+// run (the others meet it in their first agree()), else by ending the job
+// (MPI_Abort, the error printed by this rank). Returns the error to print,
+// or nullopt on ranks other than 0, which print nothing.
+std::optional<Status> settle_failure(const Status& status);
+
+// Ends the whole job at once (MPI_Abort), after printing `message` from
+// this rank; one process: exits with `code`.
+[[noreturn]] void abort_job(const std::string& message, int code);
+
+// Where this rank's messages go: stderr on rank 0; on the others, progress
+// and log lines are dropped (their stdout and stderr are /dev/null after
+// Session starts) and only error_output() reaches the terminal.
+std::FILE* error_output();
+
+// Collective: runs `step` on rank 0 first (a store build, a mesh written to
+// the shared cache), the others waiting, then on the other ranks (which find
+// its result); the ranks agree after each half.
+template <class Step>
+Status rank0_first(Step&& step) {
+  Status s = is_root() ? step() : Status::ok();
+  s = agree(s);
+  if (!s || !active()) return s;
+  return agree(is_root() ? Status::ok() : step());
+}
+
+// Collectives on byte strings (rank order). gather: every rank's string on
+// rank 0 (empty elsewhere); allgather: on every rank; broadcast: rank 0's
+// string to every rank.
+std::vector<std::string> gather(const std::string& mine);
+std::vector<std::string> allgather(const std::string& mine);
+void broadcast(std::string& data);
+void barrier();
+
+// Plain values as byte strings.
+template <class T>
+std::string to_bytes(const T& value) {
+  static_assert(std::is_trivially_copyable_v<T>);
+  return std::string(reinterpret_cast<const char*>(&value), sizeof(T));
+}
+template <class T>
+T from_bytes(const std::string& bytes, size_t offset = 0) {
+  static_assert(std::is_trivially_copyable_v<T>);
+  T value{};
+  if (offset + sizeof(T) <= bytes.size()) std::memcpy(&value, bytes.data() + offset, sizeof(T));
+  return value;
+}
+template <class T>
+void broadcast_value(T& value) {
+  std::string b = to_bytes(value);
+  broadcast(b);
+  value = from_bytes<T>(b);
+}
+
+// The share [begin, end) of `count` items rank `r` of `n` takes: contiguous
+// and in rank order, the first count % n ranks one more.
+std::pair<uint64_t, uint64_t> share(uint64_t count, int r, int n);
+
+// Hands out the indices 0..count-1 to the ranks, one per request, in
+// increasing order (a rank asks for the next when it is done with its last).
+// Rank 0 takes its own from the counter and answers the other ranks from a
+// thread; without MPI_THREAD_MULTIPLE the indices are dealt round robin
+// instead (rank r takes r, r + n, ...). Construction and destruction are
+// collective.
+class WorkQueue {
+ public:
+  explicit WorkQueue(uint64_t count);
+  ~WorkQueue();
+  WorkQueue(const WorkQueue&) = delete;
+  WorkQueue& operator=(const WorkQueue&) = delete;
+  // The next index for this rank, or nullopt when every index is handed out
+  // (or after stop()).
+  std::optional<uint64_t> next();
+  // This rank takes no more work (it failed); on rank 0, nobody gets more.
+  void stop();
+  bool dynamic() const;
+
+ private:
+  struct State;
+  std::unique_ptr<State> state_;
+};
+
+}  // namespace raylod::cluster

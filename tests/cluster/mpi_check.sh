@@ -1,0 +1,112 @@
+#!/usr/bin/env bash
+# One ctest case of raylod under mpirun (tests/CMakeLists.txt registers them
+# when RAYLOD_WITH_MPI is on): runs CASE with NP ranks and the same command
+# in one process, and compares the outputs byte for byte.
+#   mpi_check.sh MPIEXEC RAYLOD NP CASE
+# CASE: render (one frame, with a depth AOV) | run (one view: image, cut and
+# mesh; and `raylod probe`'s cut) | views (3 views, a cut each) | shared-cut
+# (3 views, one cut) | fail (a bad views file and an unreadable mesh: non-zero
+# exit, the error printed once by rank 0, no image written).
+# Everything happens in a temporary folder removed on exit, pass or fail.
+set -euo pipefail
+mpiexec="$1" raylod="$2" np="$3" case="$4"
+root="${RAYLOD_TEST_TMP:-${TMPDIR:-/tmp}}"
+mkdir -p "$root"
+tmp="$(mktemp -d "$root/mpi-$case-np$np.XXXXXX")"
+trap 'rm -rf "$tmp"' EXIT
+cd "$tmp"
+
+# More ranks than cores (CI machines have 2), and as root in containers.
+export OMPI_MCA_rmaps_base_oversubscribe=1
+mpi() { "$mpiexec" --allow-run-as-root --oversubscribe -np "$np" "$raylod" "$@" --threads 1; }
+one() { "$raylod" "$@" --threads 1; }
+fail() { echo "FAIL: $*" >&2; exit 1; }
+same() { cmp "$1" "$2" >/dev/null || fail "$1 and $2 differ"; echo "same bytes: $1 $2"; }
+
+# A 6k-triangle teapot (a file, so that both runs use one store) at 96 x 64:
+# 6 tiles of 32 x 32.
+"$raylod" gen teapot --triangles 6000 -o mesh.ply >/dev/null 2>&1
+cat > scene.json <<'JSON'
+{"camera": {"eye": [6.5, 4.8, 8.5], "look_at": [0.2, 1.3, 0], "fov_y": 34, "width": 96, "height": 64},
+ "materials": {"red": {"type": "glossy", "color": [0.7, 0.2, 0.1], "specular": [0.4, 0.4, 0.4], "shininess": 40},
+               "floor": {"type": "mirror", "reflectance": 0.5}},
+ "objects": [{"mesh": "mesh.ply", "material": "red"}],
+ "ground": {"height": 0, "size": 30, "material": "floor"},
+ "lights": [{"type": "point", "position": [5, 9, 5], "intensity": 120}],
+ "spp": 2, "max_depth": 2, "seed": 5}
+JSON
+cat > views.json <<'JSON'
+[{"eye": [6.5, 4.8, 8.5], "look_at": [0.2, 1.3, 0]},
+ {"eye": [-8.5, 4.8, 6.5], "look_at": [0.2, 1.3, 0], "width": 48, "height": 32},
+ {"eye": [3.0, 2.5, 4.0], "look_at": [0.2, 1.3, 0], "fov_y": 40}]
+JSON
+mkdir -p mpi one
+
+# The simplified meshes and cuts of a cache, by name (names are their keys).
+cache_files() { (cd "$1/simplified" && ls -- *.cut *.drc 2>/dev/null | sort); }
+same_caches() {
+  local a b
+  a="$(cache_files "$1")" b="$(cache_files "$2")"
+  [ -n "$a" ] || fail "no simplified mesh in $1"
+  [ "$a" = "$b" ] || fail "the caches hold different meshes: [$a] against [$b]"
+  for f in $a; do same "$1/simplified/$f" "$2/simplified/$f"; done
+}
+
+case "$case" in
+  render)
+    # mpirun first: rank 0 builds nothing here (render reads the mesh), but
+    # every rank loads it and renders its tiles.
+    mpi render scene.json -o mpi/frame.png --aov depth -q
+    one render scene.json -o one/frame.png --aov depth -q
+    same mpi/frame.png one/frame.png
+    same mpi/frame.depth.exr one/frame.depth.exr
+    ;;
+  run)
+    # mpirun first, so that rank 0 builds the store while the others wait.
+    RAYLOD_CACHE_DIR="$tmp/cache-mpi" mpi run scene.json -o mpi/view.png --rays 600 --export-mesh mpi/mesh.glb -q
+    RAYLOD_CACHE_DIR="$tmp/cache-one" one run scene.json -o one/view.png --rays 600 --export-mesh one/mesh.glb -q
+    same mpi/view.png one/view.png
+    same mpi/mesh.glb one/mesh.glb
+    same_caches cache-mpi cache-one
+    RAYLOD_CACHE_DIR="$tmp/cache-mpi" mpi probe scene.json --rays 700 -o mpi/probe.cut >/dev/null 2>&1
+    RAYLOD_CACHE_DIR="$tmp/cache-one" one probe scene.json --rays 700 -o one/probe.cut >/dev/null 2>&1
+    same mpi/probe.cut one/probe.cut
+    ;;
+  views|shared-cut)
+    extra=()
+    [ "$case" = shared-cut ] && extra=(--shared-cut)
+    RAYLOD_CACHE_DIR="$tmp/cache-mpi" mpi run scene.json --views views.json -o mpi/v_##.png --rays 500 "${extra[@]}" \
+      --stats-json mpi/stats.json -q
+    RAYLOD_CACHE_DIR="$tmp/cache-one" one run scene.json --views views.json -o one/v_##.png --rays 500 "${extra[@]}" -q
+    for i in 00 01 02; do same "mpi/v_$i.png" "one/v_$i.png"; done
+    [ ! -e mpi/v_03.png ] || fail "a fourth image"
+    same_caches cache-mpi cache-one
+    # Rank 0's statistics hold every view, each saying which rank rendered it.
+    grep -q '"ranks": '"$np" mpi/stats.json || fail "stats.json does not give $np ranks"
+    [ "$(grep -c '"rank":' mpi/stats.json)" -eq 3 ] || fail "stats.json does not have 3 views with their rank"
+    ;;
+  fail)
+    # A bad element in the views file: every rank fails before any work.
+    printf '[{"eye": [6.5, 4.8, 8.5], "look_at": [0, 1, 0]}, {"eye": [1, 2], "look_at": [0, 1, 0]}]' > bad.json
+    status=0
+    out="$(RAYLOD_CACHE_DIR="$tmp/cache-mpi" mpi run scene.json --views bad.json -o mpi/v_##.png -q 2>&1)" || status=$?
+    [ "$status" -ne 0 ] || fail "a bad views file exited 0"
+    [ "$(grep -c 'raylod run: error: .*bad.json: \[1\].eye: expected an array of 3 numbers' <<<"$out")" -eq 1 ] ||
+      fail "the error is not printed once: $out"
+    # An unreadable mesh: rank 0's store build fails, the others learn it at the barrier.
+    printf 'ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n\0\0\0\0' > broken.ply
+    sed 's/mesh.ply/broken.ply/' scene.json > broken.json
+    for command in "run broken.json --views views.json -o mpi/v_##.png" "run broken.json -o mpi/v.png" \
+                   "render broken.json -o mpi/v.png"; do
+      status=0
+      # shellcheck disable=SC2086  # the command is words without spaces
+      out="$(RAYLOD_CACHE_DIR="$tmp/cache-mpi" mpi $command -q 2>&1)" || status=$?
+      [ "$status" -ne 0 ] || fail "$command with a broken mesh exited 0"
+      [ "$(grep -c "raylod ${command%% *}: error: .*broken.ply: truncated" <<<"$out")" -eq 1 ] ||
+        fail "$command: the error is not printed once: $out"
+    done
+    [ -z "$(ls -A mpi)" ] || fail "images were written: $(ls mpi)"
+    echo "every failure exited non-zero with one error and no image"
+    ;;
+  *) fail "unknown case $case" ;;
+esac
