@@ -20,30 +20,9 @@ namespace {
 using namespace raylod::testing;
 constexpr double kInf = std::numeric_limits<double>::infinity();
 
-// Diffuse floor with Phong highlights, a mirror box and a diffuse sphere with
-// vertex normals, under a point and a directional light: diffuse, shadows,
-// and mirror rays that land on shadowed diffuse surfaces.
+// A diffuse sphere beside a mirror box on a glossy floor, two lights.
 Scene mirror_scene(int width, int height) {
-  Scene s = base_scene(width, height);
-  s.camera.eye = {0.5, 2, 5};
-  s.camera.look_at = {0, 0.8, 0};
-  s.materials = {material("ball", MaterialType::Diffuse, Vec3(0.7f, 0.3f, 0.2f)),
-                 material("mirror", MaterialType::Mirror), material("floor", MaterialType::Diffuse)};
-  s.materials[2].specular = Vec3(0.3f);
-  s.lights = {point_light({2, 5, 3}, 30)};
-  Light sun;
-  sun.type = LightType::Directional;
-  sun.direction = glm::normalize(Vec3d(0.3, -1, -0.4));
-  s.lights.push_back(sun);
-  return s;
-}
-
-std::vector<TriangleMesh> mirror_meshes(const Scene& s) {
-  std::vector<TriangleMesh> meshes;
-  meshes.push_back(make_sphere({-0.6f, 1, 0}, 0.8f, 16, 32, 0));
-  meshes.push_back(make_box({0.6f, 0, -1}, {1.6f, 1.5f, 0}, 1));
-  meshes.push_back(make_ground_mesh(Ground{0, 20, 2}, s.camera));
-  return meshes;
+  return sphere_box_scene(width, height, material("ball", MaterialType::Diffuse, Vec3(0.7f, 0.3f, 0.2f)));
 }
 
 RenderOptions all_aovs(bool packets) {
@@ -70,7 +49,7 @@ void expect_same_render(const RenderResult& a, const RenderResult& b) {
 
 TEST(PacketTraversal, SameHitsAndOcclusionAsSingleRays) {
   const Scene s = mirror_scene(64, 48);
-  auto geometry = EmbreeScene::build(mirror_meshes(s));
+  auto geometry = EmbreeScene::build(sphere_box_meshes(s));
   ASSERT_TRUE(geometry.is_ok()) << geometry.status().message();
   const EmbreeScene& g = **geometry;
   // Seeded random rays: camera-like packets from one eye, and scattered
@@ -113,7 +92,7 @@ TEST(PacketTraversal, SameHitsAndOcclusionAsSingleRays) {
 
 TEST(Packets, SameImageAsSingleRaysWithDiffuseShadowsAndMirror) {
   const Scene s = mirror_scene(48, 36);
-  auto geometry = EmbreeScene::build(mirror_meshes(s));
+  auto geometry = EmbreeScene::build(sphere_box_meshes(s));
   ASSERT_TRUE(geometry.is_ok()) << geometry.status().message();
   const RenderResult packets = render_embree_scene(**geometry, s, all_aovs(true));
   const RenderResult single = render_embree_scene(**geometry, s, all_aovs(false));
@@ -124,7 +103,7 @@ TEST(Packets, SameImageAsSingleRaysWithDiffuseShadowsAndMirror) {
 
 TEST(Packets, SameImageForOneAndTwoThreadsAndForTheSingleRayPath) {
   const Scene s = mirror_scene(40, 28);
-  auto geometry = EmbreeScene::build(mirror_meshes(s));
+  auto geometry = EmbreeScene::build(sphere_box_meshes(s));
   ASSERT_TRUE(geometry.is_ok()) << geometry.status().message();
   auto render_with = [&](int threads, bool packets) {
     RenderOptions o = all_aovs(packets);

@@ -225,21 +225,8 @@ TEST(Effects, OnlyMaterialsTheGeometryUsesCount) {
 TEST(Determinism, SameImageForOneAndTwoThreads) {
   // The renderer sets no thread limit of its own: the arena it runs in bounds it.
   auto render_with_threads = [](int threads) {
-    Scene s = base_scene(48, 36);
-    s.camera.eye = {0.5, 2, 5};
-    s.camera.look_at = {0, 0.8, 0};
-    s.materials = {material("glass", MaterialType::Glass), material("mirror", MaterialType::Mirror),
-                   material("floor", MaterialType::Diffuse)};
-    s.materials[2].specular = Vec3(0.3f);
-    s.lights = {point_light({2, 5, 3}, 30)};
-    Light sun;
-    sun.type = LightType::Directional;
-    sun.direction = glm::normalize(Vec3d(0.3, -1, -0.4));
-    s.lights.push_back(sun);
-    std::vector<TriangleMesh> meshes;
-    meshes.push_back(make_sphere({-0.6f, 1, 0}, 0.8f, 16, 32, 0));
-    meshes.push_back(make_box({0.6f, 0, -1}, {1.6f, 1.5f, 0}, 1));
-    meshes.push_back(make_ground_mesh(Ground{0, 20, 2}, s.camera));
+    const Scene s = sphere_box_scene(48, 36, material("glass", MaterialType::Glass));
+    std::vector<TriangleMesh> meshes = sphere_box_meshes(s);
     RenderOptions o = quiet_options();
     o.aov_depth = o.aov_triangle_id = true;
     o.tile_size = 8;

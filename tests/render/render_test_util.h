@@ -112,6 +112,32 @@ inline RenderOptions quiet_options() {
   return o;
 }
 
+// A sphere (material 0, vertex normals), a mirror box (material 1) and a
+// floor with Phong highlights (material 2) under a point and a directional
+// light: diffuse, shadows, and specular rays that land on shadowed surfaces.
+// `sphere` is the sphere's material.
+inline Scene sphere_box_scene(int width, int height, const Material& sphere) {
+  Scene s = base_scene(width, height);
+  s.camera.eye = {0.5, 2, 5};
+  s.camera.look_at = {0, 0.8, 0};
+  s.materials = {sphere, material("mirror", MaterialType::Mirror), material("floor", MaterialType::Diffuse)};
+  s.materials[2].specular = Vec3(0.3f);
+  s.lights = {point_light({2, 5, 3}, 30)};
+  Light sun;
+  sun.type = LightType::Directional;
+  sun.direction = glm::normalize(Vec3d(0.3, -1, -0.4));
+  s.lights.push_back(sun);
+  return s;
+}
+
+inline std::vector<TriangleMesh> sphere_box_meshes(const Scene& s) {
+  std::vector<TriangleMesh> meshes;
+  meshes.push_back(make_sphere({-0.6f, 1, 0}, 0.8f, 16, 32, 0));
+  meshes.push_back(make_box({0.6f, 0, -1}, {1.6f, 1.5f, 0}, 1));
+  meshes.push_back(make_ground_mesh(Ground{0, 20, 2}, s.camera));
+  return meshes;
+}
+
 // Builds the meshes into an Embree scene and renders it.
 inline RenderResult render_meshes(std::vector<TriangleMesh> meshes, const Scene& scene,
                                   const RenderOptions& options = quiet_options()) {
