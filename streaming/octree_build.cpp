@@ -57,6 +57,7 @@
 #include "core/system.h"
 #include "streaming/octree_format.h"
 #include "streaming/octree_store.h"
+#include "streaming/page_codec.h"
 
 namespace raylod {
 namespace {
@@ -377,6 +378,11 @@ StatusOr<Scan> scan_pass(MeshReader& reader, size_t ntokens) {
   return scan;
 }
 
+// Bytes one triangle takes as float soup (batches), and on the grid (runs:
+// 3 x 3 grid coordinates, and 3 normal codes).
+inline uint64_t soup_triangle_bytes(bool has_normals) { return has_normals ? 72 : 36; }
+inline uint64_t run_triangle_bytes(bool has_normals) { return has_normals ? 48 : 36; }
+
 // ---------------------------------------------------------------------------
 struct Plan {
   Vec3d origin{0}, root_lo{0};
@@ -388,6 +394,7 @@ struct Plan {
   uint64_t overhead = 0;       // bytes resident besides the node table and the runs
   int max_depth = 0;           // --max-depth, capped
   double vertices = 0;         // estimated distinct vertices
+  PageGrid grid;               // positions are quantised on it as they are read (page_codec.h)
   std::vector<double> est_nodes;
 };
 
@@ -509,7 +516,8 @@ Plan make_plan(const Scan& scan, const StoreOptions& options, uint64_t memory_li
   // holds a batch, its local node table and page codes, ~3 batches' bytes)
   // come first; of the rest, half goes to the node table and a quarter to
   // the run buffer, leaving a margin for the allocator and the sample.
-  const uint64_t token_bytes = 3 * 65536 * (triangle_bytes(scan.has_normals) + 8);
+  const uint64_t token_bytes = 3 * 65536 * (soup_triangle_bytes(scan.has_normals) + 8) +
+                               65536 * run_triangle_bytes(scan.has_normals);
   const uint64_t overhead = scan.reader_bytes + (48ull << 20) + kPlanTokens * token_bytes;
   const double avail = memory_limit > overhead ? double(memory_limit - overhead) : 0.0;
   const uint64_t node_budget = node_budget_for(memory_limit, overhead);
@@ -518,6 +526,7 @@ Plan make_plan(const Scan& scan, const StoreOptions& options, uint64_t memory_li
   plan.max_depth = std::min(options.max_depth, int(kMaxLevel));
   plan.vertices = plan.est_nodes[kMaxLevel];
   plan.quadric_depth = plan_depth_for(plan, plan.max_nodes);
+  plan.grid = page_grid(plan.root_lo, plan.root_size, page_grid_bits(plan.quadric_depth));
   plan.page_level = 0;
   for (int l = 1; l <= int(kMaxLevel); ++l)
     if (double(scan.triangles) / est_pages[size_t(l)] >= double(std::max<uint32_t>(1, options.page_triangles)))
@@ -527,23 +536,20 @@ Plan make_plan(const Scan& scan, const StoreOptions& options, uint64_t memory_li
   // the upper one (std::clamp's precondition), and the upper one wins.
   const uint64_t run_bytes = std::min<uint64_t>(
       std::max<uint64_t>(uint64_t(0.25 * avail), std::max<uint64_t>(1 << 20, memory_limit / 20)), 256ull << 20);
-  plan.run_triangles = std::max<uint64_t>(1024, run_bytes / (triangle_bytes(scan.has_normals) + 8));
+  plan.run_triangles = std::max<uint64_t>(1024, run_bytes / (run_triangle_bytes(scan.has_normals) + 8));
   plan.budget_bytes = overhead + node_budget + run_bytes;
   return plan;
 }
 
 // ---------------------------------------------------------------------------
-// Sorted runs of page-grouped triangles in an unlinked temporary file. Each
-// page's piece of a run (a segment) carries the CRC-32C of its positions and
-// of its normals and its bounds, computed while the data is hot, so the final
-// page assembly only copies bytes (in the kernel where it can).
+// Sorted runs of page-grouped triangles in an unlinked temporary file, as
+// float triangle soup; the final page assembly reads each page's pieces (its
+// segments, one per run) back and encodes the page (page_codec.h).
 class RunFile {
  public:
   struct Segment {
-    uint64_t offset;  // of the segment's positions; normals follow
+    uint64_t offset;  // of the segment's positions; normal codes follow
     uint32_t count;
-    uint32_t crc_positions, crc_normals;
-    Vec3 lo, hi;
   };
 
   RunFile(bool has_normals, uint64_t capacity) : normals_(has_normals), capacity_(capacity) {}
@@ -558,21 +564,20 @@ class RunFile {
     if (fd_ < 0) return Status::error(path_.string() + ": cannot create temporary file: " + std::strerror(errno));
     ::unlink(path_.c_str());  // vanishes with the process, whatever happens
     positions_.reserve(9 * capacity_);
-    if (normals_) normals_data_.reserve(9 * capacity_);
+    if (normals_) normals_data_.reserve(3 * capacity_);
     page_of_.reserve(capacity_);
     return {};
   }
 
-  Status append(const TriangleBatch& batch, const std::vector<uint32_t>& page_ids, size_t num_pages) {
+  // Appends n triangles: 9 grid coordinates each, and 3 normal codes each if
+  // the mesh has normals.
+  Status append(const uint32_t* positions, const uint32_t* normals, size_t n, const std::vector<uint32_t>& page_ids,
+                size_t num_pages) {
     size_t done = 0;
-    while (done < batch.size()) {
-      size_t take = std::min<size_t>(batch.size() - done, capacity_ - page_of_.size());
-      const float* p = &batch.positions[3 * done].x;
-      positions_.insert(positions_.end(), p, p + 9 * take);
-      if (normals_) {
-        const float* n = &batch.normals[3 * done].x;
-        normals_data_.insert(normals_data_.end(), n, n + 9 * take);
-      }
+    while (done < n) {
+      size_t take = std::min<size_t>(n - done, capacity_ - page_of_.size());
+      positions_.insert(positions_.end(), positions + 9 * done, positions + 9 * (done + take));
+      if (normals_) normals_data_.insert(normals_data_.end(), normals + 3 * done, normals + 3 * (done + take));
       page_of_.insert(page_of_.end(), page_ids.begin() + long(done), page_ids.begin() + long(done + take));
       done += take;
       if (page_of_.size() == capacity_) RAYLOD_RETURN_IF_ERROR(flush(num_pages));
@@ -581,7 +586,7 @@ class RunFile {
   }
 
   // Counting sort of the buffered triangles by page (stable: input order
-  // within a page), written page by page: positions, then normals.
+  // within a page), written page by page: positions, then normal codes.
   Status flush(size_t num_pages) {
     const size_t n = page_of_.size();
     if (n == 0) return {};
@@ -591,14 +596,13 @@ class RunFile {
     std::vector<uint32_t> order(n), fill(start.begin(), start.end() - 1);
     for (size_t i = 0; i < n; ++i) order[fill[page_of_[i]]++] = uint32_t(i);
     if (segments_.size() < num_pages) segments_.resize(num_pages);
-    staging_.reserve(kStagingFloats);
+    staging_.reserve(kStagingWords);
     for (size_t p = 0; p < num_pages; ++p) {
       const uint32_t b = start[p], e = start[p + 1];
       if (b == e) continue;
-      Segment seg{offset_ + 4 * staging_.size(), e - b, 0, 0, Vec3(std::numeric_limits<float>::infinity()),
-                  Vec3(-std::numeric_limits<float>::infinity())};
-      RAYLOD_RETURN_IF_ERROR(emit(positions_, order.data() + b, order.data() + e, seg.crc_positions, &seg));
-      if (normals_) RAYLOD_RETURN_IF_ERROR(emit(normals_data_, order.data() + b, order.data() + e, seg.crc_normals, nullptr));
+      Segment seg{offset_ + 4 * staging_.size(), e - b};
+      RAYLOD_RETURN_IF_ERROR(emit(positions_, 9, order.data() + b, order.data() + e));
+      if (normals_) RAYLOD_RETURN_IF_ERROR(emit(normals_data_, 3, order.data() + b, order.data() + e));
       segments_[p].push_back(seg);
     }
     RAYLOD_RETURN_IF_ERROR(drain());
@@ -613,36 +617,22 @@ class RunFile {
   // segments()[page id]: the page's pieces, one per run that holds any of it.
   std::vector<std::vector<Segment>>& segments() { return segments_; }
   void release_buffers() {
-    std::vector<float>().swap(positions_);
-    std::vector<float>().swap(normals_data_);
+    std::vector<uint32_t>().swap(positions_);
+    std::vector<uint32_t>().swap(normals_data_);
     std::vector<uint32_t>().swap(page_of_);
-    std::vector<float>().swap(staging_);
+    std::vector<uint32_t>().swap(staging_);
   }
 
  private:
-  static constexpr size_t kStagingFloats = 9 << 18;  // 9 MiB, whole triangles
+  static constexpr size_t kStagingWords = 9 << 18;  // 9 MiB, whole triangles
 
-  // Appends the 9 floats of triangles order[b..e) to the staging buffer,
-  // checksumming them (and taking their bounds if seg is given).
-  Status emit(const std::vector<float>& src, const uint32_t* b, const uint32_t* e, uint32_t& crc, Segment* seg) {
-    size_t mark = staging_.size();
+  // Appends the `per` words of triangles order[b..e) to the staging buffer.
+  Status emit(const std::vector<uint32_t>& src, size_t per, const uint32_t* b, const uint32_t* e) {
     for (const uint32_t* k = b; k != e; ++k) {
-      if (staging_.size() + 9 > kStagingFloats) {
-        crc = crc32c(staging_.data() + mark, 4 * (staging_.size() - mark), crc);
-        RAYLOD_RETURN_IF_ERROR(drain());
-        mark = 0;
-      }
-      const float* f = &src[9 * size_t(*k)];
-      staging_.insert(staging_.end(), f, f + 9);
-      if (seg) {
-        for (int v = 0; v < 3; ++v) {
-          const Vec3 p(f[3 * v], f[3 * v + 1], f[3 * v + 2]);
-          seg->lo = glm::min(seg->lo, p);
-          seg->hi = glm::max(seg->hi, p);
-        }
-      }
+      if (staging_.size() + per > kStagingWords) RAYLOD_RETURN_IF_ERROR(drain());
+      const uint32_t* f = &src[per * size_t(*k)];
+      staging_.insert(staging_.end(), f, f + per);
     }
-    crc = crc32c(staging_.data() + mark, 4 * (staging_.size() - mark), crc);
     return {};
   }
 
@@ -658,7 +648,7 @@ class RunFile {
   std::filesystem::path path_;
   int fd_ = -1;
   uint64_t offset_ = 0;
-  std::vector<float> positions_, normals_data_, staging_;
+  std::vector<uint32_t> positions_, normals_data_, staging_;
   std::vector<uint32_t> page_of_;
   std::vector<std::vector<Segment>> segments_;
 };
@@ -667,6 +657,8 @@ class RunFile {
 // Pass 2 per batch: corners into a batch-local table at the initial depth,
 // and the page of each triangle (the cell of its centroid at page_level).
 struct BinToken : TokenBase {
+  std::vector<uint32_t> grid_positions;  // 9 per triangle
+  std::vector<uint32_t> normal_codes;    // 3 per triangle, if the mesh has normals
   NodeTable local;
   std::vector<uint64_t> page_codes;
   std::vector<uint32_t> page_ids;
@@ -680,6 +672,18 @@ void bin_batch(BinToken& t, const Plan& plan, int depth, bool has_normals) {
   t.page_codes.resize(n);
   uint64_t last_code = UINT64_MAX;
   size_t last = 0;
+  // Every corner onto the grid first: the store holds the quantised mesh,
+  // so quadrics, sums and pages are computed from what read_page returns.
+  t.grid_positions.resize(9 * n);
+  t.normal_codes.resize(has_normals ? 3 * n : 0);
+  for (size_t c = 0; c < 3 * n; ++c) {
+    quantise_position(t.batch.positions[c], plan.grid, &t.grid_positions[3 * c]);
+    t.batch.positions[c] = grid_position(&t.grid_positions[3 * c], plan.grid);
+    if (has_normals) {
+      t.normal_codes[c] = encode_octahedral(t.batch.normals[c]);
+      t.batch.normals[c] = decode_octahedral(t.normal_codes[c]);
+    }
+  }
   for (size_t i = 0; i < n; ++i) {
     const Vec3d p[3] = {Vec3d(t.batch.positions[3 * i]), Vec3d(t.batch.positions[3 * i + 1]),
                         Vec3d(t.batch.positions[3 * i + 2])};
@@ -762,7 +766,8 @@ Status bin_pass(MeshReader& reader, size_t ntokens, const Plan& plan, bool has_n
         out.triangles += t.batch.size();
         if (out.triangles > expected)
           return Status::error(name + ": the mesh yielded more triangles than in the first pass (changed while building?)");
-        RAYLOD_RETURN_IF_ERROR(runs.append(t.batch, t.page_ids, out.pages.codes.size()));
+        RAYLOD_RETURN_IF_ERROR(runs.append(t.grid_positions.data(), t.normal_codes.data(), t.batch.size(), t.page_ids,
+                                           out.pages.codes.size()));
         progress.advance(t.batch.size());
         return {};
       });
@@ -804,80 +809,101 @@ std::vector<std::vector<NodeRecord>> build_levels(std::vector<NodeRecord> leaves
   return levels;
 }
 
-// Copies bytes between files, in the kernel (copy_file_range) where the
-// file system allows, else through a buffer.
-Status copy_range(int in_fd, uint64_t in_off, int out_fd, uint64_t out_off, uint64_t bytes,
-                  const std::filesystem::path& in_path, const std::filesystem::path& out_path, std::vector<char>& buffer) {
-  static std::atomic<bool> kernel_copy{true};
-  while (bytes > 0 && kernel_copy) {
-    loff_t i = loff_t(in_off), o = loff_t(out_off);
-    ssize_t r = ::copy_file_range(in_fd, &i, out_fd, &o, size_t(std::min<uint64_t>(bytes, 1ull << 30)), 0);
-    if (r < 0 && errno == EINTR) continue;
-    if (r <= 0) {
-      if (r < 0 && errno != EXDEV && errno != ENOSYS && errno != EINVAL && errno != EOPNOTSUPP)
-        return Status::error(out_path.string() + ": write failed: " + std::strerror(errno));
-      kernel_copy = false;
-      break;
+// One page in flight through write_pages.
+struct PageToken {
+  uint32_t id = 0;  // page id (PageIds)
+  std::vector<uint32_t> positions, normals;  // grid coordinates, normal codes
+  std::vector<uint8_t> bytes;
+  PageEncoder encoder;
+  Bbox bounds;
+  Status error;
+};
+
+// Reads page `id`'s segments back from the runs (input order) and encodes it.
+Status encode_run_page(RunFile& runs, bool has_normals, const PageGrid& grid, PageToken& t) {
+  t.positions.clear();
+  t.normals.clear();
+  for (const auto& seg : runs.segments()[t.id]) {
+    const size_t n = size_t(seg.count), at = t.positions.size(), at_n = t.normals.size();
+    t.positions.resize(at + 9 * n);
+    RAYLOD_RETURN_IF_ERROR(pread_all(runs.fd(), t.positions.data() + at, 36 * n, seg.offset, runs.path()));
+    if (has_normals) {
+      t.normals.resize(at_n + 3 * n);
+      RAYLOD_RETURN_IF_ERROR(pread_all(runs.fd(), t.normals.data() + at_n, 12 * n, seg.offset + 36 * n, runs.path()));
     }
-    in_off += uint64_t(r);
-    out_off += uint64_t(r);
-    bytes -= uint64_t(r);
   }
-  while (bytes > 0) {
-    const size_t take = size_t(std::min<uint64_t>(bytes, buffer.size()));
-    RAYLOD_RETURN_IF_ERROR(pread_all(in_fd, buffer.data(), take, in_off, in_path));
-    RAYLOD_RETURN_IF_ERROR(pwrite_all(out_fd, buffer.data(), take, out_off, out_path));
-    in_off += take;
-    out_off += take;
-    bytes -= take;
-  }
+  t.bounds = encode_page(t.positions, t.normals, grid, t.encoder, t.bytes);
   return {};
 }
 
-// Pages in code order, each the concatenation of its run segments
-// (positions, then normals); checksums and bounds combine the segments'.
-Status write_pages(int fd, const std::filesystem::path& out_path, RunFile& runs, const Binned& binned,
-                   bool has_normals, uint64_t data_offset, std::vector<PageInfo>& pages) {
+// Pages in code order: each is read back from its run segments and encoded
+// in parallel (page_codec.h), then written in order, one after another from
+// data_offset. Returns the end offset of the page data.
+StatusOr<uint64_t> write_pages(int fd, const std::filesystem::path& out_path, RunFile& runs, const Binned& binned,
+                               bool has_normals, const PageGrid& grid, uint64_t data_offset, size_t ntokens,
+                               std::vector<PageInfo>& pages) {
   const size_t num_pages = binned.pages.codes.size();
   std::vector<uint32_t> order(num_pages);
   for (size_t i = 0; i < num_pages; ++i) order[i] = uint32_t(i);
   std::sort(order.begin(), order.end(),
             [&](uint32_t a, uint32_t b) { return binned.pages.codes[a] < binned.pages.codes[b]; });
-  std::vector<char> buffer(4 << 20);
+  for (uint32_t id : order)
+    if (binned.page_counts[id] > UINT32_MAX / 3)
+      return Status::error(out_path.string() + ": a page would hold more than 2^32 corners");
   uint64_t offset = data_offset;
   Progress progress("pages", binned.triangles, "triangles");
   pages.clear();
   pages.reserve(num_pages);
-  for (uint32_t id : order) {
-    PageInfo info;
-    info.code = binned.pages.codes[id];
-    info.offset = offset;
-    if (binned.page_counts[id] > UINT32_MAX)
-      return Status::error(out_path.string() + ": a page would hold more than 2^32 triangles");
-    info.triangle_count = uint32_t(binned.page_counts[id]);
-    uint32_t crc = 0;
-    Vec3 lo(std::numeric_limits<float>::infinity()), hi(-std::numeric_limits<float>::infinity());
-    for (int sweep = 0; sweep < (has_normals ? 2 : 1); ++sweep) {
-      for (const auto& seg : runs.segments()[id]) {
-        const uint64_t bytes = 36ull * seg.count;
-        RAYLOD_RETURN_IF_ERROR(
-            copy_range(runs.fd(), seg.offset + (sweep ? bytes : 0), fd, offset, bytes, runs.path(), out_path, buffer));
-        crc = crc32c_combine(crc, sweep ? seg.crc_normals : seg.crc_positions, bytes);
-        offset += bytes;
-        if (sweep == 0) {
-          lo = glm::min(lo, seg.lo);
-          hi = glm::max(hi, seg.hi);
-          progress.advance(seg.count);
-        }
-      }
-    }
-    info.checksum = crc;
-    info.bounds = Bbox{Vec3d(lo), Vec3d(hi)};
-    pages.push_back(info);
-    if (pages.size() == std::max<size_t>(1, num_pages / 2)) fault_point("build.pages");
+  std::vector<std::unique_ptr<PageToken>> tokens;
+  tbb::concurrent_queue<PageToken*> free_tokens;
+  for (size_t i = 0; i < ntokens; ++i) {
+    tokens.push_back(std::make_unique<PageToken>());
+    free_tokens.push(tokens.back().get());
   }
+  size_t next = 0;
+  Status failed;                   // the output stage's; the input stage reads `stop`
+  std::atomic<bool> stop{false};
+  tbb::parallel_pipeline(
+      ntokens,
+      tbb::make_filter<void, PageToken*>(tbb::filter_mode::serial_in_order,
+                                         [&](tbb::flow_control& fc) -> PageToken* {
+                                           PageToken* t = nullptr;
+                                           if (next == num_pages || stop || !free_tokens.try_pop(t)) {
+                                             fc.stop();  // ntokens bound the flight, so a token is always free
+                                             return nullptr;
+                                           }
+                                           t->id = order[next++];
+                                           return t;
+                                         }) &
+          tbb::make_filter<PageToken*, PageToken*>(tbb::filter_mode::parallel,
+                                                   [&](PageToken* t) {
+                                                     t->error = encode_run_page(runs, has_normals, grid, *t);
+                                                     return t;
+                                                   }) &
+          tbb::make_filter<PageToken*, void>(tbb::filter_mode::serial_in_order, [&](PageToken* t) {
+            if (failed.is_ok()) failed = t->error;
+            if (failed.is_ok()) failed = pwrite_all(fd, t->bytes.data(), t->bytes.size(), offset, out_path);
+            if (failed.is_ok()) {
+              PageInfo info;
+              info.code = binned.pages.codes[t->id];
+              info.offset = offset;
+              info.triangle_count = uint32_t(binned.page_counts[t->id]);
+              info.checksum = crc32c(t->bytes.data(), t->bytes.size());
+              info.bounds = t->bounds;
+              info.bytes = t->bytes.size();
+              offset += t->bytes.size();
+              pages.push_back(info);
+              progress.advance(info.triangle_count);
+              if (pages.size() == std::max<size_t>(1, num_pages / 2)) fault_point("build.pages");
+            } else {
+              stop = true;
+            }
+            free_tokens.push(t);
+          }));
   progress.finish();
-  return {};
+  RAYLOD_RETURN_IF_ERROR(failed);
+  if (pages.size() != num_pages) return Status::error(out_path.string() + ": internal error: pages were lost");
+  return offset;
 }
 
 }  // namespace
@@ -944,6 +970,7 @@ StatusOr<BuildReport> build_store_from_stream(const MeshStreamOpener& open, cons
   header.root_size = plan.root_size;
   header.quadric_depth = binned.depth;
   header.page_level = plan.page_level;
+  header.grid_bits = plan.grid.bits;
   header.bounds = scan.bounds;
   header.coarsened = binned.depth < plan.quadric_depth;
   std::tie(header.reuse_limit_lo, header.reuse_limit_hi) =
@@ -960,8 +987,6 @@ StatusOr<BuildReport> build_store_from_stream(const MeshStreamOpener& open, cons
   layout.node_table_offset = align_up(header_bytes, 64);
   layout.page_table_offset = align_up(layout.node_table_offset + nodes * sizeof(NodeRecord), 64);
   layout.data_offset = align_up(layout.page_table_offset + layout.page_count * sizeof(PageInfo), 4096);
-  layout.data_bytes = scan.triangles * triangle_bytes(scan.has_normals);
-  layout.file_bytes = layout.data_offset + layout.data_bytes;
 
   AtomicOutput output(store_path);
   const auto& tmp = output.temp_path();
@@ -973,7 +998,10 @@ StatusOr<BuildReport> build_store_from_stream(const MeshStreamOpener& open, cons
   } closer{fd};
 
   std::vector<PageInfo> pages;
-  RAYLOD_RETURN_IF_ERROR(write_pages(fd, tmp, runs, binned, scan.has_normals, layout.data_offset, pages));
+  RAYLOD_ASSIGN_OR_RETURN(const uint64_t data_end, write_pages(fd, tmp, runs, binned, scan.has_normals, plan.grid,
+                                                               layout.data_offset, ntokens, pages));
+  layout.data_bytes = data_end - layout.data_offset;
+  layout.file_bytes = data_end;
   // Closing the unlinked runs file frees its blocks and page cache (about a
   // second per 2 GiB here); it is part of the cost of building.
   runs_owner.reset();

@@ -3,9 +3,9 @@
 //   offset 0      magic "RLODSTOR", u32 version, u32 blob_bytes, blob, u32 CRC-32C of all before
 //   node table    (64-aligned) NodeRecords of levels 0..quadric_depth, each level sorted by code
 //   page table    (64-aligned) PageInfo records sorted by code
-//   page data     (4096-aligned) pages in page-table order; a page of n triangles is
-//                 n*9 float32 positions (vertex k of triangle i at 3i+k), then, if the
-//                 mesh has normals, n*9 float32 unit normals in the same order
+//   page data     (4096-aligned) pages in page-table order, back to back; each is
+//                 PageInfo::bytes long, encoded as in streaming/page_codec.h (indexed
+//                 vertices, grid-quantised positions, octahedral normals)
 //
 // Every number is little-endian (the code asserts a little-endian host and
 // writes records as they are in memory; the static_asserts pin their layout).
@@ -32,14 +32,16 @@ static_assert(sizeof(Quadric) == 80 && std::is_trivially_copyable_v<Quadric>);
 static_assert(sizeof(NodeRecord) == 144 && std::is_trivially_copyable_v<NodeRecord>);
 static_assert(offsetof(NodeRecord, quadric) == 8 && offsetof(NodeRecord, vertex_sum) == 88 &&
               offsetof(NodeRecord, normal_sum) == 112 && offsetof(NodeRecord, corner_count) == 136);
-static_assert(sizeof(PageInfo) == 72 && std::is_trivially_copyable_v<PageInfo>);
+static_assert(sizeof(PageInfo) == 80 && std::is_trivially_copyable_v<PageInfo>);
 static_assert(offsetof(PageInfo, triangle_count) == 16 && offsetof(PageInfo, checksum) == 20 &&
-              offsetof(PageInfo, bounds) == 24);
+              offsetof(PageInfo, bounds) == 24 && offsetof(PageInfo, bytes) == 72);
 
 inline constexpr char kMagic[8] = {'R', 'L', 'O', 'D', 'S', 'T', 'O', 'R'};
 // 2: the header records the memory limits a store is reused under
 // (StoreHeader::reuse_limit_lo/hi).
-inline constexpr uint32_t kVersion = 2;
+// 3: compact pages (page_codec.h; PageInfo::bytes); version 2 pages were
+// float triangle soup, 72 bytes per triangle with normals.
+inline constexpr uint32_t kVersion = 3;
 inline constexpr uint32_t kMaxLevel = 21;  // Morton codes hold 3 x 21 bits
 
 struct Layout {
@@ -52,8 +54,6 @@ struct Layout {
 };
 
 inline uint64_t align_up(uint64_t x, uint64_t a) { return (x + a - 1) / a * a; }
-// Bytes one triangle takes in a page.
-inline uint64_t triangle_bytes(bool has_normals) { return has_normals ? 72 : 36; }
 
 // The full header bytes (magic .. CRC).
 std::string encode_header(const StoreHeader& header, const Layout& layout);

@@ -17,6 +17,7 @@
 
 #include "core/system.h"
 #include "streaming/octree_format.h"
+#include "streaming/page_codec.h"
 
 namespace raylod {
 namespace store_format {
@@ -79,6 +80,7 @@ std::string encode_header(const StoreHeader& h, const Layout& l) {
   blob.put(l.page_count); blob.put(l.page_table_offset); blob.put(l.page_table_crc);
   blob.put(l.data_offset); blob.put(l.data_bytes); blob.put(l.file_bytes);
   blob.put(h.reuse_limit_lo); blob.put(h.reuse_limit_hi);
+  blob.put(int32_t(h.grid_bits));
 
   ByteWriter out;
   out.out.append(kMagic, 8);
@@ -139,7 +141,7 @@ Status read_header(int fd, const std::filesystem::path& path, StoreHeader& h, La
     return Status::error(name + ": header checksum mismatch (the store is corrupt; rebuild it)");
 
   ByteReader r(bytes.data() + sizeof head, blob_bytes);
-  int32_t max_depth = 0, unused_threads = 0, qd = 0, pl = 0;
+  int32_t max_depth = 0, unused_threads = 0, qd = 0, pl = 0, grid_bits = 0;
   uint8_t normals = 0, coarsened = 0;
   uint32_t levels = 0;
   h = StoreHeader{};
@@ -157,14 +159,15 @@ Status read_header(int fd, const std::filesystem::path& path, StoreHeader& h, La
   }
   ok = ok && r.get(l.node_table_offset) && r.get(l.node_table_crc) && r.get(l.page_count) &&
        r.get(l.page_table_offset) && r.get(l.page_table_crc) && r.get(l.data_offset) && r.get(l.data_bytes) &&
-       r.get(l.file_bytes) && r.get(h.reuse_limit_lo) && r.get(h.reuse_limit_hi) && r.at_end();
-  if (!ok || pl < 0 || pl > int(kMaxLevel) || !(h.root_size > 0))
+       r.get(l.file_bytes) && r.get(h.reuse_limit_lo) && r.get(h.reuse_limit_hi) && r.get(grid_bits) && r.at_end();
+  if (!ok || pl < 0 || pl > int(kMaxLevel) || !(h.root_size > 0) || grid_bits < 1 || grid_bits > 30)
     return Status::error(name + ": malformed store header");
   h.options.max_depth = max_depth;
   h.has_normals = normals != 0;
   h.coarsened = coarsened != 0;
   h.quadric_depth = qd;
   h.page_level = pl;
+  h.grid_bits = grid_bits;
   h.file_bytes = l.file_bytes;
   // Counts and offsets are bounded by the file size before any product or
   // sum, so a header with a valid CRC but absurd numbers cannot wrap past the
@@ -223,6 +226,7 @@ class FileStore final : public OctreeStore {
     if (store->fd_ < 0) return Status::error(path.string() + ": cannot open store: " + std::strerror(errno));
     RAYLOD_RETURN_IF_ERROR(read_header(store->fd_, path, store->header_, store->layout_));
     RAYLOD_RETURN_IF_ERROR(store->load_tables());
+    store->grid_ = page_grid(store->header_.root_lo, store->header_.root_size, store->header_.grid_bits);
     return std::unique_ptr<OctreeStore>(std::move(store));
   }
 
@@ -249,15 +253,10 @@ class FileStore final : public OctreeStore {
       return Status::error(path_.string() + ": page " + std::to_string(i) + " out of range (" +
                            std::to_string(pages_.size()) + " pages)");
     const PageInfo& page = pages_[i];
-    const size_t n = page.triangle_count;
-    batch.positions.resize(3 * n);
-    RAYLOD_RETURN_IF_ERROR(pread_all(fd_, batch.positions.data(), 36 * n, page.offset, path_));
-    uint32_t crc = crc32c(batch.positions.data(), 36 * n);
-    if (header_.has_normals) {
-      batch.normals.resize(3 * n);
-      RAYLOD_RETURN_IF_ERROR(pread_all(fd_, batch.normals.data(), 36 * n, page.offset + 36 * n, path_));
-      crc = crc32c(batch.normals.data(), 36 * n, crc);
-    }
+    thread_local std::vector<uint8_t> bytes;
+    bytes.resize(size_t(page.bytes));
+    RAYLOD_RETURN_IF_ERROR(pread_all(fd_, bytes.data(), bytes.size(), page.offset, path_));
+    const uint32_t crc = crc32c(bytes.data(), bytes.size());
     if (crc != page.checksum) {
       batch.clear();
       char code[32];
@@ -272,6 +271,15 @@ class FileStore final : public OctreeStore {
         if (!recorded) note = "could not record it: " + recorded.message() + "; rebuild it with `raylod build --force`";
       }
       return Status::error(path_.string() + ": " + what + " (the store is corrupt; " + note + ")");
+    }
+    // A page whose checksum matches but does not decode was written wrong
+    // (or deliberately altered): an error, but not a record of corruption.
+    Status decoded = decode_page(bytes, grid_, batch);
+    if (decoded.is_ok() && (batch.size() != page.triangle_count || batch.normals.empty() == header_.has_normals))
+      decoded = Status::error("its counts do not match the page table");
+    if (!decoded.is_ok()) {
+      batch.clear();
+      return Status::error(path_.string() + ": page " + std::to_string(i) + " is malformed: " + decoded.message());
     }
     return {};
   }
@@ -293,13 +301,16 @@ class FileStore final : public OctreeStore {
     if (crc32c(pages_.data(), pages_.size() * sizeof(PageInfo)) != layout_.page_table_crc)
       return Status::error(name + ": page table checksum mismatch (the store is corrupt; rebuild it)");
     // Cheap structural checks so that later code can trust the tables.
-    const uint64_t tri_bytes = triangle_bytes(header_.has_normals);
     uint64_t expect = layout_.data_offset, triangles = 0;
     for (size_t i = 0; i < pages_.size(); ++i) {
       const auto& p = pages_[i];
-      if (p.offset != expect || (i > 0 && pages_[i - 1].code >= p.code))
+      // A page of n triangles has at least 24 + 3n/8 bytes (one bit per index) and
+      // at most 24 + 3n x (12 + 4 + 4) bytes.
+      const uint64_t n = p.triangle_count;
+      if (p.offset != expect || (i > 0 && pages_[i - 1].code >= p.code) || p.bytes > layout_.file_bytes - expect ||
+          p.bytes < 24 || p.bytes > 24 + 60 * n)
         return Status::error(name + ": page table is inconsistent at page " + std::to_string(i));
-      expect += p.triangle_count * tri_bytes;
+      expect += p.bytes;
       triangles += p.triangle_count;
     }
     if (expect != layout_.file_bytes || triangles != header_.triangle_count)
@@ -320,6 +331,7 @@ class FileStore final : public OctreeStore {
   std::vector<NodeRecord> nodes_;
   std::vector<uint64_t> level_begin_;
   std::vector<PageInfo> pages_;
+  PageGrid grid_;
   mutable std::atomic<bool> found_corruption_{false};
 };
 
@@ -467,6 +479,12 @@ Status print_store_info(const std::filesystem::path& path, std::FILE* out) {
   std::fprintf(out, "  bytes         %s total: node table %s, page table %s, page data %s\n",
                format_bytes(h.file_bytes).c_str(), format_bytes(h.node_table_bytes).c_str(),
                format_bytes(pages.size() * sizeof(PageInfo)).c_str(), format_bytes(h.page_data_bytes).c_str());
+  if (h.triangle_count > 0)
+    std::fprintf(out, "  page data     %.1f bytes per triangle; positions on a grid of %.6g (2^-%d of the root side, "
+                      "1/%.0f of the finest cell), within %.3g of the input\n",
+                 double(h.page_data_bytes) / double(h.triangle_count), std::ldexp(h.root_size, -h.grid_bits), h.grid_bits,
+                 std::ldexp(1.0, h.grid_bits - h.quadric_depth),
+                 page_grid_max_error(page_grid(h.root_lo, h.root_size, h.grid_bits)));
   return {};
 }
 

@@ -27,8 +27,12 @@
 //     centroid. Its vertices may lie in neighbouring cells; PageInfo::bounds
 //     are the tight bounds of the page's triangles and cover them. Within a
 //     page triangles keep their input order. Pages are sorted by code.
-//   - Page bytes: positions (9 float32 per triangle), then, if has_normals,
-//     normals (9 float32 per triangle); CRC-32C over both (crc32c below).
+//   - Page bytes: indexed vertices, positions quantised on one grid for the
+//     whole store (1/4096 of the finest quadric cell or finer, so a decoded
+//     position is within 1/8192 of that cell per axis of the input, wherever
+//     the model sits) and octahedral normals (streaming/page_codec.h);
+//     CRC-32C over the page (crc32c below). read_page gives them back as a
+//     float triangle soup in the page's input order.
 //   - The store does not depend on the thread count (byte-identical files).
 // The file layout is in streaming/octree_format.h.
 #pragma once
@@ -84,7 +88,8 @@ struct PageInfo {
   uint64_t offset = 0;        // byte offset of the page in the store file
   uint32_t triangle_count = 0;
   uint32_t checksum = 0;      // of the page bytes
-  Bbox bounds;                // tight bounds of the page's triangles (world coordinates)
+  Bbox bounds;                // tight bounds of the page's triangles as decoded (world coordinates)
+  uint64_t bytes = 0;         // encoded size of the page (page_codec.h)
 };
 
 struct StoreOptions {
@@ -105,6 +110,7 @@ struct StoreHeader {
   double root_size = 0;       // root cube side (world)
   int quadric_depth = 0;      // deepest level with NodeRecords
   int page_level = 0;         // level whose cells are the pages
+  int grid_bits = 20;         // positions are on a grid of root_size / 2^grid_bits (page_codec.h)
   Bbox bounds;                // mesh bounds (world)
   // Layout facts filled in by OctreeStore::open (not needed to build).
   uint64_t file_bytes = 0;        // whole store file

@@ -47,9 +47,8 @@ void repair_checksums(std::string& bytes) {
       PageInfo p;
       char* at = bytes.data() + l.page_table_offset + i * sizeof(PageInfo);
       std::memcpy(&p, at, sizeof p);
-      // A page is contiguous (positions, then normals), so one CRC covers it.
-      const uint64_t n = p.triangle_count, tri = h.has_normals ? 72 : 36;
-      if (p.offset <= bytes.size() && n <= (bytes.size() - p.offset) / tri) p.checksum = crc32c(bytes.data() + p.offset, n * tri);
+      // One CRC covers a page's bytes.
+      if (p.offset <= bytes.size() && p.bytes <= bytes.size() - p.offset) p.checksum = crc32c(bytes.data() + p.offset, p.bytes);
       std::memcpy(at, &p, sizeof p);
     }
   }

@@ -12,10 +12,12 @@
 #include <array>
 #include <cstdio>
 #include <fstream>
+#include <map>
 
 #include "core/progress.h"
 #include "octree/octree_test_util.h"
 #include "streaming/octree_format.h"
+#include "streaming/page_codec.h"
 
 namespace raylod {
 namespace {
@@ -31,18 +33,6 @@ Status build_memory(const SoupMesh& mesh, const std::filesystem::path& path, Sto
       .status();
 }
 
-using Tri = std::array<float, 18>;
-std::vector<Tri> triangles_of(const SoupMesh& m) {
-  std::vector<Tri> out(m.size());
-  for (size_t t = 0; t < m.size(); ++t)
-    for (int k = 0; k < 3; ++k)
-      for (int c = 0; c < 3; ++c) {
-        out[t][3 * k + c] = m.positions[3 * t + k][c];
-        out[t][9 + 3 * k + c] = m.normals.empty() ? 0.f : m.normals[3 * t + k][c];
-      }
-  return out;
-}
-
 void flip_byte(const std::filesystem::path& p, uint64_t offset) { test::flip_byte(p, offset, 0x20); }
 
 void expect_error_contains(const Status& s, const std::vector<std::string>& parts) {
@@ -50,6 +40,11 @@ void expect_error_contains(const Status& s, const std::vector<std::string>& part
   for (const auto& p : parts) EXPECT_NE(s.message().find(p), std::string::npos) << s.message() << " lacks '" << p << "'";
 }
 
+// Every triangle comes back from the page of its centroid's cell, in input
+// order within the page, exactly as quantised (to_store_precision), and
+// that quantisation moves each position by at most half a grid step per axis
+// (a step being at most 1/4096 of the finest cell) and each normal by less
+// than 2e-4 rad (page_codec.h).
 TEST(OctreeStore, RoundTripsEveryTriangle) {
   auto m = testing::sphere(70, 90);  // 12600 triangles with normals
   auto dir = testing::scratch_dir("roundtrip");
@@ -59,34 +54,56 @@ TEST(OctreeStore, RoundTripsEveryTriangle) {
   auto opened = OctreeStore::open(dir / "s.raylod");
   ASSERT_TRUE(opened.is_ok()) << opened.status().message();
   const OctreeStore& store = **opened;
+  const StoreHeader& h = store.header();
   ASSERT_GT(store.pages().size(), 20u);
-  SoupMesh back;
+  const PageGrid grid = page_grid(h.root_lo, h.root_size, h.grid_bits);
+  ASSERT_LE(grid.step, store.cell_size(h.quadric_depth) / 4096);
+
+  testing::SoupMesh q = m;
+  testing::to_store_precision(q.positions, q.normals, h);
+  double worst_position = 0, worst_normal = 0;
+  for (size_t c = 0; c < m.positions.size(); ++c) {
+    const Vec3d want(m.positions[c]), got(q.positions[c]);
+    for (int a = 0; a < 3; ++a) {
+      // Half a step, and the rounding of the decoded value to float.
+      const double allowed = 0.5 * grid.step + std::abs(want[a]) * 0x1p-24;
+      worst_position = std::max(worst_position, std::abs(got[a] - want[a]) / allowed);
+    }
+    const Vec3d n0(m.normals[c]), n1(q.normals[c]);
+    worst_normal = std::max(worst_normal, std::atan2(glm::length(glm::cross(n0, n1)), glm::dot(n0, n1)));
+  }
+  EXPECT_LE(worst_position, 1.0) << "a position moved by more than the stated bound (ratio to it)";
+  EXPECT_GT(worst_position, 0.0) << "nothing was quantised: the test would not notice a wrong bound";
+  EXPECT_LT(worst_normal, 2e-4) << "radians";
+
+  // The quantised triangles by page, in input order.
+  std::map<uint64_t, std::vector<size_t>> by_page;
+  for (size_t t = 0; t < q.size(); ++t) {
+    const Vec3d c = (Vec3d(q.positions[3 * t]) + Vec3d(q.positions[3 * t + 1]) + Vec3d(q.positions[3 * t + 2])) / 3.0;
+    by_page[store.cell_of(c, h.page_level).code].push_back(t);
+  }
+  ASSERT_EQ(by_page.size(), store.pages().size());
   TriangleBatch b;
-  for (size_t i = 0; i < store.pages().size(); ++i) {
+  size_t i = 0;
+  for (const auto& [code, tris] : by_page) {
     const PageInfo& page = store.pages()[i];
-    ASSERT_TRUE(store.read_page(i, b).is_ok());
+    ASSERT_EQ(page.code, code);
+    ASSERT_TRUE(store.read_page(i++, b).is_ok());
     ASSERT_EQ(b.size(), page.triangle_count);
+    ASSERT_EQ(b.size(), tris.size());
     ASSERT_EQ(b.normals.size(), b.positions.size());
     Bbox tight;
     for (const Vec3& p : b.positions) tight.expand(p);
     EXPECT_EQ(tight.lo, page.bounds.lo);
     EXPECT_EQ(tight.hi, page.bounds.hi);
-    // Each triangle is in the page of its centroid's cell.
-    const Bbox cell = store.cell_bounds({uint32_t(store.header().page_level), page.code});
-    for (size_t t = 0; t < b.size(); ++t) {
-      Vec3d c = (Vec3d(b.positions[3 * t]) + Vec3d(b.positions[3 * t + 1]) + Vec3d(b.positions[3 * t + 2])) / 3.0;
-      ASSERT_EQ(store.cell_of(c, store.header().page_level).code, page.code);
-      ASSERT_TRUE(cell.contains(glm::clamp(c, cell.lo, cell.hi)));
-    }
-    back.positions.insert(back.positions.end(), b.positions.begin(), b.positions.end());
-    back.normals.insert(back.normals.end(), b.normals.begin(), b.normals.end());
+    for (size_t k = 0; k < tris.size(); ++k)
+      for (int c = 0; c < 3; ++c) {
+        ASSERT_EQ(b.positions[3 * k + c], q.positions[3 * tris[k] + c]) << "page " << i - 1 << " triangle " << k;
+        ASSERT_EQ(b.normals[3 * k + c], q.normals[3 * tris[k] + c]) << "page " << i - 1 << " triangle " << k;
+      }
   }
-  auto want = triangles_of(m), got = triangles_of(back);
-  std::sort(want.begin(), want.end());
-  std::sort(got.begin(), got.end());
-  EXPECT_TRUE(want == got) << "the store's triangles differ from the mesh's";
-  EXPECT_EQ(store.header().triangle_count, m.size());
-  EXPECT_EQ(store.header().source_path, "/nonexistent/memory.ply");
+  EXPECT_EQ(h.triangle_count, m.size());
+  EXPECT_EQ(h.source_path, "/nonexistent/memory.ply");
   EXPECT_TRUE(is_store_file(dir / "s.raylod"));
   EXPECT_FALSE(store.read_page(store.pages().size(), b).is_ok());
 }

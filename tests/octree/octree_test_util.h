@@ -13,6 +13,7 @@
 #include <gtest/gtest.h>
 
 #include "streaming/octree_store.h"
+#include "streaming/page_codec.h"
 #include "test_tmp.h"
 
 namespace raylod::testing {
@@ -22,6 +23,19 @@ struct SoupMesh {
   std::vector<Vec3> normals;    // empty or 3 per triangle
   size_t size() const { return positions.size() / 3; }
 };
+
+// Positions and normals as a store with this header holds them: each
+// position on the store's grid, each normal through its octahedral code
+// (page_codec.h). Exactly what read_page returns for them.
+inline void to_store_precision(std::vector<Vec3>& positions, std::vector<Vec3>& normals, const StoreHeader& h) {
+  const PageGrid grid = page_grid(h.root_lo, h.root_size, h.grid_bits);
+  for (Vec3& p : positions) {
+    uint32_t q[3];
+    quantise_position(p, grid, q);
+    p = grid_position(q, grid);
+  }
+  for (Vec3& n : normals) n = decode_octahedral(encode_octahedral(n));
+}
 
 // Streams a SoupMesh in fixed-size batches; can fail after `fail_after` batches.
 class VectorReader : public MeshReader {

@@ -72,10 +72,16 @@ Built build(const std::string& name, const test::TestMesh& mesh) {
   auto s = OctreeStore::open(b.store_path);
   EXPECT_TRUE(s) << s.status().message();
   b.store = std::move(s.value());
-  for (size_t i = 0; i < mesh.p.size(); ++i) {
-    b.soup.p.push_back(Vec3d(Vec3(mesh.p[i])));
-    b.soup.n.push_back(Vec3d(Vec3(mesh.n[i])));
+  // The pages as decoded (quantised positions, octahedral normals), in page order.
+  TriangleBatch page;
+  for (size_t i = 0; i < b.store->pages().size(); ++i) {
+    EXPECT_TRUE(b.store->read_page(i, page).is_ok());
+    for (size_t k = 0; k < page.positions.size(); ++k) {
+      b.soup.p.push_back(Vec3d(page.positions[k]));
+      b.soup.n.push_back(Vec3d(page.normals[k]));
+    }
   }
+  EXPECT_EQ(b.soup.size(), mesh.size());
   return b;
 }
 

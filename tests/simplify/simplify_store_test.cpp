@@ -87,12 +87,15 @@ TEST(SimplifyStore, UniformCutEqualsReferenceClustering) {
       EXPECT_EQ(result->stats.input_triangles, soup->size());
       EXPECT_EQ(result->cut_cells_missing, 0u);
       EXPECT_GT(result->pages_read, 1u);
+      // The reference clusters the soup as the store holds it.
+      TriangleBatch stored = *soup;
+      testing::to_store_precision(stored.positions, stored.normals, h);
       VertexClusteringConfig cfg;
       cfg.root_lo = h.root_lo;
       cfg.root_size = h.root_size;
       cfg.level = level;
       cfg.origin = h.origin;
-      const IndexedMesh ref = cluster_vertices(*soup, cfg);
+      const IndexedMesh ref = cluster_vertices(stored, cfg);
       expect_meshes_match(result->mesh, ref, 1e-5f);
     }
   }
@@ -152,17 +155,20 @@ TEST(SimplifyStore, MixedCutKeepsOtherTrianglesExactly) {
   ASSERT_TRUE(result.is_ok()) << result.status().message();
   EXPECT_EQ(result->cut_cells_missing, 1u);
   EXPECT_LT(result->mesh.triangle_count(), sphere.size());
-  // Every input triangle entirely below y = 0.2 is in the output unchanged.
+  // Every input triangle entirely below y = 0.2 is in the output unchanged
+  // (as the store holds it).
   std::set<test::PosTri> out;
   for (const auto& t : test::canonical_triangles(result->mesh)) out.insert(t);
+  TriangleBatch stored = sphere;
+  testing::to_store_precision(stored.positions, stored.normals, b.store->header());
   IndexedMesh below;
-  for (size_t t = 0; t < sphere.size(); ++t) {
+  for (size_t t = 0; t < stored.size(); ++t) {
     bool low = true;
-    for (int k = 0; k < 3; ++k) low &= sphere.positions[3 * t + k].y < 0.2f - 1e-3f;
+    for (int k = 0; k < 3; ++k) low &= stored.positions[3 * t + k].y < 0.2f - 1e-3f;
     if (!low) continue;
     for (int k = 0; k < 3; ++k) {
       below.indices.push_back(uint32_t(below.positions.size()));
-      below.positions.push_back(sphere.positions[3 * t + k]);
+      below.positions.push_back(stored.positions[3 * t + k]);
     }
   }
   ASSERT_GT(below.triangle_count(), 100u);
