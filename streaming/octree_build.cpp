@@ -786,29 +786,6 @@ Status bin_pass(MeshReader& reader, size_t ntokens, const Plan& plan, bool has_n
   return {};
 }
 
-// Levels depth-1 .. 0: a parent is the sum of its children, in code order.
-std::vector<std::vector<NodeRecord>> build_levels(std::vector<NodeRecord> leaves, int depth) {
-  std::vector<std::vector<NodeRecord>> levels(size_t(depth) + 1);
-  levels[size_t(depth)] = std::move(leaves);
-  for (int l = depth - 1; l >= 0; --l) {
-    const auto& children = levels[size_t(l) + 1];
-    size_t count = 0;
-    for (size_t i = 0; i < children.size(); ++i)
-      if (i == 0 || (children[i].code >> 3) != (children[i - 1].code >> 3)) ++count;
-    auto& parents = levels[size_t(l)];
-    parents.reserve(count);
-    for (const NodeRecord& c : children) {
-      if (parents.empty() || parents.back().code != (c.code >> 3)) {
-        parents.push_back(c);
-        parents.back().code = c.code >> 3;
-      } else {
-        add_node(parents.back(), c);
-      }
-    }
-  }
-  return levels;
-}
-
 // One page in flight through write_pages.
 struct PageToken {
   uint32_t id = 0;  // page id (PageIds)
@@ -949,7 +926,8 @@ StatusOr<BuildReport> build_store_from_stream(const MeshStreamOpener& open, cons
       return Status::error(reader2->path().string() + ": changed while building (normals appeared or vanished)");
     RAYLOD_RETURN_IF_ERROR(bin_pass(*reader2, ntokens, plan, scan.has_normals, scan.triangles, runs, binned));
   }
-  const auto levels = build_levels(std::move(binned.leaves), binned.depth);
+  const std::vector<NodeRecord>& leaves = binned.leaves;
+  const std::vector<uint64_t> level_counts = level_counts_of(leaves, binned.depth);
   report.bin_seconds = since(t1);
   fault_point("build.binned");
   auto t2 = now();
@@ -974,18 +952,19 @@ StatusOr<BuildReport> build_store_from_stream(const MeshStreamOpener& open, cons
   header.bounds = scan.bounds;
   header.coarsened = binned.depth < plan.quadric_depth;
   std::tie(header.reuse_limit_lo, header.reuse_limit_hi) =
-      reuse_limits(plan, binned.depth, levels[size_t(binned.depth)].size(), memory_limit);
+      reuse_limits(plan, binned.depth, leaves.size(), memory_limit);
 
   Layout layout;
   uint64_t nodes = 0;
-  for (const auto& lv : levels) {
-    layout.level_counts.push_back(lv.size());
-    nodes += lv.size();
+  for (uint64_t c : level_counts) {
+    layout.level_counts.push_back(c);
+    nodes += c;
   }
   layout.page_count = binned.pages.codes.size();
   const uint64_t header_bytes = encode_header(header, layout).size();
   layout.node_table_offset = align_up(header_bytes, 64);
-  layout.page_table_offset = align_up(layout.node_table_offset + nodes * sizeof(NodeRecord), 64);
+  layout.node_table_bytes = encoded_leaves_bytes(leaves);
+  layout.page_table_offset = align_up(layout.node_table_offset + layout.node_table_bytes, 64);
   layout.data_offset = align_up(layout.page_table_offset + layout.page_count * sizeof(PageInfo), 4096);
 
   AtomicOutput output(store_path);
@@ -1005,14 +984,22 @@ StatusOr<BuildReport> build_store_from_stream(const MeshStreamOpener& open, cons
   // Closing the unlinked runs file frees its blocks and page cache (about a
   // second per 2 GiB here); it is part of the cost of building.
   runs_owner.reset();
-  uint32_t crc = 0;
-  uint64_t offset = layout.node_table_offset;
-  for (const auto& lv : levels) {
-    RAYLOD_RETURN_IF_ERROR(pwrite_all(fd, lv.data(), lv.size() * sizeof(NodeRecord), offset, tmp));
-    crc = crc32c(lv.data(), lv.size() * sizeof(NodeRecord), crc);
-    offset += lv.size() * sizeof(NodeRecord);
+  {  // The leaves, encoded 64k at a time.
+    uint32_t crc = 0;
+    uint64_t offset = layout.node_table_offset, previous = 0;
+    std::string chunk;
+    for (size_t i = 0; i < leaves.size(); i += 65536) {
+      chunk.clear();
+      encode_leaves(std::span<const NodeRecord>(leaves).subspan(i, std::min<size_t>(65536, leaves.size() - i)), previous,
+                    chunk);
+      RAYLOD_RETURN_IF_ERROR(pwrite_all(fd, chunk.data(), chunk.size(), offset, tmp));
+      crc = crc32c(chunk.data(), chunk.size(), crc);
+      offset += chunk.size();
+    }
+    if (offset != layout.node_table_offset + layout.node_table_bytes)
+      return Status::error(store_path.string() + ": internal error: node table size changed");
+    layout.node_table_crc = crc;
   }
-  layout.node_table_crc = crc;
   RAYLOD_RETURN_IF_ERROR(pwrite_all(fd, pages.data(), pages.size() * sizeof(PageInfo), layout.page_table_offset, tmp));
   layout.page_table_crc = crc32c(pages.data(), pages.size() * sizeof(PageInfo));
   const std::string head = encode_header(header, layout);
@@ -1033,7 +1020,7 @@ StatusOr<BuildReport> build_store_from_stream(const MeshStreamOpener& open, cons
   report.page_level = plan.page_level;
   report.nodes = nodes;
   report.pages = pages.size();
-  report.node_table_bytes = nodes * sizeof(NodeRecord);
+  report.node_table_bytes = nodes * sizeof(NodeRecord);  // in memory once opened
   report.store_bytes = layout.file_bytes;
   report.source_bytes = source.bytes;
   report.coarsened = header.coarsened;

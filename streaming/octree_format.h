@@ -1,7 +1,11 @@
 // On-disk layout of the octree store (internal to streaming/octree_*.cpp).
 //
 //   offset 0      magic "RLODSTOR", u32 version, u32 blob_bytes, blob, u32 CRC-32C of all before
-//   node table    (64-aligned) NodeRecords of levels 0..quadric_depth, each level sorted by code
+//   node table    (64-aligned) the leaves (level quadric_depth) sorted by code, each as
+//                 varint(code - previous code; the first code itself), varint(corner_count),
+//                 then the quadric, vertex_sum and normal_sum as in NodeRecord (128 bytes);
+//                 levels above are the sums of their children, computed on open
+//                 (sum_parent_levels), so they are not stored
 //   page table    (64-aligned) PageInfo records sorted by code
 //   page data     (4096-aligned) pages in page-table order, back to back; each is
 //                 PageInfo::bytes long, encoded as in streaming/page_codec.h (indexed
@@ -18,6 +22,7 @@
 #include <bit>
 #include <cstdint>
 #include <filesystem>
+#include <span>
 #include <string>
 #include <type_traits>
 #include <vector>
@@ -48,6 +53,7 @@ struct Layout {
   std::vector<uint64_t> level_counts;  // nodes per level, quadric_depth + 1 entries
   uint64_t node_table_offset = 0;
   uint32_t node_table_crc = 0;
+  uint64_t node_table_bytes = 0;       // on disk (the encoded leaves)
   uint64_t page_count = 0, page_table_offset = 0;
   uint32_t page_table_crc = 0;
   uint64_t data_offset = 0, data_bytes = 0, file_bytes = 0;
@@ -60,6 +66,21 @@ std::string encode_header(const StoreHeader& header, const Layout& layout);
 // Reads and checks the header of an open store file: magic, version, CRC and
 // the recorded file size against the real one. Errors name `path`.
 Status read_header(int fd, const std::filesystem::path& path, StoreHeader& header, Layout& layout);
+
+// The node table's encoding (see the layout above).
+inline constexpr size_t kLeafFixedBytes = 128;  // quadric, vertex_sum, normal_sum
+inline constexpr size_t kLeafMaxBytes = 10 + 10 + kLeafFixedBytes;
+// Bytes the leaves take on disk.
+uint64_t encoded_leaves_bytes(std::span<const NodeRecord> leaves);
+// Appends the leaves' encoding to `out`; `previous_code` carries the last
+// code between calls (start with 0).
+void encode_leaves(std::span<const NodeRecord> leaves, uint64_t& previous_code, std::string& out);
+// Nodes per level 0..depth above sorted leaves at `depth`.
+std::vector<uint64_t> level_counts_of(std::span<const NodeRecord> leaves, int depth);
+// Fills levels 0..depth-1 of `nodes` (level l at level_begin[l] ..
+// level_begin[l + 1]) from level `depth`, each parent the sum of its children
+// in code order. False if a level's count is not what level_begin says.
+bool sum_parent_levels(std::vector<NodeRecord>& nodes, const std::vector<uint64_t>& level_begin, int depth);
 
 // Full-length pread/pwrite; errors name `path`.
 Status pread_all(int fd, void* data, size_t bytes, uint64_t offset, const std::filesystem::path& path);

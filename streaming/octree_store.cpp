@@ -63,6 +63,96 @@ class ByteReader {
 
 }  // namespace
 
+namespace {
+
+inline void put_varint(std::string& out, uint64_t v) {
+  while (v >= 0x80) {
+    out.push_back(char(uint8_t(v) | 0x80));
+    v >>= 7;
+  }
+  out.push_back(char(v));
+}
+
+inline size_t varint_bytes(uint64_t v) {
+  size_t n = 1;
+  while (v >= 0x80) {
+    v >>= 7;
+    ++n;
+  }
+  return n;
+}
+
+// A varint at p (at most `avail` bytes); 0 bytes consumed if malformed.
+inline size_t get_varint(const char* p, size_t avail, uint64_t& v) {
+  v = 0;
+  for (size_t i = 0; i < std::min<size_t>(avail, 10); ++i) {
+    const uint8_t b = uint8_t(p[i]);
+    if (i == 9 && b > 1) return 0;
+    v |= uint64_t(b & 0x7f) << (7 * i);
+    if (!(b & 0x80)) return i + 1;
+  }
+  return 0;
+}
+
+void add_node(NodeRecord& a, const NodeRecord& b) {
+  quadric_add(a.quadric, b.quadric);
+  a.vertex_sum += b.vertex_sum;
+  a.normal_sum += b.normal_sum;
+  a.corner_count += b.corner_count;
+}
+
+}  // namespace
+
+uint64_t encoded_leaves_bytes(std::span<const NodeRecord> leaves) {
+  uint64_t bytes = 0, previous = 0;
+  for (const NodeRecord& n : leaves) {
+    bytes += varint_bytes(n.code - previous) + varint_bytes(n.corner_count) + kLeafFixedBytes;
+    previous = n.code;
+  }
+  return bytes;
+}
+
+void encode_leaves(std::span<const NodeRecord> leaves, uint64_t& previous_code, std::string& out) {
+  for (const NodeRecord& n : leaves) {
+    put_varint(out, n.code - previous_code);
+    put_varint(out, n.corner_count);
+    out.append(reinterpret_cast<const char*>(&n) + offsetof(NodeRecord, quadric), kLeafFixedBytes);
+    previous_code = n.code;
+  }
+}
+
+std::vector<uint64_t> level_counts_of(std::span<const NodeRecord> leaves, int depth) {
+  std::vector<uint64_t> counts(size_t(depth) + 1, 0);
+  counts[size_t(depth)] = leaves.size();
+  for (int l = depth - 1; l >= 0; --l) {
+    const int shift = 3 * (depth - l);
+    for (size_t i = 0; i < leaves.size(); ++i)
+      if (i == 0 || (leaves[i].code >> shift) != (leaves[i - 1].code >> shift)) ++counts[size_t(l)];
+  }
+  return counts;
+}
+
+bool sum_parent_levels(std::vector<NodeRecord>& nodes, const std::vector<uint64_t>& level_begin, int depth) {
+  for (int l = depth - 1; l >= 0; --l) {
+    const size_t cb = level_begin[size_t(l) + 1], ce = level_begin[size_t(l) + 2];
+    size_t out = level_begin[size_t(l)];
+    const size_t end = cb;  // level l ends where level l + 1 begins
+    for (size_t i = cb; i < ce; ++i) {
+      const NodeRecord& c = nodes[i];
+      if (out > level_begin[size_t(l)] && nodes[out - 1].code == (c.code >> 3)) {
+        add_node(nodes[out - 1], c);
+      } else {
+        if (out == end) return false;
+        nodes[out] = c;
+        nodes[out].code = c.code >> 3;
+        ++out;
+      }
+    }
+    if (out != end) return false;
+  }
+  return true;
+}
+
 std::string encode_header(const StoreHeader& h, const Layout& l) {
   ByteWriter blob;
   blob.put_str(h.source_path);
@@ -76,7 +166,7 @@ std::string encode_header(const StoreHeader& h, const Layout& l) {
   blob.put_vec(h.bounds.lo); blob.put_vec(h.bounds.hi);
   blob.put(uint32_t(l.level_counts.size()));
   for (uint64_t c : l.level_counts) blob.put(c);
-  blob.put(l.node_table_offset); blob.put(l.node_table_crc);
+  blob.put(l.node_table_offset); blob.put(l.node_table_crc); blob.put(l.node_table_bytes);
   blob.put(l.page_count); blob.put(l.page_table_offset); blob.put(l.page_table_crc);
   blob.put(l.data_offset); blob.put(l.data_bytes); blob.put(l.file_bytes);
   blob.put(h.reuse_limit_lo); blob.put(h.reuse_limit_hi);
@@ -157,7 +247,7 @@ Status read_header(int fd, const std::filesystem::path& path, StoreHeader& h, La
   } else {
     ok = false;
   }
-  ok = ok && r.get(l.node_table_offset) && r.get(l.node_table_crc) && r.get(l.page_count) &&
+  ok = ok && r.get(l.node_table_offset) && r.get(l.node_table_crc) && r.get(l.node_table_bytes) && r.get(l.page_count) &&
        r.get(l.page_table_offset) && r.get(l.page_table_crc) && r.get(l.data_offset) && r.get(l.data_bytes) &&
        r.get(l.file_bytes) && r.get(h.reuse_limit_lo) && r.get(h.reuse_limit_hi) && r.get(grid_bits) && r.at_end();
   if (!ok || pl < 0 || pl > int(kMaxLevel) || !(h.root_size > 0) || grid_bits < 1 || grid_bits > 30)
@@ -173,8 +263,13 @@ Status read_header(int fd, const std::filesystem::path& path, StoreHeader& h, La
   // sum, so a header with a valid CRC but absurd numbers cannot wrap past the
   // checks below (and then make load_tables allocate from them).
   uint64_t nodes = 0;
-  for (uint64_t c : l.level_counts) {
-    if (c > size / sizeof(NodeRecord) - nodes) return Status::error(name + ": malformed store header (node counts)");
+  // Only the leaves are on disk (at least kLeafFixedBytes + 2 bytes each); a
+  // level above holds at most as many nodes as the one below it.
+  for (size_t i = l.level_counts.size(); i-- > 0;) {
+    const uint64_t c = l.level_counts[i];
+    const uint64_t cap = i + 1 == l.level_counts.size() ? size / (kLeafFixedBytes + 2) : l.level_counts[i + 1];
+    if (c > cap || (c == 0) != (l.level_counts.back() == 0))
+      return Status::error(name + ": malformed store header (node counts)");
     nodes += c;
   }
   h.node_table_bytes = nodes * sizeof(NodeRecord);
@@ -186,7 +281,11 @@ Status read_header(int fd, const std::filesystem::path& path, StoreHeader& h, La
     return Status::error(name + ": store has " + std::to_string(size) + " bytes but its header says " +
                          std::to_string(l.file_bytes) + " (corrupt)");
   auto outside = [&](uint64_t offset, uint64_t length) { return offset > l.file_bytes || length > l.file_bytes - offset; };
-  if (l.page_count > l.file_bytes / sizeof(PageInfo) || outside(l.node_table_offset, h.node_table_bytes) ||
+  // Each leaf takes at least kLeafFixedBytes + 2 bytes on disk.
+  const uint64_t leaves = l.level_counts.back();
+  if (leaves > l.node_table_bytes / (kLeafFixedBytes + 2) || l.node_table_bytes > leaves * kLeafMaxBytes)
+    return Status::error(name + ": malformed store header (node table size)");
+  if (l.page_count > l.file_bytes / sizeof(PageInfo) || outside(l.node_table_offset, l.node_table_bytes) ||
       outside(l.page_table_offset, l.page_count * sizeof(PageInfo)) || outside(l.data_offset, l.data_bytes) ||
       l.data_offset + l.data_bytes != l.file_bytes)
     return Status::error(name + ": malformed store header (tables outside the file)");
@@ -293,9 +392,9 @@ class FileStore final : public OctreeStore {
     level_begin_.assign(1, 0);
     for (uint64_t c : layout_.level_counts) level_begin_.push_back(total += c);
     nodes_.resize(total);
-    RAYLOD_RETURN_IF_ERROR(pread_all(fd_, nodes_.data(), total * sizeof(NodeRecord), layout_.node_table_offset, path_));
-    if (crc32c(nodes_.data(), total * sizeof(NodeRecord)) != layout_.node_table_crc)
-      return Status::error(name + ": node table checksum mismatch (the store is corrupt; rebuild it)");
+    RAYLOD_RETURN_IF_ERROR(read_leaves());
+    if (!sum_parent_levels(nodes_, level_begin_, header_.quadric_depth))
+      return Status::error(name + ": node table does not match its level counts (corrupt)");
     pages_.resize(layout_.page_count);
     RAYLOD_RETURN_IF_ERROR(pread_all(fd_, pages_.data(), pages_.size() * sizeof(PageInfo), layout_.page_table_offset, path_));
     if (crc32c(pages_.data(), pages_.size() * sizeof(PageInfo)) != layout_.page_table_crc)
@@ -321,6 +420,58 @@ class FileStore final : public OctreeStore {
         if (lv[i - 1].code >= lv[i].code)
           return Status::error(name + ": level " + std::to_string(l) + " of the node table is not sorted (corrupt)");
     }
+    return {};
+  }
+
+  // Decodes the leaves into the last level of nodes_, reading the table in
+  // chunks (it is as large as the leaves themselves).
+  Status read_leaves() {
+    const std::string name = path_.string();
+    const int depth = header_.quadric_depth;
+    const uint64_t first = level_begin_[size_t(depth)], count = level_begin_[size_t(depth) + 1] - first;
+    std::string buffer;
+    size_t at = 0;                  // decode position in buffer
+    uint64_t read = 0, crc = 0, previous = 0;
+    for (uint64_t i = 0; i < count; ++i) {
+      if (buffer.size() - at < kLeafMaxBytes && read < layout_.node_table_bytes) {
+        buffer.erase(0, at);
+        at = 0;
+        const size_t take = size_t(std::min<uint64_t>(layout_.node_table_bytes - read, 4u << 20));
+        const size_t old = buffer.size();
+        buffer.resize(old + take);
+        RAYLOD_RETURN_IF_ERROR(pread_all(fd_, buffer.data() + old, take, layout_.node_table_offset + read, path_));
+        crc = crc32c(buffer.data() + old, take, uint32_t(crc));
+        read += take;
+      }
+      uint64_t delta = 0, corners = 0;
+      const size_t a = get_varint(buffer.data() + at, buffer.size() - at, delta);
+      const size_t b = a ? get_varint(buffer.data() + at + a, buffer.size() - at - a, corners) : 0;
+      const bool code_ok = (i == 0 || delta > 0) && delta <= UINT64_MAX - previous &&
+                           (depth >= 21 || ((previous + delta) >> (3 * depth)) == 0);
+      if (!b || buffer.size() - at - a - b < kLeafFixedBytes || !code_ok) {
+        // A checksum mismatch is the better diagnosis, if there is one.
+        while (read < layout_.node_table_bytes) {
+          const size_t take = size_t(std::min<uint64_t>(layout_.node_table_bytes - read, 4u << 20));
+          buffer.resize(take);
+          RAYLOD_RETURN_IF_ERROR(pread_all(fd_, buffer.data(), take, layout_.node_table_offset + read, path_));
+          crc = crc32c(buffer.data(), take, uint32_t(crc));
+          read += take;
+        }
+        if (uint32_t(crc) != layout_.node_table_crc)
+          return Status::error(name + ": node table checksum mismatch (the store is corrupt; rebuild it)");
+        return Status::error(name + ": node table is malformed at leaf " + std::to_string(i) + " (corrupt)");
+      }
+      NodeRecord& n = nodes_[first + i];
+      n.code = previous + delta;
+      n.corner_count = corners;
+      std::memcpy(reinterpret_cast<char*>(&n) + offsetof(NodeRecord, quadric), buffer.data() + at + a + b, kLeafFixedBytes);
+      previous = n.code;
+      at += a + b + kLeafFixedBytes;
+    }
+    if (read != layout_.node_table_bytes || at != buffer.size())
+      return Status::error(name + ": node table has bytes past its leaves (corrupt)");
+    if (uint32_t(crc) != layout_.node_table_crc)
+      return Status::error(name + ": node table checksum mismatch (the store is corrupt; rebuild it)");
     return {};
   }
 

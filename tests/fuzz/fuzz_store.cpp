@@ -40,7 +40,7 @@ void repair_checksums(std::string& bytes) {
   uint64_t nodes = 0;
   for (uint64_t c : l.level_counts) nodes += c;
   if (nodes > bytes.size() / sizeof(NodeRecord) || l.page_count > bytes.size() / sizeof(PageInfo)) return;
-  l.node_table_crc = crc_of(bytes, l.node_table_offset, nodes * sizeof(NodeRecord));
+  l.node_table_crc = crc_of(bytes, l.node_table_offset, l.node_table_bytes);
   const uint64_t page_table_bytes = l.page_count * sizeof(PageInfo);
   if (l.page_table_offset <= bytes.size() && page_table_bytes <= bytes.size() - l.page_table_offset) {
     for (uint64_t i = 0; i < l.page_count; ++i) {
