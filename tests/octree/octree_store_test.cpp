@@ -300,6 +300,33 @@ TEST(OctreeStore, RebuildIsANoOpUntilTheMeshChanges) {
   EXPECT_NE(why.find("unusable"), std::string::npos) << why;
 }
 
+// A store of an earlier format (version 2 held float triangle soup) is
+// detected, and the next build replaces it, saying why.
+TEST(OctreeStore, OldFormatStoreIsRebuiltWithAMessage) {
+  Progress::set_enabled(false);
+  auto dir = testing::scratch_dir("oldformat");
+  const auto mesh = dir / "ball.ply";
+  write_ply(mesh, testing::sphere(20, 30));
+  const auto store = default_store_path(mesh);
+  StoreOptions opt;
+  opt.memory_limit = 64 << 20;
+  ASSERT_TRUE(build_store(mesh, store, opt).is_ok());
+  {
+    std::fstream f(store, std::ios::in | std::ios::out | std::ios::binary);
+    const uint32_t old_version = 2;
+    f.seekp(8);  // after the magic
+    f.write(reinterpret_cast<const char*>(&old_version), 4);
+  }
+  std::string why;
+  EXPECT_FALSE(store_is_current(mesh, store, opt, &why));
+  auto rebuilt = build_store(mesh, store, opt);
+  ASSERT_TRUE(rebuilt.is_ok()) << rebuilt.status().message();
+  EXPECT_FALSE(rebuilt->reused);
+  for (const char* part : {"format version 2", "reads version 3", store.c_str()})
+    EXPECT_NE(rebuilt->reason.find(part), std::string::npos) << rebuilt->reason << " lacks " << part;
+  EXPECT_TRUE(store_is_current(mesh, store, opt, &why)) << why;
+}
+
 TEST(OctreeStore, BuildsFromStlAndRefusesABrokenMesh) {
   Progress::set_enabled(false);
   auto dir = testing::scratch_dir("formats");
