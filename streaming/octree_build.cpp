@@ -656,9 +656,34 @@ class RunFile {
 // ---------------------------------------------------------------------------
 // Pass 2 per batch: corners into a batch-local table at the initial depth,
 // and the page of each triangle (the cell of its centroid at page_level).
+// Octahedral codes of recently seen normals (direct-mapped by the normal's
+// bits): an indexed mesh repeats each vertex normal in about six nearby
+// corners, and encoding is a quarter of the binning's time without it.
+struct NormalCodeCache {
+  static constexpr size_t kSize = 4096;
+  uint32_t bits[kSize][3];
+  uint32_t code[kSize];
+  Vec3 decoded[kSize];
+  NormalCodeCache() { std::memset(bits, 0xff, sizeof bits); }  // a NaN: never a reader's normal
+  // The code of n, and its decoded normal in `out`.
+  uint32_t encode(const Vec3& n, Vec3& out) {
+    uint32_t b[3];
+    std::memcpy(b, &n.x, 12);
+    const size_t slot = size_t((b[0] * 0x9E3779B1u) ^ (b[1] * 0x85EBCA77u) ^ (b[2] * 0xC2B2AE3Du)) >> 20 & (kSize - 1);
+    if (std::memcmp(bits[slot], b, 12) != 0) {
+      std::memcpy(bits[slot], b, 12);
+      code[slot] = encode_octahedral(n);
+      decoded[slot] = decode_octahedral(code[slot]);
+    }
+    out = decoded[slot];
+    return code[slot];
+  }
+};
+
 struct BinToken : TokenBase {
   std::vector<uint32_t> grid_positions;  // 9 per triangle
   std::vector<uint32_t> normal_codes;    // 3 per triangle, if the mesh has normals
+  std::unique_ptr<NormalCodeCache> normal_cache = std::make_unique<NormalCodeCache>();
   NodeTable local;
   std::vector<uint64_t> page_codes;
   std::vector<uint32_t> page_ids;
@@ -679,10 +704,7 @@ void bin_batch(BinToken& t, const Plan& plan, int depth, bool has_normals) {
   for (size_t c = 0; c < 3 * n; ++c) {
     quantise_position(t.batch.positions[c], plan.grid, &t.grid_positions[3 * c]);
     t.batch.positions[c] = grid_position(&t.grid_positions[3 * c], plan.grid);
-    if (has_normals) {
-      t.normal_codes[c] = encode_octahedral(t.batch.normals[c]);
-      t.batch.normals[c] = decode_octahedral(t.normal_codes[c]);
-    }
+    if (has_normals) t.normal_codes[c] = t.normal_cache->encode(t.batch.normals[c], t.batch.normals[c]);
   }
   for (size_t i = 0; i < n; ++i) {
     const Vec3d p[3] = {Vec3d(t.batch.positions[3 * i]), Vec3d(t.batch.positions[3 * i + 1]),

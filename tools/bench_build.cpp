@@ -44,6 +44,7 @@ struct ChildResult {
   // build
   double scan = 0, bin = 0, write = 0, commit = 0, inside = 0;
   uint64_t triangles = 0, nodes = 0, pages = 0, store_bytes = 0, node_bytes = 0;
+  uint64_t written = 0;  // bytes the process passed to write calls (/proc/self/io wchar): runs and store
   int quadric_depth = 0, page_level = 0;
   // OpenMesh
   uint64_t faces = 0, vertices = 0;
@@ -92,11 +93,24 @@ double median(std::vector<double> v) {
   return v.empty() ? 0 : v.size() % 2 ? v[v.size() / 2] : 0.5 * (v[v.size() / 2 - 1] + v[v.size() / 2]);
 }
 
-void warm(const std::string& path) {
+// Reads the whole file (as `cat FILE > /dev/null`); returns the seconds it took.
+double warm(const std::string& path) {
+  const auto t0 = std::chrono::steady_clock::now();
   std::ifstream in(path, std::ios::binary);
   std::vector<char> buf(1 << 22);
   while (in.read(buf.data(), std::streamsize(buf.size())) || in.gcount() > 0) {
   }
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+// /proc/self/io's wchar: bytes this process has passed to write calls.
+uint64_t bytes_written_by_process() {
+  std::ifstream io("/proc/self/io");
+  std::string key;
+  uint64_t value = 0;
+  while (io >> key >> value)
+    if (key == "wchar:") return value;
+  return 0;
 }
 
 }  // namespace
@@ -152,6 +166,7 @@ int main(int argc, char** argv) {
       declared_faces = h.faces;
     }
     warm(mesh);
+    const double read_s = warm(mesh);  // warm, as the build's reads are
     const std::filesystem::path store = std::filesystem::path(out_dir) / (std::filesystem::path(mesh).filename().string() + ".raylod");
     std::vector<double> walls, cpus;
     ChildResult last;
@@ -165,7 +180,9 @@ int main(int argc, char** argv) {
         StoreOptions opt;
         opt.memory_limit = limit;
         // What `raylod build --force` runs: the content hash is computed concurrently with pass 1.
+        const uint64_t written_before = bytes_written_by_process();
         auto built = build_store(mesh, store, opt, /*force=*/true);
+        out.written = bytes_written_by_process() - written_before;
         if (!built) { std::snprintf(out.error, sizeof out.error, "%s", built.status().message().c_str()); return; }
         out.ok = true;
         out.inside = built->seconds;
@@ -211,6 +228,10 @@ int main(int argc, char** argv) {
     std::printf("  phases (last)    bounds %.2f, binning %.2f, pages %.2f, fsync %.2f s; build_store %.2f s of the "
                 "process's %.2f s\n",
                 last.scan, last.bin, last.write, last.commit, last.inside, last.wall);
+    std::printf("  reading the file %.2f s warm (as cat FILE > /dev/null): the build takes %.1fx that\n", read_s,
+                wall / read_s);
+    std::printf("  written (last)   %s = %.2fx the store (runs and store, bytes passed to write calls)\n",
+                format_bytes(last.written).c_str(), double(last.written) / double(last.store_bytes));
     std::printf("  peak RSS         %s (max over runs; limit %s)\n", format_bytes(peak).c_str(), format_bytes(limit).c_str());
     std::printf("  store            %s = %.2fx the input (node table %s, %" PRIu64 " nodes, levels 0..%d; %" PRIu64
                 " pages at level %d)\n",
@@ -229,6 +250,8 @@ int main(int argc, char** argv) {
                             {"triangles_per_cpu_s", double(last.triangles) / cpu},
                             {"build_walls_s", walls},
                             {"phases_s", {{"bounds", last.scan}, {"binning", last.bin}, {"pages", last.write}, {"fsync", last.commit}}},
+                            {"read_file_s", read_s}, {"build_over_read", wall / read_s},
+                            {"written_bytes", last.written},
                             {"peak_rss_bytes", peak}, {"store_bytes", last.store_bytes},
                             {"store_over_input", double(last.store_bytes) / double(mesh_bytes)},
                             {"nodes", last.nodes}, {"node_table_bytes", last.node_bytes}, {"pages", last.pages},

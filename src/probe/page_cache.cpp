@@ -73,7 +73,7 @@ StatusOr<std::shared_ptr<const Page>> PageCache::get(const OctreeStore& store, u
     if (!s) {
       result = s;  // names the store file and the page
     } else {
-      bytes_read = (batch.positions.size() + batch.normals.size()) * sizeof(Vec3);
+      bytes_read = store.pages()[index].bytes;  // as stored (compact), not as decoded
       result = std::shared_ptr<const Page>(std::make_shared<Page>(make_page(std::move(batch))));
     }
   }

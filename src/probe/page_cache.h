@@ -45,7 +45,7 @@ Page make_page(TriangleBatch&& batch);
 
 struct PageCacheCounters {
   uint64_t pages_read = 0;      // pages read from disk (misses that loaded)
-  uint64_t bytes_read = 0;      // triangle bytes read from disk
+  uint64_t bytes_read = 0;      // page bytes read from disk (encoded, page_codec.h)
   uint64_t hits = 0;            // requests served from memory (or from a load in flight)
   uint64_t misses = 0;          // requests that had to read the page
   uint64_t evictions = 0;

@@ -44,7 +44,7 @@ void expect_error_contains(const Status& s, const std::vector<std::string>& part
 // order within the page, exactly as quantised (to_store_precision), and
 // that quantisation moves each position by at most half a grid step per axis
 // (a step being at most 1/4096 of the finest cell) and each normal by less
-// than 2e-4 rad (page_codec.h).
+// than 1e-4 rad (page_codec.h).
 TEST(OctreeStore, RoundTripsEveryTriangle) {
   auto m = testing::sphere(70, 90);  // 12600 triangles with normals
   auto dir = testing::scratch_dir("roundtrip");
@@ -74,7 +74,7 @@ TEST(OctreeStore, RoundTripsEveryTriangle) {
   }
   EXPECT_LE(worst_position, 1.0) << "a position moved by more than the stated bound (ratio to it)";
   EXPECT_GT(worst_position, 0.0) << "nothing was quantised: the test would not notice a wrong bound";
-  EXPECT_LT(worst_normal, 2e-4) << "radians";
+  EXPECT_LT(worst_normal, 1e-4) << "radians";
 
   // The quantised triangles by page, in input order.
   std::map<uint64_t, std::vector<size_t>> by_page;

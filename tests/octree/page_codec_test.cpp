@@ -86,7 +86,7 @@ TEST(PageCodec, RandomSoupRoundTripsWithinTheBounds) {
   }
   EXPECT_LE(worst, 1.0);
   EXPECT_GT(worst, 0.1) << "random positions should use much of the half-step bound";
-  EXPECT_LT(worst_angle, 2e-4);
+  EXPECT_LT(worst_angle, 1e-4);
   EXPECT_EQ(decoded.lo, e.bounds.lo);
   EXPECT_EQ(decoded.hi, e.bounds.hi);
 }
@@ -100,7 +100,7 @@ TEST(PageCodec, OctahedralCodesOverTheSphere) {
     const Vec3d a(n), b(decode_octahedral(encode_octahedral(n)));
     worst = std::max(worst, std::atan2(glm::length(glm::cross(a, b)), glm::dot(a, b)));
   }
-  EXPECT_LT(worst, 2e-4);
+  EXPECT_LT(worst, 1e-4);
   for (const Vec3 axis : {Vec3(1, 0, 0), Vec3(0, -1, 0), Vec3(0, 0, 1), Vec3(0, 0, -1)})
     EXPECT_EQ(decode_octahedral(encode_octahedral(axis)), axis);
   EXPECT_EQ(decode_octahedral(encode_octahedral(Vec3(0))), Vec3(0));
