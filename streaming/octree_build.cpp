@@ -49,6 +49,8 @@
 
 #include <tbb/concurrent_queue.h>
 #include <tbb/info.h>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
 #include <tbb/parallel_pipeline.h>
 
 #include "core/progress.h"
@@ -542,17 +544,20 @@ Plan make_plan(const Scan& scan, const StoreOptions& options, uint64_t memory_li
 }
 
 // ---------------------------------------------------------------------------
-// Sorted runs of page-grouped triangles in an unlinked temporary file, as
-// float triangle soup; the final page assembly reads each page's pieces (its
-// segments, one per run) back and encodes the page (page_codec.h).
+// Sorted runs of page-grouped triangles in an unlinked temporary file. Each
+// page's piece of a run (a segment) is encoded as a page (page_codec.h, about
+// a quarter of the grid words' bytes), in parallel; the final page assembly
+// decodes a page's segments back to grid words and encodes the whole page.
 class RunFile {
  public:
   struct Segment {
-    uint64_t offset;  // of the segment's positions; normal codes follow
-    uint32_t count;
+    uint64_t offset;  // of the segment's encoded bytes in the runs file
+    uint32_t count;   // triangles
+    uint32_t bytes;
   };
 
-  RunFile(bool has_normals, uint64_t capacity) : normals_(has_normals), capacity_(capacity) {}
+  RunFile(bool has_normals, uint64_t capacity, const PageGrid& grid)
+      : normals_(has_normals), capacity_(capacity), grid_(grid) {}
   ~RunFile() {
     if (fd_ >= 0) ::close(fd_);
   }
@@ -586,7 +591,8 @@ class RunFile {
   }
 
   // Counting sort of the buffered triangles by page (stable: input order
-  // within a page), written page by page: positions, then normal codes.
+  // within a page); each page's segment is encoded (in parallel) and the
+  // segments are written in page order, one sequential write per 8 MiB.
   Status flush(size_t num_pages) {
     const size_t n = page_of_.size();
     if (n == 0) return {};
@@ -596,14 +602,31 @@ class RunFile {
     std::vector<uint32_t> order(n), fill(start.begin(), start.end() - 1);
     for (size_t i = 0; i < n; ++i) order[fill[page_of_[i]]++] = uint32_t(i);
     if (segments_.size() < num_pages) segments_.resize(num_pages);
-    staging_.reserve(kStagingWords);
-    for (size_t p = 0; p < num_pages; ++p) {
-      const uint32_t b = start[p], e = start[p + 1];
-      if (b == e) continue;
-      Segment seg{offset_ + 4 * staging_.size(), e - b};
-      RAYLOD_RETURN_IF_ERROR(emit(positions_, 9, order.data() + b, order.data() + e));
-      if (normals_) RAYLOD_RETURN_IF_ERROR(emit(normals_data_, 3, order.data() + b, order.data() + e));
-      segments_[p].push_back(seg);
+    std::vector<uint32_t> present;
+    for (size_t p = 0; p < num_pages; ++p)
+      if (start[p] != start[p + 1]) present.push_back(uint32_t(p));
+    std::vector<std::vector<uint8_t>> encoded(present.size());
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, present.size(), 16), [&](const tbb::blocked_range<size_t>& r) {
+      PageEncoder encoder;
+      std::vector<uint32_t> q, codes;
+      for (size_t i = r.begin(); i != r.end(); ++i) {
+        const uint32_t p = present[i];
+        q.clear();
+        codes.clear();
+        for (uint32_t k = start[p]; k != start[p + 1]; ++k) {
+          q.insert(q.end(), &positions_[9 * size_t(order[k])], &positions_[9 * size_t(order[k])] + 9);
+          if (normals_) codes.insert(codes.end(), &normals_data_[3 * size_t(order[k])], &normals_data_[3 * size_t(order[k])] + 3);
+        }
+        encode_page(q, codes, grid_, encoder, encoded[i]);
+      }
+    });
+    for (size_t i = 0; i < present.size(); ++i) {
+      const uint32_t p = present[i];
+      if (encoded[i].size() > UINT32_MAX) return Status::error(path_.string() + ": a run segment over 4 GiB");
+      segments_[p].push_back(Segment{offset_ + staging_.size(), start[p + 1] - start[p], uint32_t(encoded[i].size())});
+      staging_.insert(staging_.end(), encoded[i].begin(), encoded[i].end());
+      std::vector<uint8_t>().swap(encoded[i]);
+      if (staging_.size() >= kStagingBytes) RAYLOD_RETURN_IF_ERROR(drain());
     }
     RAYLOD_RETURN_IF_ERROR(drain());
     positions_.clear();
@@ -614,41 +637,34 @@ class RunFile {
 
   int fd() const { return fd_; }
   const std::filesystem::path& path() const { return path_; }
+  uint64_t bytes() const { return offset_; }
   // segments()[page id]: the page's pieces, one per run that holds any of it.
   std::vector<std::vector<Segment>>& segments() { return segments_; }
   void release_buffers() {
     std::vector<uint32_t>().swap(positions_);
     std::vector<uint32_t>().swap(normals_data_);
     std::vector<uint32_t>().swap(page_of_);
-    std::vector<uint32_t>().swap(staging_);
+    std::vector<uint8_t>().swap(staging_);
   }
 
  private:
-  static constexpr size_t kStagingWords = 9 << 18;  // 9 MiB, whole triangles
-
-  // Appends the `per` words of triangles order[b..e) to the staging buffer.
-  Status emit(const std::vector<uint32_t>& src, size_t per, const uint32_t* b, const uint32_t* e) {
-    for (const uint32_t* k = b; k != e; ++k) {
-      if (staging_.size() + per > kStagingWords) RAYLOD_RETURN_IF_ERROR(drain());
-      const uint32_t* f = &src[per * size_t(*k)];
-      staging_.insert(staging_.end(), f, f + per);
-    }
-    return {};
-  }
+  static constexpr size_t kStagingBytes = 8 << 20;
 
   Status drain() {
-    RAYLOD_RETURN_IF_ERROR(pwrite_all(fd_, staging_.data(), 4 * staging_.size(), offset_, path_));
-    offset_ += 4 * staging_.size();
+    RAYLOD_RETURN_IF_ERROR(pwrite_all(fd_, staging_.data(), staging_.size(), offset_, path_));
+    offset_ += staging_.size();
     staging_.clear();
     return {};
   }
 
   bool normals_;
   uint64_t capacity_;
+  PageGrid grid_;
   std::filesystem::path path_;
   int fd_ = -1;
   uint64_t offset_ = 0;
-  std::vector<uint32_t> positions_, normals_data_, staging_;
+  std::vector<uint32_t> positions_, normals_data_;
+  std::vector<uint8_t> staging_;
   std::vector<uint32_t> page_of_;
   std::vector<std::vector<Segment>> segments_;
 };
@@ -812,6 +828,7 @@ Status bin_pass(MeshReader& reader, size_t ntokens, const Plan& plan, bool has_n
 struct PageToken {
   uint32_t id = 0;  // page id (PageIds)
   std::vector<uint32_t> positions, normals;  // grid coordinates, normal codes
+  std::vector<uint8_t> segment;              // one run segment's bytes
   std::vector<uint8_t> bytes;
   PageEncoder encoder;
   Bbox bounds;
@@ -823,13 +840,12 @@ Status encode_run_page(RunFile& runs, bool has_normals, const PageGrid& grid, Pa
   t.positions.clear();
   t.normals.clear();
   for (const auto& seg : runs.segments()[t.id]) {
-    const size_t n = size_t(seg.count), at = t.positions.size(), at_n = t.normals.size();
-    t.positions.resize(at + 9 * n);
-    RAYLOD_RETURN_IF_ERROR(pread_all(runs.fd(), t.positions.data() + at, 36 * n, seg.offset, runs.path()));
-    if (has_normals) {
-      t.normals.resize(at_n + 3 * n);
-      RAYLOD_RETURN_IF_ERROR(pread_all(runs.fd(), t.normals.data() + at_n, 12 * n, seg.offset + 36 * n, runs.path()));
-    }
+    t.segment.resize(seg.bytes);
+    RAYLOD_RETURN_IF_ERROR(pread_all(runs.fd(), t.segment.data(), seg.bytes, seg.offset, runs.path()));
+    Status s = decode_page_grid(t.segment, grid, t.positions, t.normals);
+    if (!s.is_ok() || t.positions.size() % 9 != 0 || (has_normals && t.normals.size() * 3 != t.positions.size()))
+      return Status::error(runs.path().string() + ": a run segment does not decode (the temporary file changed?): " +
+                           s.message());
   }
   t.bounds = encode_page(t.positions, t.normals, grid, t.encoder, t.bytes);
   return {};
@@ -938,7 +954,7 @@ StatusOr<BuildReport> build_store_from_stream(const MeshStreamOpener& open, cons
   const Plan plan = make_plan(scan, options, memory_limit);
 
   // Pass 2.
-  auto runs_owner = std::make_unique<RunFile>(scan.has_normals, plan.run_triangles);
+  auto runs_owner = std::make_unique<RunFile>(scan.has_normals, plan.run_triangles, plan.grid);
   RunFile& runs = *runs_owner;
   RAYLOD_RETURN_IF_ERROR(runs.open(store_path));
   Binned binned;

@@ -227,21 +227,34 @@ PageCounts page_counts(std::span<const uint8_t> bytes) {
   return {get_u32(bytes.data()), get_u32(bytes.data() + 4)};
 }
 
-Status decode_page(std::span<const uint8_t> bytes, const PageGrid& grid, TriangleBatch& batch) {
-  batch.clear();
+namespace {
+
+// A page's vertices (grid points and normal codes) and corner indices.
+struct GridPage {
+  std::vector<uint32_t> q;      // 3 per vertex
+  std::vector<uint32_t> codes;  // 1 per vertex, if the page has normals
+  std::vector<uint32_t> index;  // 3 per triangle, each < the vertex count
+  bool has_normals = false;
+  size_t vertices() const { return q.size() / 3; }
+};
+
+Status parse_page(std::span<const uint8_t> bytes, const PageGrid& grid, GridPage& out) {
+  out.q.clear();
+  out.codes.clear();
+  out.index.clear();
   if (bytes.size() < kHeaderBytes) return Status::error("page of " + std::to_string(bytes.size()) + " bytes is too short");
   const uint8_t* p = bytes.data();
   const uint32_t nt = get_u32(p), nv = get_u32(p + 4);
   const uint32_t origin[3] = {get_u32(p + 8), get_u32(p + 12), get_u32(p + 16)};
   const int position_bits = p[20], index_bits = p[21];
-  const bool has_normals = p[22] != 0;
+  out.has_normals = p[22] != 0;
   if (p[22] > 1 || p[23] != 0) return Status::error("page header has unknown flags");
   if ((nt == 0) != (nv == 0) || uint64_t(nv) > 3 * uint64_t(nt))
     return Status::error("page has " + std::to_string(nt) + " triangles and " + std::to_string(nv) + " vertices");
   if (position_bits > 31 || index_bits != (nv > 0 ? int(std::bit_width(nv - 1)) : 0))
     return Status::error("page has bad bit widths");
   const uint64_t pos_bytes = packed_bytes(3 * uint64_t(nv), position_bits);
-  const uint64_t nrm_bytes = has_normals ? 4 * uint64_t(nv) : 0;
+  const uint64_t nrm_bytes = out.has_normals ? 4 * uint64_t(nv) : 0;
   const uint64_t idx_bytes = packed_bytes(3 * uint64_t(nt), index_bits);
   if (kHeaderBytes + pos_bytes + nrm_bytes + idx_bytes != bytes.size())
     return Status::error("page of " + std::to_string(bytes.size()) + " bytes does not match its counts");
@@ -249,35 +262,61 @@ Status decode_page(std::span<const uint8_t> bytes, const PageGrid& grid, Triangl
   for (uint32_t o : origin)
     if (o > max_q) return Status::error("page origin is outside the root cube");
 
-  thread_local std::vector<Vec3> vpos, vnrm;
-  vpos.resize(nv);
+  out.q.resize(3 * size_t(nv));
   const uint8_t* pos = p + kHeaderBytes;
   uint64_t at = 0;
-  for (uint32_t v = 0; v < nv; ++v) {
-    for (int a = 0; a < 3; ++a, at += uint64_t(position_bits)) {
-      const uint64_t q = uint64_t(origin[a]) + get_bits(pos, size_t(pos_bytes), at, position_bits);
-      if (q > max_q) return Status::error("page vertex " + std::to_string(v) + " is outside the root cube");
-      vpos[v][a] = dequantise(q, grid.lo[a], grid.step);
-    }
+  for (size_t k = 0; k < 3 * size_t(nv); ++k, at += uint64_t(position_bits)) {
+    const uint64_t q = uint64_t(origin[k % 3]) + get_bits(pos, size_t(pos_bytes), at, position_bits);
+    if (q > max_q) return Status::error("page vertex " + std::to_string(k / 3) + " is outside the root cube");
+    out.q[k] = uint32_t(q);
   }
-  if (has_normals) {
-    vnrm.resize(nv);
-    const uint8_t* nrm = pos + pos_bytes;
-    for (uint32_t v = 0; v < nv; ++v) vnrm[v] = decode_octahedral(get_u32(nrm + 4 * size_t(v)));
+  if (out.has_normals) {
+    out.codes.resize(nv);
+    std::memcpy(out.codes.data(), pos + pos_bytes, 4 * size_t(nv));
   }
   const uint8_t* idx = pos + pos_bytes + nrm_bytes;
-  batch.positions.resize(3 * size_t(nt));
-  if (has_normals) batch.normals.resize(3 * size_t(nt));
+  out.index.resize(3 * size_t(nt));
   at = 0;
   for (size_t c = 0; c < 3 * size_t(nt); ++c, at += uint64_t(index_bits)) {
     const uint32_t i = get_bits(idx, size_t(idx_bytes), at, index_bits);
-    if (i >= nv) {
-      batch.clear();
+    if (i >= nv)
       return Status::error("page corner " + std::to_string(c) + " names vertex " + std::to_string(i) + " of " +
                            std::to_string(nv));
-    }
-    batch.positions[c] = vpos[i];
-    if (has_normals) batch.normals[c] = vnrm[i];
+    out.index[c] = i;
+  }
+  return {};
+}
+
+}  // namespace
+
+Status decode_page(std::span<const uint8_t> bytes, const PageGrid& grid, TriangleBatch& batch) {
+  batch.clear();
+  thread_local GridPage page;
+  thread_local std::vector<Vec3> vpos, vnrm;
+  RAYLOD_RETURN_IF_ERROR(parse_page(bytes, grid, page));
+  const size_t nv = page.vertices();
+  vpos.resize(nv);
+  for (size_t v = 0; v < nv; ++v) vpos[v] = grid_position(&page.q[3 * v], grid);
+  if (page.has_normals) {
+    vnrm.resize(nv);
+    for (size_t v = 0; v < nv; ++v) vnrm[v] = decode_octahedral(page.codes[v]);
+  }
+  batch.positions.resize(page.index.size());
+  if (page.has_normals) batch.normals.resize(page.index.size());
+  for (size_t c = 0; c < page.index.size(); ++c) {
+    batch.positions[c] = vpos[page.index[c]];
+    if (page.has_normals) batch.normals[c] = vnrm[page.index[c]];
+  }
+  return {};
+}
+
+Status decode_page_grid(std::span<const uint8_t> bytes, const PageGrid& grid, std::vector<uint32_t>& positions,
+                        std::vector<uint32_t>& normals) {
+  thread_local GridPage page;
+  RAYLOD_RETURN_IF_ERROR(parse_page(bytes, grid, page));
+  for (uint32_t i : page.index) {
+    positions.insert(positions.end(), &page.q[3 * size_t(i)], &page.q[3 * size_t(i)] + 3);
+    if (page.has_normals) normals.push_back(page.codes[i]);
   }
   return {};
 }

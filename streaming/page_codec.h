@@ -90,6 +90,12 @@ Bbox encode_page(std::span<const uint32_t> positions, std::span<const uint32_t> 
 // error (a message without the file name), never a read outside them.
 Status decode_page(std::span<const uint8_t> bytes, const PageGrid& grid, TriangleBatch& batch);
 
+// Decodes page bytes back to the corners encode_page was given: appends 3
+// grid coordinates per corner to `positions` and, if the page has normals,
+// one normal code per corner to `normals` (for the build's sorted runs).
+Status decode_page_grid(std::span<const uint8_t> bytes, const PageGrid& grid, std::vector<uint32_t>& positions,
+                        std::vector<uint32_t>& normals);
+
 // The triangle and vertex counts from a page's first bytes (0, 0 if too short).
 struct PageCounts {
   uint32_t triangles = 0, vertices = 0;
