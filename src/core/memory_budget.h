@@ -17,10 +17,13 @@
 //              absorbs the pages in flight and allocator slack).
 //   simplify,  run one after the other, after the probe's pages are freed;
 //   render     each may use working() = total - baseline, and the cut is
-//              coarsened until both estimates fit.
+//              coarsened until both estimates fit: simplify's beside the
+//              node tables (still resident), counting the Draco encoder,
+//              which holds about as much again as the mesh it encodes;
+//              render's after the node tables are freed.
 // Every stage checks its estimate before it allocates, so the resident peak
 // stays near total; the estimates are measured averages (bench_render,
-// bench_simplify), not hard bounds.
+// bench_simplify, bench_draco_memory), not hard bounds.
 #pragma once
 
 #include <cstdint>

@@ -486,13 +486,16 @@ StatusOr<FittedCuts> select_fitting_cuts(RunSession& session, std::span<const Pr
   for (;;) {
     RAYLOD_ASSIGN_OR_RETURN(fitted.probe, select_shared_cuts(views, scene, stores.probe_stores, stores.objects, probe));
     // What the later stages need: simplifying one store at a time (its mesh
-    // under construction), then rendering all the simplified meshes.
-    uint64_t estimate = 0, simplify_need = 0;
+    // under construction, then Draco-encoded) beside the stores' node tables,
+    // then rendering all the simplified meshes (the node tables freed).
+    uint64_t estimate = 0, simplify_need = 0, node_tables = 0;
     for (size_t i = 0; i < stores.stores.size(); ++i) {
       const SimplifyEstimate e = estimate_simplify(*stores.stores[i], fitted.probe.cuts[i]);
       estimate += e.triangles;
-      simplify_need = std::max(simplify_need, e.bytes);
+      simplify_need = std::max({simplify_need, e.bytes, e.write_bytes});
+      node_tables += stores.stores[i]->header().node_table_bytes;
     }
+    simplify_need += node_tables;
     const uint64_t scene_triangles = estimate + 2;  // and the ground's two
     const uint64_t need = std::max(
         simplify_need, estimate_render_memory(scene_triangles, bvh_for_memory_limit(scene_triangles, memory_limit)));

@@ -351,6 +351,7 @@ SimplifyEstimate estimate_simplify(const OctreeStore& store, const Cut& cut) {
   e.vertices = e.triangles / 2 + found;
   e.bytes = e.triangles * kCollapseBytesPerTriangle + e.vertices * kCollapseBytesPerVertex +
             found * (sizeof(Representative) + 48);
+  e.write_bytes = e.triangles * (12 + kDracoEncodeBytesPerTriangle) + e.vertices * 2 * sizeof(Vec3);
   return e;
 }
 
