@@ -58,16 +58,24 @@ struct NormalCluster {
 class NormalClusterPool {
  public:
   NormalClusterPool() = default;
-  explicit NormalClusterPool(size_t vertices) { heads_.assign(vertices, kNoCluster); }
-  void add_vertex() { heads_.push_back(kNoCluster); }
+  explicit NormalClusterPool(size_t vertices) {
+    heads_.assign(vertices, kNoCluster);
+    recent_.assign(vertices, kNoCluster);
+  }
+  void add_vertex() {
+    heads_.push_back(kNoCluster);
+    recent_.push_back(kNoCluster);
+  }
   // Empties every vertex's list and the pool, keeping the allocations.
   void clear() {
     std::fill(heads_.begin(), heads_.end(), kNoCluster);
+    std::fill(recent_.begin(), recent_.end(), kNoCluster);
     pool_.clear();
   }
   size_t vertices() const { return heads_.size(); }
-  // Adds unit normal n with weight w > 0 to vertex v: into the first cluster
-  // whose seed is within the merge angle, else a new one; once the vertex
+  // Adds unit normal n with weight w > 0 to vertex v: into a cluster whose
+  // seed is within the merge angle (the one v matched last if it is, else
+  // the first in order of creation), else a new one; once the vertex
   // has max_clusters, into the one with the nearest seed if that is within
   // 10 degrees, else into the vertex's leftover sum (seed zero), which only
   // a crease angle of 180 degrees and mean() include.
@@ -78,11 +86,18 @@ class NormalClusterPool {
   Vec3d resolve(uint32_t v, const Vec3d& key, double cos_crease) const;
   // The normalised sum of all of v's clusters (zero if they cancel).
   Vec3d mean(uint32_t v) const;
-  uint64_t memory_bytes() const { return heads_.capacity() * 4 + pool_.capacity() * sizeof(NormalCluster); }
-  void reserve(size_t vertices, size_t clusters) { heads_.reserve(vertices); pool_.reserve(clusters); }
+  uint64_t memory_bytes() const {
+    return (heads_.capacity() + recent_.capacity()) * 4 + pool_.capacity() * sizeof(NormalCluster);
+  }
+  void reserve(size_t vertices, size_t clusters) {
+    heads_.reserve(vertices);
+    recent_.reserve(vertices);
+    pool_.reserve(clusters);
+  }
 
  private:
   std::vector<uint32_t> heads_;
+  std::vector<uint32_t> recent_;  // per vertex: the cluster it matched last
   std::vector<NormalCluster> pool_;
 };
 

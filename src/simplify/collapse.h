@@ -146,7 +146,7 @@ class CollapseBuilder {
 // Bytes per output triangle and vertex that CollapseBuilder and finish() hold
 // at their peak (used to check a memory limit before any work).
 inline constexpr uint64_t kCollapseBytesPerTriangle = 12 + 12 + 4 + 12 + 12 + 12;
-inline constexpr uint64_t kCollapseBytesPerVertex = 12 + 12 + 8 + 4 + 2 * sizeof(NormalCluster) + 24 + 8;
+inline constexpr uint64_t kCollapseBytesPerVertex = 12 + 12 + 8 + 4 + 4 + 2 * sizeof(NormalCluster) + 24 + 8;
 
 // Bytes the Draco encoder holds on top of the mesh it encodes, per triangle
 // (speed 5, with normals, about half as many vertices as triangles):
