@@ -102,17 +102,43 @@ std::string format_bytes(uint64_t bytes) {
 
 namespace {
 
+// This machine's name as it goes into temporaries' names: no '-' (the
+// names' field separator) and no '/'.
+const std::string& host_tag() {
+  static const std::string tag = [] {
+    char name[256] = {};
+    if (::gethostname(name, sizeof name - 1) != 0 || !name[0]) return std::string("localhost");
+    std::string t(name);
+    for (char& c : t)
+      if (!std::isalnum(static_cast<unsigned char>(c)) && c != '.' && c != '_') c = '_';
+    return t;
+  }();
+  return tag;
+}
+
 // True if `rest` (what follows ".tmp-" in a temporary's name) starts with
-// "PID-" for a process that no longer exists (not this one).
+// "PID@HOST-" for a process of this machine that no longer exists (not this
+// one). A process of another machine sharing the folder is never judged
+// dead: its pid means nothing here. Names without "@HOST" (raylod before
+// 2026-11) are taken as this machine's.
 bool pid_prefix_is_dead(const std::string& rest) {
-  const size_t dash = rest.find('-');
-  if (dash == 0 || dash == std::string::npos || rest.find_first_not_of("0123456789") != dash) return false;
-  const long pid = std::strtol(rest.substr(0, dash).c_str(), nullptr, 10);
+  const size_t end = rest.find_first_not_of("0123456789");
+  if (end == 0 || end == std::string::npos || (rest[end] != '-' && rest[end] != '@')) return false;
+  if (rest[end] == '@') {
+    const size_t dash = rest.find('-', end);
+    if (dash == std::string::npos || rest.compare(end + 1, dash - end - 1, host_tag()) != 0) return false;
+  }
+  const long pid = std::strtol(rest.substr(0, end).c_str(), nullptr, 10);
   if (pid <= 0 || pid == long(getpid())) return false;
   return ::kill(pid_t(pid), 0) != 0 && errno == ESRCH;  // alive, or not ours to judge: false
 }
 
 }  // namespace
+
+const std::string& process_tag() {
+  static const std::string tag = std::to_string(getpid()) + "@" + host_tag();
+  return tag;
+}
 
 bool is_dead_process_temporary(const std::string& filename) {
   const size_t at = filename.find(".tmp-");
@@ -120,8 +146,8 @@ bool is_dead_process_temporary(const std::string& filename) {
 }
 
 size_t remove_stale_temporaries(const std::filesystem::path& destination) {
-  // Temporaries are named DEST.tmp-PID-N-R; one whose process is gone (a
-  // kill -9 during a write, a crash) is never renamed and can be removed.
+  // Temporaries are named DEST.tmp-PID@HOST-N-R; one whose process is gone
+  // (a kill -9 during a write, a crash) is never renamed and can be removed.
   const std::string prefix = destination.filename().string() + ".tmp-";
   std::filesystem::path dir = destination.parent_path();
   if (dir.empty()) dir = ".";
@@ -142,7 +168,7 @@ AtomicOutput::AtomicOutput(std::filesystem::path destination) : dest_(std::move(
   static std::atomic<uint64_t> counter{0};
   std::random_device rd;
   temp_ = dest_;
-  temp_ += ".tmp-" + std::to_string(getpid()) + "-" + std::to_string(counter++) + "-" + std::to_string(rd() & 0xffff);
+  temp_ += ".tmp-" + process_tag() + "-" + std::to_string(counter++) + "-" + std::to_string(rd() & 0xffff);
 }
 
 AtomicOutput::~AtomicOutput() {
