@@ -260,7 +260,11 @@ void remove_dead_staged_meshes(const fs::path& dir) {
 // false if no store was found corrupt (the failure was something else).
 StatusOr<bool> repair_corrupt_stores(SceneStores& stores, const std::string& stage,
                                      bool& repaired, const LogFn& log) {
-  if (repaired) return false;
+  // Under mpirun a store is not rebuilt in the middle of the job: the other
+  // ranks have it open (on NFS, a file replaced under another node fails its
+  // reads). The corruption, recorded beside the store, ends the job; the
+  // next run's check on rank 0 rebuilds the store.
+  if (repaired || cluster::active()) return false;
   bool rebuilt = false;
   for (size_t i = 0; i < stores.stores.size(); ++i) {
     const fs::path& path = stores.store_paths[i];

@@ -11,7 +11,9 @@
 # write: non-zero exit, the error with the rank printed once by rank 0, no
 # image and no temporary written) | kill-rank (the last rank killed with
 # SIGKILL while writing an image: the job ends, no complete image of that
-# view, and the next run removes the dead rank's temporary).
+# view, and the next run removes the dead rank's temporary) | corrupt-store
+# (a page of the store damaged: the job ends with the checksum error, no
+# image; the next run rebuilds the store and renders what one process does).
 # Everything happens in a temporary folder removed on exit, pass or fail.
 set -euo pipefail
 mpiexec="$1" raylod="$2" np="$3" case="$4"
@@ -179,6 +181,27 @@ case "$case" in
     [ -z "$(find mpi -name '*.tmp-*')" ] || fail "the next run left temporaries: $(find mpi -name '*.tmp-*')"
     [ "$(find mpi -name 'v_*.png' | wc -l)" -eq 8 ] || fail "the next run did not write the 8 images"
     echo "a killed rank ended the job; the next run removed its temporary"
+    ;;
+  corrupt-store)
+    # The store built by one process, then one byte of its page data (the
+    # file's last part) changed: the ranks' probes read the page and fail.
+    one build mesh.ply -q >/dev/null 2>&1
+    size=$(stat -c %s mesh.ply.raylod)
+    printf '\xa5' | dd of=mesh.ply.raylod bs=1 seek=$((size - 5000)) conv=notrunc status=none
+    status=0
+    out="$(RAYLOD_CACHE_DIR="$tmp/cache-mpi" mpi run scene.json --views views.json -o mpi/v_##.png --rays 500 -q 2>&1)" ||
+      status=$?
+    [ "$status" -ne 0 ] || fail "a corrupt store: exited 0"
+    [ "$(grep -c 'raylod run: error: .*mesh.ply.raylod: page 0 .*checksum mismatch' <<<"$out")" -eq 1 ] ||
+      fail "a corrupt store: the checksum error is not printed once: $out"
+    [ -e mesh.ply.raylod.corrupt ] || fail "the corruption was not recorded beside the store"
+    [ -z "$(ls -A mpi)" ] || fail "images or temporaries were written: $(ls -A mpi)"
+    # The next run's check (rank 0) rebuilds the store; the images are one process's.
+    RAYLOD_CACHE_DIR="$tmp/cache-mpi" mpi run scene.json --views views.json -o mpi/v_##.png --rays 500 -q
+    [ ! -e mesh.ply.raylod.corrupt ] || fail "the store was not rebuilt"
+    RAYLOD_CACHE_DIR="$tmp/cache-one" one run scene.json --views views.json -o one/v_##.png --rays 500 -q
+    for i in 00 01 02; do same "mpi/v_$i.png" "one/v_$i.png"; done
+    echo "a corrupt store ended the job with its error; the next run rebuilt it"
     ;;
   *) fail "unknown case $case" ;;
 esac
