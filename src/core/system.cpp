@@ -14,6 +14,8 @@
 #include <cstdlib>
 #include <cstring>
 #include <fstream>
+#include <iterator>
+#include <mutex>
 #include <random>
 #include <sstream>
 
@@ -163,12 +165,75 @@ size_t remove_stale_temporaries(const std::filesystem::path& destination) {
   return removed;
 }
 
+namespace {
+
+// The temporaries being written, for the handler of SIGTERM, SIGINT and
+// SIGHUP: mpirun ends the other ranks with SIGTERM when one fails, and a
+// terminal's Ctrl-C is SIGINT. A slot is free (0), being filled (1) or
+// names a live temporary (2); the handler reads only lock-free atomics and
+// calls only async-signal-safe functions (unlink, raise).
+struct TemporarySlot {
+  std::atomic<int> state{0};
+  char path[4096];
+};
+TemporarySlot g_temporaries[64];
+
+void remove_temporaries_and_die(int sig) {
+  for (TemporarySlot& slot : g_temporaries)
+    if (slot.state.load(std::memory_order_acquire) == 2) ::unlink(slot.path);
+  // SA_RESETHAND restored the default action: the signal, blocked while
+  // this runs, ends the process as it would have without the handler.
+  ::raise(sig);
+}
+
+// Installed once, for signals whose action is still the default (one set
+// to be ignored, as under nohup, stays ignored).
+void install_temporary_handlers() {
+  static std::once_flag once;
+  std::call_once(once, [] {
+    for (int sig : {SIGTERM, SIGINT, SIGHUP}) {
+      struct sigaction old {};
+      if (::sigaction(sig, nullptr, &old) != 0 || old.sa_handler != SIG_DFL) continue;
+      struct sigaction sa {};
+      sa.sa_handler = remove_temporaries_and_die;
+      sigemptyset(&sa.sa_mask);
+      sa.sa_flags = SA_RESETHAND;
+      ::sigaction(sig, &sa, nullptr);
+    }
+  });
+}
+
+// A slot for `path`, or -1 if every slot is taken or the path is too long
+// (the temporary is then left to the next run's clean-up, as before).
+int register_temporary(const std::filesystem::path& path) {
+  const std::string& p = path.native();
+  if (p.size() >= sizeof(TemporarySlot::path)) return -1;
+  for (int i = 0; i < int(std::size(g_temporaries)); ++i) {
+    int expected = 0;
+    TemporarySlot& slot = g_temporaries[i];
+    if (!slot.state.compare_exchange_strong(expected, 1, std::memory_order_acq_rel)) continue;
+    std::memcpy(slot.path, p.c_str(), p.size() + 1);
+    slot.state.store(2, std::memory_order_release);
+    return i;
+  }
+  return -1;
+}
+
+void release_temporary(int& slot) {
+  if (slot >= 0) g_temporaries[slot].state.store(0, std::memory_order_release);
+  slot = -1;
+}
+
+}  // namespace
+
 AtomicOutput::AtomicOutput(std::filesystem::path destination) : dest_(std::move(destination)) {
   remove_stale_temporaries(dest_);
   static std::atomic<uint64_t> counter{0};
   std::random_device rd;
   temp_ = dest_;
   temp_ += ".tmp-" + process_tag() + "-" + std::to_string(counter++) + "-" + std::to_string(rd() & 0xffff);
+  install_temporary_handlers();
+  slot_ = register_temporary(temp_);
 }
 
 AtomicOutput::~AtomicOutput() {
@@ -176,6 +241,7 @@ AtomicOutput::~AtomicOutput() {
     std::error_code ec;
     std::filesystem::remove(temp_, ec);
   }
+  release_temporary(slot_);
 }
 
 Status AtomicOutput::commit() {
@@ -192,6 +258,7 @@ Status AtomicOutput::commit() {
     return Status::write_failed(dest_.string(), dest_.string() + ": could not rename into place: " + ec.message(),
                                 ec.value());
   committed_ = true;
+  release_temporary(slot_);
   // Make the rename itself durable.
   auto dir = dest_.parent_path().empty() ? std::filesystem::path(".") : dest_.parent_path();
   int dfd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY);

@@ -37,6 +37,10 @@ std::string not_regular_file_text(unsigned mode);
 // Output written atomically: write to a temporary sibling, fsync, rename over
 // the destination on commit(). Destroying without commit() removes the
 // temporary, so a failure never leaves a half-written file under the real name.
+// A process ended by SIGTERM, SIGINT or SIGHUP (mpirun ending the other ranks
+// of a failed job, Ctrl-C) removes its live temporaries first (a handler is
+// installed for those signals whose action is the default); one killed
+// outright (SIGKILL) leaves them to remove_stale_temporaries.
 // Temporaries are named DEST.tmp-PID@HOST-N-R: the process and the machine
 // (hostname, '-' and other characters than letters, digits, '.' and '_'
 // made '_'), so that processes of several machines writing to one shared
@@ -68,6 +72,7 @@ class AtomicOutput {
  private:
   std::filesystem::path dest_, temp_;
   bool committed_ = false;
+  int slot_ = -1;  // in the signal handler's table of live temporaries
 };
 
 // raylod's cache directory: $RAYLOD_CACHE_DIR, else $XDG_CACHE_HOME/raylod,

@@ -5,10 +5,12 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <csignal>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <string>
+#include <vector>
 
 #include "core/system.h"
 #include "test_tmp.h"
@@ -84,6 +86,28 @@ TEST(StaleTemporaries, NamesCarryTheMachineAndOtherMachinesAreNeverJudged) {
   }
   EXPECT_TRUE(std::filesystem::exists(dir / other)) << "another machine's temporary was removed";
   EXPECT_FALSE(std::filesystem::exists(dir / mine));
+  std::filesystem::remove_all(dir);
+}
+
+// mpirun ends the other ranks of a failed job with SIGTERM: a rank that was
+// writing an image removes its temporary before it dies; what it committed
+// stays.
+TEST(StaleTemporaries, TerminatedProcessRemovesItsLiveTemporaries) {
+  const std::filesystem::path dir = test::scratch_dir("sigterm-temporaries");
+  EXPECT_EXIT(
+      {
+        AtomicOutput done(dir / "v_00.png");
+        std::ofstream(done.temp_path()) << "image";
+        if (!done.commit().is_ok()) std::_Exit(1);
+        AtomicOutput live(dir / "v_01.png");
+        std::ofstream(live.temp_path()) << "partial";
+        std::raise(SIGTERM);
+        std::_Exit(2);
+      },
+      testing::KilledBySignal(SIGTERM), "");
+  std::vector<std::string> left;
+  for (const auto& e : std::filesystem::directory_iterator(dir)) left.push_back(e.path().filename().string());
+  EXPECT_EQ(left, std::vector<std::string>{"v_00.png"});
   std::filesystem::remove_all(dir);
 }
 
