@@ -194,7 +194,8 @@ StatusOr<int> threads_from_argv(int argc, char** argv) {
 
 int fail(const char* command, const Status& status) {
   // Under mpirun the ranks settle the failure first; rank 0 prints it.
-  const std::optional<Status> shown = cluster::settle_failure(status);
+  const std::optional<Status> shown =
+      cluster::settle_failure(status, std::string("raylod ") + command + ": error: ");
   if (shown) std::fprintf(cluster::error_output(), "raylod %s: error: %s\n", command, shown->message().c_str());
   return 1;
 }

@@ -84,35 +84,40 @@ int cmd_probe(int argc, char** argv) {
   if (!traced) return cli::fail("probe", traced.status());
   auto result = select_cuts(*traced, scene, stores, objects, config);
   if (Status s = cluster::agree(result.status()); !s) return cli::fail("probe", s);
-  if (!cluster::is_root()) return 0;  // every rank has the same cuts; rank 0 writes them
-  const ProbeResult& r = *result;
-  auto c = [&](const char* name) {
-    auto it = r.counters.find(name);
-    return static_cast<unsigned long long>(it == r.counters.end() ? 0 : it->second);
+  // Every rank has the same cuts; rank 0 writes them, the others wait to
+  // learn whether it could.
+  auto write_cuts = [&]() -> Status {
+    const ProbeResult& r = *result;
+    auto c = [&](const char* name) {
+      auto it = r.counters.find(name);
+      return static_cast<unsigned long long>(it == r.counters.end() ? 0 : it->second);
+    };
+    std::printf("probe: %llu test rays in %.2f s (+ %.2f s for the cut): %llu primary, %llu reflection, %llu refraction "
+                "(%llu total internal reflections)\n",
+                static_cast<unsigned long long>(config.rays), r.trace_seconds, r.cut_seconds, c("rays_primary"),
+                c("rays_reflection"), c("rays_refraction"), c("total_internal_reflections"));
+    std::printf("probe: %llu hits on meshes, %llu on the ground, %llu misses, %llu with dropped differentials\n",
+                c("hits"), c("hits_ground"), c("misses"), c("differentials_dropped"));
+    std::printf("probe: %llu pages read (%s), cache peak %s of %s, magnification m = %.3f, peak memory %s\n",
+                c("pages_read"), format_bytes(c("bytes_read")).c_str(), format_bytes(c("cache_peak_bytes")).c_str(),
+                format_bytes(config.cache_bytes).c_str(), r.magnification, format_bytes(peak_rss_bytes()).c_str());
+    for (size_t s = 0; s < stores.size(); ++s) {
+      const Cut& cut = r.cuts[s];
+      std::filesystem::path out = args.has("--output")
+                                      ? std::filesystem::path(args.get("--output"))
+                                      : std::filesystem::path(meshes[s].string() + "." + cut.key + ".cut");
+      RAYLOD_RETURN_IF_ERROR(write_cut(out, cut));
+      std::map<uint32_t, uint64_t> per_level;
+      for (const CollapsedCell& cell : cut.cells) ++per_level[cell.key.level];
+      std::string levels;
+      for (const auto& [level, n] : per_level) levels += " L" + std::to_string(level) + ":" + std::to_string(n);
+      std::printf("probe: %s: %zu cells marked (%llu with hits;%s), smallest footprint %g\n", out.string().c_str(),
+                  cut.cells.size(), static_cast<unsigned long long>(cut.counters.at("cells_marked_with_hits")),
+                  levels.c_str(), double(cut.min_footprint));
+    }
+    return {};
   };
-  std::printf("probe: %llu test rays in %.2f s (+ %.2f s for the cut): %llu primary, %llu reflection, %llu refraction "
-              "(%llu total internal reflections)\n",
-              static_cast<unsigned long long>(config.rays), r.trace_seconds, r.cut_seconds, c("rays_primary"),
-              c("rays_reflection"), c("rays_refraction"), c("total_internal_reflections"));
-  std::printf("probe: %llu hits on meshes, %llu on the ground, %llu misses, %llu with dropped differentials\n",
-              c("hits"), c("hits_ground"), c("misses"), c("differentials_dropped"));
-  std::printf("probe: %llu pages read (%s), cache peak %s of %s, magnification m = %.3f, peak memory %s\n",
-              c("pages_read"), format_bytes(c("bytes_read")).c_str(), format_bytes(c("cache_peak_bytes")).c_str(),
-              format_bytes(config.cache_bytes).c_str(), r.magnification, format_bytes(peak_rss_bytes()).c_str());
-  for (size_t s = 0; s < stores.size(); ++s) {
-    const Cut& cut = r.cuts[s];
-    std::filesystem::path out = args.has("--output")
-                                    ? std::filesystem::path(args.get("--output"))
-                                    : std::filesystem::path(meshes[s].string() + "." + cut.key + ".cut");
-    if (Status st = write_cut(out, cut); !st) return cli::fail("probe", st);
-    std::map<uint32_t, uint64_t> per_level;
-    for (const CollapsedCell& cell : cut.cells) ++per_level[cell.key.level];
-    std::string levels;
-    for (const auto& [level, n] : per_level) levels += " L" + std::to_string(level) + ":" + std::to_string(n);
-    std::printf("probe: %s: %zu cells marked (%llu with hits;%s), smallest footprint %g\n", out.string().c_str(),
-                cut.cells.size(), static_cast<unsigned long long>(cut.counters.at("cells_marked_with_hits")),
-                levels.c_str(), double(cut.min_footprint));
-  }
+  if (Status s = cluster::agree(cluster::is_root() ? write_cuts() : Status::ok()); !s) return cli::fail("probe", s);
   return 0;
 }
 

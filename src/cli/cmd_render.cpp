@@ -81,26 +81,29 @@ Status run_render(int argc, char** argv, bool& help) {
 
   opts.split_across_ranks = true;
   RAYLOD_ASSIGN_OR_RETURN(RenderResult result, render(scene, opts));
-  if (!cluster::is_root()) return {};  // rank 0 holds the whole frame and writes it
-  RAYLOD_RETURN_IF_ERROR(write_image(output, result.color));
-  RAYLOD_ASSIGN_OR_RETURN(auto aovs, write_aovs(output, result));
-
-  const RenderStats& s = result.stats;
-  std::fprintf(stderr,
-               "raylod render: wrote %s (%dx%d, %d spp, %d threads%s)\n"
-               "raylod render: rays: camera %llu, shadow %llu, reflection %llu, refraction %llu; "
-               "total %llu in %.2f s (%.2f Mrays/s)\n"
-               "raylod render: load %.2f s, BVH %.2f s (%s), peak memory %s\n",
-               output.string().c_str(), s.width, s.height, s.spp, s.threads,
-               cluster::active() ? (" per rank, " + std::to_string(cluster::size()) + " ranks").c_str() : "",
-               (unsigned long long)s.rays.camera,
-               (unsigned long long)s.rays.shadow, (unsigned long long)s.rays.reflection,
-               (unsigned long long)s.rays.refraction, (unsigned long long)s.rays.total(), s.render_seconds,
-               s.rays_per_second() * 1e-6, s.load_seconds, s.bvh_seconds, format_bytes(s.bvh_bytes).c_str(),
-               format_bytes(s.peak_rss).c_str());
-  for (const auto& p : aovs) std::fprintf(stderr, "raylod render: wrote %s\n", p.string().c_str());
-  if (args.has("--stats-json")) RAYLOD_RETURN_IF_ERROR(write_file_atomic(args.get("--stats-json"), render_stats_json(s) + "\n"));
-  return {};
+  // Rank 0 holds the whole frame and writes it; the others wait to learn
+  // whether it could, so that a failed write ends the job like any failure.
+  auto write_outputs = [&]() -> Status {
+    RAYLOD_RETURN_IF_ERROR(write_image(output, result.color));
+    RAYLOD_ASSIGN_OR_RETURN(auto aovs, write_aovs(output, result));
+    const RenderStats& s = result.stats;
+    std::fprintf(stderr,
+                 "raylod render: wrote %s (%dx%d, %d spp, %d threads%s)\n"
+                 "raylod render: rays: camera %llu, shadow %llu, reflection %llu, refraction %llu; "
+                 "total %llu in %.2f s (%.2f Mrays/s)\n"
+                 "raylod render: load %.2f s, BVH %.2f s (%s), peak memory %s\n",
+                 output.string().c_str(), s.width, s.height, s.spp, s.threads,
+                 cluster::active() ? (" per rank, " + std::to_string(cluster::size()) + " ranks").c_str() : "",
+                 (unsigned long long)s.rays.camera,
+                 (unsigned long long)s.rays.shadow, (unsigned long long)s.rays.reflection,
+                 (unsigned long long)s.rays.refraction, (unsigned long long)s.rays.total(), s.render_seconds,
+                 s.rays_per_second() * 1e-6, s.load_seconds, s.bvh_seconds, format_bytes(s.bvh_bytes).c_str(),
+                 format_bytes(s.peak_rss).c_str());
+    for (const auto& p : aovs) std::fprintf(stderr, "raylod render: wrote %s\n", p.string().c_str());
+    if (args.has("--stats-json")) RAYLOD_RETURN_IF_ERROR(write_file_atomic(args.get("--stats-json"), render_stats_json(s) + "\n"));
+    return {};
+  };
+  return cluster::agree(cluster::is_root() ? write_outputs() : Status::ok());
 }
 
 int cmd_render(int argc, char** argv) {

@@ -21,15 +21,9 @@
 namespace raylod::cli {
 namespace {
 
-// --views FILE / --orbit N: every view rendered to a numbered image.
-Status run_view_sequence(const Args& args, Scene scene, const std::vector<Camera>& cameras, const RunOptions& opts,
-                         const std::filesystem::path& output, const LogFn& log) {
-  const bool shared = args.has("--shared-cut");
-  auto write_view = [&](size_t i, const Image& color) -> Status {
-    return write_image(numbered_image_path(output, i), color);
-  };
-  RAYLOD_ASSIGN_OR_RETURN(ViewsResult r, run_views(std::move(scene), cameras, opts, shared, write_view, log));
-  if (!cluster::is_root()) return {};  // rank 0 has every view's statistics
+// The terminal summary of a view sequence, and its --stats-json.
+Status report_views(const Args& args, const ViewsResult& r, const RunOptions& opts, const std::filesystem::path& output) {
+  const bool shared = r.shared_cut;
   for (const std::string& w : r.warnings) std::fprintf(stderr, "raylod run: warning: %s\n", w.c_str());
   std::printf("raylod run: %s, %zu views (%s)\n", args.positionals().empty() ? "embedded default scene" : args.positionals()[0].c_str(),
               r.views.size(), shared ? "one shared cut" : "a cut per view, cached meshes reused");
@@ -57,6 +51,19 @@ Status run_view_sequence(const Args& args, Scene scene, const std::vector<Camera
   return {};
 }
 
+
+// --views FILE / --orbit N: every view rendered to a numbered image.
+Status run_view_sequence(const Args& args, Scene scene, const std::vector<Camera>& cameras, const RunOptions& opts,
+                         const std::filesystem::path& output, const LogFn& log) {
+  const bool shared = args.has("--shared-cut");
+  auto write_view = [&](size_t i, const Image& color) -> Status {
+    return write_image(numbered_image_path(output, i), color);
+  };
+  RAYLOD_ASSIGN_OR_RETURN(ViewsResult r, run_views(std::move(scene), cameras, opts, shared, write_view, log));
+  // Rank 0 has every view's statistics; the others wait to learn whether it
+  // could write them.
+  return cluster::agree(cluster::is_root() ? report_views(args, r, opts, output) : Status::ok());
+}
 
 Status run_run(int argc, char** argv, bool& help) {
   // Under mpirun: views handed out to the ranks, or one view's test rays and
@@ -152,97 +159,102 @@ Status run_run(int argc, char** argv, bool& help) {
   }
 
   RAYLOD_ASSIGN_OR_RETURN(RunResult r, run_pipeline(scene, opts, log));
-  if (!cluster::is_root()) return {};  // rank 0 holds the whole frame and writes it
-  RAYLOD_RETURN_IF_ERROR(write_image(output, r.render.color));
-  for (const std::string& w : r.warnings) std::fprintf(stderr, "raylod run: warning: %s\n", w.c_str());
+  // Rank 0 holds the whole frame and writes it (and the statistics); the
+  // others wait to learn whether it could, so that a failed write ends the
+  // job like any failure.
+  auto write_outputs = [&]() -> Status {
+    RAYLOD_RETURN_IF_ERROR(write_image(output, r.render.color));
+    for (const std::string& w : r.warnings) std::fprintf(stderr, "raylod run: warning: %s\n", w.c_str());
 
-  std::printf("raylod run: %s\n", args.positionals().empty() ? "embedded default scene" : args.positionals()[0].c_str());
-  std::printf("  triangles  %llu -> %llu (%.1fx fewer)\n", (unsigned long long)r.triangles_in,
-              (unsigned long long)r.triangles_out, r.triangles_out ? double(r.triangles_in) / double(r.triangles_out) : 0.0);
-  std::printf("  build      %7.2f s\n", r.seconds.build);
-  std::printf("  probe      %7.2f s  (%llu test rays, K = %g%s)\n", r.seconds.probe, (unsigned long long)opts.rays,
-              r.footprint_scale, r.coarsening_steps ? ", coarsened to fit the memory limit" : "");
-  std::printf("  simplify   %7.2f s  (%s)\n", r.seconds.simplify, r.cache_hit ? "from cache" : "simplified");
-  for (const auto& m : r.meshes) std::printf("             %s\n", m.cache_note.c_str());
-  std::printf("  render     %7.2f s  (load %.2f s, BVH %.2f s, trace %.2f s)\n", r.seconds.render,
-              r.render.stats.load_seconds, r.render.stats.bvh_seconds, r.render.stats.render_seconds);
-  std::printf("  total      %7.2f s, peak memory %s\n", r.seconds.total(), format_bytes(r.peak_rss).c_str());
+    std::printf("raylod run: %s\n", args.positionals().empty() ? "embedded default scene" : args.positionals()[0].c_str());
+    std::printf("  triangles  %llu -> %llu (%.1fx fewer)\n", (unsigned long long)r.triangles_in,
+                (unsigned long long)r.triangles_out, r.triangles_out ? double(r.triangles_in) / double(r.triangles_out) : 0.0);
+    std::printf("  build      %7.2f s\n", r.seconds.build);
+    std::printf("  probe      %7.2f s  (%llu test rays, K = %g%s)\n", r.seconds.probe, (unsigned long long)opts.rays,
+                r.footprint_scale, r.coarsening_steps ? ", coarsened to fit the memory limit" : "");
+    std::printf("  simplify   %7.2f s  (%s)\n", r.seconds.simplify, r.cache_hit ? "from cache" : "simplified");
+    for (const auto& m : r.meshes) std::printf("             %s\n", m.cache_note.c_str());
+    std::printf("  render     %7.2f s  (load %.2f s, BVH %.2f s, trace %.2f s)\n", r.seconds.render,
+                r.render.stats.load_seconds, r.render.stats.bvh_seconds, r.render.stats.render_seconds);
+    std::printf("  total      %7.2f s, peak memory %s\n", r.seconds.total(), format_bytes(r.peak_rss).c_str());
 
-  std::string stats = run_stats_json(r, opts);
-  if (args.has("--compare")) {
-    // The full-resolution render the method is measured against, and the
-    // noise floor that says what difference sampling alone makes: the full
-    // mesh at the next seed, same spp, against the reference.
-    RAYLOD_RETURN_IF_ERROR(resolve_generated_meshes(scene, opts.cache_dir));
-    RenderOptions ro;
-    ro.spp = opts.spp;
-    // The comparison runs after the run's own render has been freed, so it
-    // gets the whole memory limit to itself.
-    ro.memory_limit = opts.memory_limit;
-    ro.progress = opts.progress;
-    ro.over_limit_hint.clear();
-    if (opts.mesh_override) ro.mesh_override = {*opts.mesh_override};
-    RAYLOD_ASSIGN_OR_RETURN(uint64_t full_triangles, declared_scene_triangles(scene, ro));
-    const uint64_t full_need = estimate_render_memory(full_triangles, bvh_for_memory_limit(full_triangles, ro.memory_limit));
-    if (ro.memory_limit && full_need > ro.memory_limit) {
-      // The run itself succeeded: keep its image and statistics, and say why
-      // there is no comparison.
-      const std::string why = "the full mesh (" + std::to_string(full_triangles) + " triangles) needs about " +
-                              format_bytes(full_need) + " to render, over the memory limit of " +
-                              format_bytes(ro.memory_limit) + "; raise --memory-limit to compare";
-      std::fprintf(stderr, "raylod run: warning: --compare skipped: %s\n", why.c_str());
-      std::printf("  error      not measured (--compare skipped: %s)\n", why.c_str());
-      auto j = nlohmann::json::parse(stats);
-      j["comparison_skipped"] = why;
-      stats = j.dump(2) + "\n";
-    } else {
-      RAYLOD_ASSIGN_OR_RETURN(FullRender fr, render_full_with_noise_floor(scene, ro));
-      const RenderResult& full = fr.reference;
-      const NoiseFloor& floor = fr.noise_floor;
-      RAYLOD_ASSIGN_OR_RETURN(ImageError e, compare_images(r.render.color, full.color));
-      const RenderStats& fs = full.stats;
-      double full_seconds = fs.load_seconds + fs.bvh_seconds + fs.render_seconds;
-      std::printf("  full mesh  %7.2f s  (load %.2f s, BVH %.2f s, trace %.2f s; seed %llu, and %.2f s more at seed %llu "
-                  "for the noise floor)\n",
-                  full_seconds, fs.load_seconds, fs.bvh_seconds, fs.render_seconds, (unsigned long long)floor.seed,
-                  floor.render_seconds, (unsigned long long)noise_floor_seed(floor.seed));
-      std::printf("  error      PSNR %.2f dB, SSIM %.4f (%s), largest pixel difference %.3f\n", e.psnr, e.ssim,
-                  describe_against_noise_floor(e, floor).c_str(), e.max_diff);
-      std::printf("  floor      PSNR %.2f dB, SSIM %.4f, largest pixel difference %.3f (full mesh, seed %llu against "
-                  "seed %llu, %d spp)\n",
-                  floor.psnr(), floor.error.ssim, floor.error.max_diff, (unsigned long long)noise_floor_seed(floor.seed),
-                  (unsigned long long)floor.seed, floor.spp);
-      std::filesystem::path ref = output;
-      ref.replace_extension(".full" + output.extension().string());
-      RAYLOD_RETURN_IF_ERROR(write_image(ref, full.color));
-      std::filesystem::path diff = output;
-      diff.replace_extension(".diff" + output.extension().string());
-      RAYLOD_RETURN_IF_ERROR(write_image(diff, difference_image(r.render.color, full.color)));
-      std::printf("  wrote      %s (full mesh), %s (difference x4)\n", ref.string().c_str(), diff.string().c_str());
-      // run_stats_json() (pipeline.cpp) knows nothing of the comparison: extend its object.
-      auto j = nlohmann::json::parse(stats);
-      // Identical images have infinite PSNR, which JSON cannot hold: null.
-      auto psnr_json = [](double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); };
-      j["full_render_seconds"] = full_seconds;
-      j["psnr"] = psnr_json(e.psnr);
-      j["ssim"] = e.ssim;
-      j["max_diff"] = e.max_diff;
-      j["noise_floor"] = {{"seed", floor.seed},
-                          {"other_seed", noise_floor_seed(floor.seed)},
-                          {"spp", floor.spp},
-                          {"psnr", psnr_json(floor.psnr())},
-                          {"ssim", floor.error.ssim},
-                          {"max_diff", floor.error.max_diff},
-                          {"render_seconds", floor.render_seconds}};
-      j["within_noise_floor"] = within_noise_floor(e, floor);
-      stats = j.dump(2) + "\n";
+    std::string stats = run_stats_json(r, opts);
+    if (args.has("--compare")) {
+      // The full-resolution render the method is measured against, and the
+      // noise floor that says what difference sampling alone makes: the full
+      // mesh at the next seed, same spp, against the reference.
+      RAYLOD_RETURN_IF_ERROR(resolve_generated_meshes(scene, opts.cache_dir));
+      RenderOptions ro;
+      ro.spp = opts.spp;
+      // The comparison runs after the run's own render has been freed, so it
+      // gets the whole memory limit to itself.
+      ro.memory_limit = opts.memory_limit;
+      ro.progress = opts.progress;
+      ro.over_limit_hint.clear();
+      if (opts.mesh_override) ro.mesh_override = {*opts.mesh_override};
+      RAYLOD_ASSIGN_OR_RETURN(uint64_t full_triangles, declared_scene_triangles(scene, ro));
+      const uint64_t full_need = estimate_render_memory(full_triangles, bvh_for_memory_limit(full_triangles, ro.memory_limit));
+      if (ro.memory_limit && full_need > ro.memory_limit) {
+        // The run itself succeeded: keep its image and statistics, and say why
+        // there is no comparison.
+        const std::string why = "the full mesh (" + std::to_string(full_triangles) + " triangles) needs about " +
+                                format_bytes(full_need) + " to render, over the memory limit of " +
+                                format_bytes(ro.memory_limit) + "; raise --memory-limit to compare";
+        std::fprintf(stderr, "raylod run: warning: --compare skipped: %s\n", why.c_str());
+        std::printf("  error      not measured (--compare skipped: %s)\n", why.c_str());
+        auto j = nlohmann::json::parse(stats);
+        j["comparison_skipped"] = why;
+        stats = j.dump(2) + "\n";
+      } else {
+        RAYLOD_ASSIGN_OR_RETURN(FullRender fr, render_full_with_noise_floor(scene, ro));
+        const RenderResult& full = fr.reference;
+        const NoiseFloor& floor = fr.noise_floor;
+        RAYLOD_ASSIGN_OR_RETURN(ImageError e, compare_images(r.render.color, full.color));
+        const RenderStats& fs = full.stats;
+        double full_seconds = fs.load_seconds + fs.bvh_seconds + fs.render_seconds;
+        std::printf("  full mesh  %7.2f s  (load %.2f s, BVH %.2f s, trace %.2f s; seed %llu, and %.2f s more at seed %llu "
+                    "for the noise floor)\n",
+                    full_seconds, fs.load_seconds, fs.bvh_seconds, fs.render_seconds, (unsigned long long)floor.seed,
+                    floor.render_seconds, (unsigned long long)noise_floor_seed(floor.seed));
+        std::printf("  error      PSNR %.2f dB, SSIM %.4f (%s), largest pixel difference %.3f\n", e.psnr, e.ssim,
+                    describe_against_noise_floor(e, floor).c_str(), e.max_diff);
+        std::printf("  floor      PSNR %.2f dB, SSIM %.4f, largest pixel difference %.3f (full mesh, seed %llu against "
+                    "seed %llu, %d spp)\n",
+                    floor.psnr(), floor.error.ssim, floor.error.max_diff, (unsigned long long)noise_floor_seed(floor.seed),
+                    (unsigned long long)floor.seed, floor.spp);
+        std::filesystem::path ref = output;
+        ref.replace_extension(".full" + output.extension().string());
+        RAYLOD_RETURN_IF_ERROR(write_image(ref, full.color));
+        std::filesystem::path diff = output;
+        diff.replace_extension(".diff" + output.extension().string());
+        RAYLOD_RETURN_IF_ERROR(write_image(diff, difference_image(r.render.color, full.color)));
+        std::printf("  wrote      %s (full mesh), %s (difference x4)\n", ref.string().c_str(), diff.string().c_str());
+        // run_stats_json() (pipeline.cpp) knows nothing of the comparison: extend its object.
+        auto j = nlohmann::json::parse(stats);
+        // Identical images have infinite PSNR, which JSON cannot hold: null.
+        auto psnr_json = [](double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); };
+        j["full_render_seconds"] = full_seconds;
+        j["psnr"] = psnr_json(e.psnr);
+        j["ssim"] = e.ssim;
+        j["max_diff"] = e.max_diff;
+        j["noise_floor"] = {{"seed", floor.seed},
+                            {"other_seed", noise_floor_seed(floor.seed)},
+                            {"spp", floor.spp},
+                            {"psnr", psnr_json(floor.psnr())},
+                            {"ssim", floor.error.ssim},
+                            {"max_diff", floor.error.max_diff},
+                            {"render_seconds", floor.render_seconds}};
+        j["within_noise_floor"] = within_noise_floor(e, floor);
+        stats = j.dump(2) + "\n";
+      }
     }
-  }
-  std::printf("  wrote      %s\n", output.string().c_str());
-  if (!opts.export_mesh.empty())
-    std::printf("  exported   %s (%s)\n", opts.export_mesh.string().c_str(), format_bytes(r.exported_bytes).c_str());
-  if (args.has("--stats-json")) RAYLOD_RETURN_IF_ERROR(write_file_atomic(args.get("--stats-json"), stats));
-  return {};
+    std::printf("  wrote      %s\n", output.string().c_str());
+    if (!opts.export_mesh.empty())
+      std::printf("  exported   %s (%s)\n", opts.export_mesh.string().c_str(), format_bytes(r.exported_bytes).c_str());
+    if (args.has("--stats-json")) RAYLOD_RETURN_IF_ERROR(write_file_atomic(args.get("--stats-json"), stats));
+    return {};
+  };
+  return cluster::agree(cluster::is_root() ? write_outputs() : Status::ok());
 }
 
 int cmd_run(int argc, char** argv) {

@@ -70,7 +70,7 @@ int main(int argc, char** argv) {
       } catch (const std::exception& e) {
         // Under mpirun the other ranks may be waiting for this one: end the job.
         if (raylod::cluster::active())
-          raylod::cluster::abort_job(std::string(c.name) + ": internal error on rank " +
+          raylod::cluster::abort_job(std::string("raylod ") + c.name + ": internal error on rank " +
                                      std::to_string(raylod::cluster::rank()) + ": " + e.what(), 3);
         std::fprintf(stderr, "raylod %s: internal error: %s\n", c.name, e.what());
         return 3;

@@ -124,11 +124,15 @@ Status agree(const Status& mine) {
   if (w.size == 1) return mine;
   ++w.collectives;
 #if RAYLOD_WITH_MPI
-  // The lowest failing rank, then its message to everybody.
-  int failing = mine.is_ok() ? w.size : w.rank, lowest = w.size;
+  // The lowest failing rank and whether every rank failed (the minimum of
+  // -failing is minus the highest), then the lowest's message to everybody.
+  const int failing = mine.is_ok() ? w.size : w.rank;
+  int both[2] = {failing, -failing}, reduced[2] = {w.size, -w.size};
   MPI_Request request;
-  MPI_Iallreduce(&failing, &lowest, 1, MPI_INT, MPI_MIN, MPI_COMM_WORLD, &request);
+  MPI_Iallreduce(both, reduced, 2, MPI_INT, MPI_MIN, MPI_COMM_WORLD, &request);
   wait_lazily(request);
+  const int lowest = reduced[0];
+  const bool every_rank_failed = -reduced[1] < w.size;
   if (lowest == w.size) return Status::ok();
   std::string message = mine.is_ok() ? std::string() : mine.message();
   uint64_t length = message.size();
@@ -140,14 +144,17 @@ Status agree(const Status& mine) {
     wait_lazily(request);
   }
   w.agreed = true;
-  if (w.rank == lowest) return mine;
-  return Status::error(message);
+  // A failure of some ranks only says which (the lowest): a node's disk or
+  // memory, not the input, is then the likely cause.
+  const std::string which = "rank " + std::to_string(lowest) + " of " + std::to_string(w.size);
+  if (w.rank == lowest) return every_rank_failed ? mine : mine.with_context(which);
+  return Status::error(every_rank_failed ? message : which + ": " + message);
 #else
   return mine;
 #endif
 }
 
-std::optional<Status> settle_failure(const Status& status) {
+std::optional<Status> settle_failure(const Status& status, const std::string& prefix) {
   World& w = world();
   if (w.size == 1 || !w.enlisted) return status;
   Status shown = status;
@@ -155,7 +162,7 @@ std::optional<Status> settle_failure(const Status& status) {
     if (w.collectives == 0) {
       shown = agree(status);
     } else {
-      abort_job("error on rank " + std::to_string(w.rank) + " of " + std::to_string(w.size) + ": " + status.message(), 1);
+      abort_job(prefix + "rank " + std::to_string(w.rank) + " of " + std::to_string(w.size) + ": " + status.message(), 1);
     }
   }
   if (w.rank != 0) return std::nullopt;
@@ -164,7 +171,7 @@ std::optional<Status> settle_failure(const Status& status) {
 
 void abort_job(const std::string& message, int code) {
   World& w = world();
-  std::fprintf(w.errors, "raylod: %s\n", message.c_str());
+  std::fprintf(w.errors, "%s\n", message.c_str());
   std::fflush(w.errors);
 #if RAYLOD_WITH_MPI
   if (w.mpi) MPI_Abort(MPI_COMM_WORLD, code);

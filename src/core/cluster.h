@@ -53,19 +53,20 @@ void enlist();
 bool enlisted();
 
 // Collective: OK on every rank if `mine` is OK on every rank, else the error
-// of the lowest failing rank on every rank (its message). Marks the failure
-// as agreed.
+// of the lowest failing rank on every rank (its message), preceded by "rank
+// R of N: " unless every rank failed. Marks the failure as agreed.
 Status agree(const Status& mine);
 bool failure_agreed();
 // cli::fail's part: for an enlisted command on several ranks, settles a
 // failure that was not agreed yet -- through agree() if no collective has
 // run (the others meet it in their first agree()), else by ending the job
-// (MPI_Abort, the error printed by this rank). Returns the error to print,
-// or nullopt on ranks other than 0, which print nothing.
-std::optional<Status> settle_failure(const Status& status);
+// (MPI_Abort, the error printed by this rank after `prefix`, naming the
+// rank). Returns the error to print, or nullopt on ranks other than 0, which
+// print nothing.
+std::optional<Status> settle_failure(const Status& status, const std::string& prefix);
 
-// Ends the whole job at once (MPI_Abort), after printing `message` from
-// this rank; one process: exits with `code`.
+// Ends the whole job at once (MPI_Abort), after printing the line `message`
+// from this rank; one process: exits with `code`.
 [[noreturn]] void abort_job(const std::string& message, int code);
 
 // Where this rank's messages go: stderr on rank 0; on the others, progress

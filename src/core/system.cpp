@@ -14,6 +14,8 @@
 #include <cstdlib>
 #include <cstring>
 #include <fstream>
+#include <iterator>
+#include <mutex>
 #include <random>
 #include <sstream>
 
@@ -102,17 +104,43 @@ std::string format_bytes(uint64_t bytes) {
 
 namespace {
 
+// This machine's name as it goes into temporaries' names: no '-' (the
+// names' field separator) and no '/'.
+const std::string& host_tag() {
+  static const std::string tag = [] {
+    char name[256] = {};
+    if (::gethostname(name, sizeof name - 1) != 0 || !name[0]) return std::string("localhost");
+    std::string t(name);
+    for (char& c : t)
+      if (!std::isalnum(static_cast<unsigned char>(c)) && c != '.' && c != '_') c = '_';
+    return t;
+  }();
+  return tag;
+}
+
 // True if `rest` (what follows ".tmp-" in a temporary's name) starts with
-// "PID-" for a process that no longer exists (not this one).
+// "PID@HOST-" for a process of this machine that no longer exists (not this
+// one). A process of another machine sharing the folder is never judged
+// dead: its pid means nothing here. Names without "@HOST" (raylod before
+// 2026-11) are taken as this machine's.
 bool pid_prefix_is_dead(const std::string& rest) {
-  const size_t dash = rest.find('-');
-  if (dash == 0 || dash == std::string::npos || rest.find_first_not_of("0123456789") != dash) return false;
-  const long pid = std::strtol(rest.substr(0, dash).c_str(), nullptr, 10);
+  const size_t end = rest.find_first_not_of("0123456789");
+  if (end == 0 || end == std::string::npos || (rest[end] != '-' && rest[end] != '@')) return false;
+  if (rest[end] == '@') {
+    const size_t dash = rest.find('-', end);
+    if (dash == std::string::npos || rest.compare(end + 1, dash - end - 1, host_tag()) != 0) return false;
+  }
+  const long pid = std::strtol(rest.substr(0, end).c_str(), nullptr, 10);
   if (pid <= 0 || pid == long(getpid())) return false;
   return ::kill(pid_t(pid), 0) != 0 && errno == ESRCH;  // alive, or not ours to judge: false
 }
 
 }  // namespace
+
+const std::string& process_tag() {
+  static const std::string tag = std::to_string(getpid()) + "@" + host_tag();
+  return tag;
+}
 
 bool is_dead_process_temporary(const std::string& filename) {
   const size_t at = filename.find(".tmp-");
@@ -120,8 +148,8 @@ bool is_dead_process_temporary(const std::string& filename) {
 }
 
 size_t remove_stale_temporaries(const std::filesystem::path& destination) {
-  // Temporaries are named DEST.tmp-PID-N-R; one whose process is gone (a
-  // kill -9 during a write, a crash) is never renamed and can be removed.
+  // Temporaries are named DEST.tmp-PID@HOST-N-R; one whose process is gone
+  // (a kill -9 during a write, a crash) is never renamed and can be removed.
   const std::string prefix = destination.filename().string() + ".tmp-";
   std::filesystem::path dir = destination.parent_path();
   if (dir.empty()) dir = ".";
@@ -137,12 +165,75 @@ size_t remove_stale_temporaries(const std::filesystem::path& destination) {
   return removed;
 }
 
+namespace {
+
+// The temporaries being written, for the handler of SIGTERM, SIGINT and
+// SIGHUP: mpirun ends the other ranks with SIGTERM when one fails, and a
+// terminal's Ctrl-C is SIGINT. A slot is free (0), being filled (1) or
+// names a live temporary (2); the handler reads only lock-free atomics and
+// calls only async-signal-safe functions (unlink, raise).
+struct TemporarySlot {
+  std::atomic<int> state{0};
+  char path[4096];
+};
+TemporarySlot g_temporaries[64];
+
+void remove_temporaries_and_die(int sig) {
+  for (TemporarySlot& slot : g_temporaries)
+    if (slot.state.load(std::memory_order_acquire) == 2) ::unlink(slot.path);
+  // SA_RESETHAND restored the default action: the signal, blocked while
+  // this runs, ends the process as it would have without the handler.
+  ::raise(sig);
+}
+
+// Installed once, for signals whose action is still the default (one set
+// to be ignored, as under nohup, stays ignored).
+void install_temporary_handlers() {
+  static std::once_flag once;
+  std::call_once(once, [] {
+    for (int sig : {SIGTERM, SIGINT, SIGHUP}) {
+      struct sigaction old {};
+      if (::sigaction(sig, nullptr, &old) != 0 || old.sa_handler != SIG_DFL) continue;
+      struct sigaction sa {};
+      sa.sa_handler = remove_temporaries_and_die;
+      sigemptyset(&sa.sa_mask);
+      sa.sa_flags = SA_RESETHAND;
+      ::sigaction(sig, &sa, nullptr);
+    }
+  });
+}
+
+// A slot for `path`, or -1 if every slot is taken or the path is too long
+// (the temporary is then left to the next run's clean-up, as before).
+int register_temporary(const std::filesystem::path& path) {
+  const std::string& p = path.native();
+  if (p.size() >= sizeof(TemporarySlot::path)) return -1;
+  for (int i = 0; i < int(std::size(g_temporaries)); ++i) {
+    int expected = 0;
+    TemporarySlot& slot = g_temporaries[i];
+    if (!slot.state.compare_exchange_strong(expected, 1, std::memory_order_acq_rel)) continue;
+    std::memcpy(slot.path, p.c_str(), p.size() + 1);
+    slot.state.store(2, std::memory_order_release);
+    return i;
+  }
+  return -1;
+}
+
+void release_temporary(int& slot) {
+  if (slot >= 0) g_temporaries[slot].state.store(0, std::memory_order_release);
+  slot = -1;
+}
+
+}  // namespace
+
 AtomicOutput::AtomicOutput(std::filesystem::path destination) : dest_(std::move(destination)) {
   remove_stale_temporaries(dest_);
   static std::atomic<uint64_t> counter{0};
   std::random_device rd;
   temp_ = dest_;
-  temp_ += ".tmp-" + std::to_string(getpid()) + "-" + std::to_string(counter++) + "-" + std::to_string(rd() & 0xffff);
+  temp_ += ".tmp-" + process_tag() + "-" + std::to_string(counter++) + "-" + std::to_string(rd() & 0xffff);
+  install_temporary_handlers();
+  slot_ = register_temporary(temp_);
 }
 
 AtomicOutput::~AtomicOutput() {
@@ -150,6 +241,7 @@ AtomicOutput::~AtomicOutput() {
     std::error_code ec;
     std::filesystem::remove(temp_, ec);
   }
+  release_temporary(slot_);
 }
 
 Status AtomicOutput::commit() {
@@ -166,6 +258,7 @@ Status AtomicOutput::commit() {
     return Status::write_failed(dest_.string(), dest_.string() + ": could not rename into place: " + ec.message(),
                                 ec.value());
   committed_ = true;
+  release_temporary(slot_);
   // Make the rename itself durable.
   auto dir = dest_.parent_path().empty() ? std::filesystem::path(".") : dest_.parent_path();
   int dfd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY);

@@ -37,12 +37,23 @@ std::string not_regular_file_text(unsigned mode);
 // Output written atomically: write to a temporary sibling, fsync, rename over
 // the destination on commit(). Destroying without commit() removes the
 // temporary, so a failure never leaves a half-written file under the real name.
-// Removes DEST.tmp-PID-* files left by processes that no longer exist (a
-// kill -9 during an atomic write); returns how many. AtomicOutput calls it
-// for its destination.
+// A process ended by SIGTERM, SIGINT or SIGHUP (mpirun ending the other ranks
+// of a failed job, Ctrl-C) removes its live temporaries first (a handler is
+// installed for those signals whose action is the default); one killed
+// outright (SIGKILL) leaves them to remove_stale_temporaries.
+// Temporaries are named DEST.tmp-PID@HOST-N-R: the process and the machine
+// (hostname, '-' and other characters than letters, digits, '.' and '_'
+// made '_'), so that processes of several machines writing to one shared
+// folder (raylod under mpirun) never take each other's temporaries for a
+// dead process's.
+const std::string& process_tag();  // "PID@HOST"
+// Removes DEST.tmp-PID@HOST-* files of this machine left by processes that
+// no longer exist (a kill -9 during an atomic write); returns how many.
+// AtomicOutput calls it for its destination.
 size_t remove_stale_temporaries(const std::filesystem::path& destination);
-// True if `filename` is an atomic write's temporary (NAME.tmp-PID-...,
-// nested ones included) whose process no longer exists.
+// True if `filename` is an atomic write's temporary (NAME.tmp-PID@HOST-...,
+// nested ones included, or NAME.tmp-PID-... of older versions) whose process,
+// of this machine, no longer exists.
 bool is_dead_process_temporary(const std::string& filename);
 
 class AtomicOutput {
@@ -61,6 +72,7 @@ class AtomicOutput {
  private:
   std::filesystem::path dest_, temp_;
   bool committed_ = false;
+  int slot_ = -1;  // in the signal handler's table of live temporaries
 };
 
 // raylod's cache directory: $RAYLOD_CACHE_DIR, else $XDG_CACHE_HOME/raylod,

@@ -1,6 +1,7 @@
 #include "pipeline/pipeline.h"
 
 #include <fcntl.h>
+#include <sys/stat.h>
 #include <unistd.h>
 #if defined(__GLIBC__)
 #include <malloc.h>
@@ -197,7 +198,7 @@ fs::path store_path_for(const fs::path& mesh, const fs::path& cache_dir, const S
 
 StatusOr<SceneStores> prepare_scene_stores(Scene& scene, const std::optional<fs::path>& mesh_override,
                                            const StoreOptions& store_options, const fs::path& cache_dir,
-                                           const LogFn& log) {
+                                           const LogFn& log, bool check_stores) {
   auto t0 = std::chrono::steady_clock::now();
   if (mesh_override) {
     // As in `raylod render`: the first object's mesh is replaced.
@@ -220,18 +221,25 @@ StatusOr<SceneStores> prepare_scene_stores(Scene& scene, const std::optional<fs:
     std::string where;
     fs::path store_path = store_path_for(mesh, cache_dir, store_options, &where);
     if (!where.empty()) say(log, where);
-    // An existing store is reused under this memory limit only if a fresh
-    // build under it would make the same store (store_is_current).
-    std::string reason;
-    if (!store_is_current(mesh, store_path, store_options, &reason))
-      say(log, "building store " + store_path.string() + " (" + reason + ")");
-    auto report = build_store(mesh, store_path, store_options);
-    if (!report.is_ok()) return report.status();
+    BuildReport report;
+    report.reused = true;
+    if (check_stores) {
+      // An existing store is reused under this memory limit only if a fresh
+      // build under it would make the same store (store_is_current).
+      std::string reason;
+      if (!store_is_current(mesh, store_path, store_options, &reason))
+        say(log, "building store " + store_path.string() + " (" + reason + ")");
+      RAYLOD_ASSIGN_OR_RETURN(report, build_store(mesh, store_path, store_options));
+    }
+    struct stat st {};
+    if (::stat(store_path.c_str(), &st) != 0) return Status::error(store_path.string() + ": " + std::strerror(errno));
+    out.store_files.push_back(std::to_string(st.st_ino) + " " + std::to_string(st.st_size) + " " +
+                              std::to_string(st.st_mtim.tv_sec) + "." + std::to_string(st.st_mtim.tv_nsec));
     auto store = OctreeStore::open(store_path);
     if (!store.is_ok()) return store.status();
     out.triangles += (*store)->header().triangle_count;
     out.store_paths.push_back(store_path);
-    out.builds.push_back(*report);
+    out.builds.push_back(report);
     out.stores.push_back(std::move(store.value()));
   }
   for (size_t i = 0; i < out.stores.size(); ++i) out.probe_stores.push_back(ProbeStore{out.stores[i].get(), out.store_paths[i]});
@@ -260,7 +268,11 @@ void remove_dead_staged_meshes(const fs::path& dir) {
 // false if no store was found corrupt (the failure was something else).
 StatusOr<bool> repair_corrupt_stores(SceneStores& stores, const std::string& stage,
                                      bool& repaired, const LogFn& log) {
-  if (repaired) return false;
+  // Under mpirun a store is not rebuilt in the middle of the job: the other
+  // ranks have it open (on NFS, a file replaced under another node fails its
+  // reads). The corruption, recorded beside the store, ends the job; the
+  // next run's check on rank 0 rebuilds the store.
+  if (repaired || cluster::active()) return false;
   bool rebuilt = false;
   for (size_t i = 0; i < stores.stores.size(); ++i) {
     const fs::path& path = stores.store_paths[i];
@@ -330,6 +342,26 @@ void ScratchFiles::remove_all() {
   files_.clear();
 }
 
+namespace {
+
+// What tells stores apart: their paths and files (a rebuilt store is a new
+// file), sources (path, size, time, content hash), sizes and layout, one
+// line each. The inode, not the device: NFS clients agree on the first only.
+std::string store_identities(const SceneStores& stores) {
+  std::string ids;
+  for (size_t i = 0; i < stores.stores.size(); ++i) {
+    const StoreHeader& h = stores.stores[i]->header();
+    ids += stores.store_paths[i].string() + " " + stores.store_files[i] + " " + h.source_path + " " +
+           std::to_string(h.source_bytes) + " " +
+           std::to_string(h.source_mtime_ns) + " " + std::to_string(h.source_hash) + " " +
+           std::to_string(h.triangle_count) + " " + std::to_string(h.file_bytes) + " " +
+           std::to_string(h.quadric_depth) + " " + std::to_string(h.page_level) + "\n";
+  }
+  return ids;
+}
+
+}  // namespace
+
 StatusOr<RunSession> open_run_session(Scene& scene, const RunOptions& options, const LogFn& log) {
   RunSession session;
   const fs::path cache_dir = options.cache_dir.empty() ? default_cache_dir() : options.cache_dir;
@@ -342,18 +374,35 @@ StatusOr<RunSession> open_run_session(Scene& scene, const RunOptions& options, c
 
   // A. Stores (method step A1), reused when current.
   say(log, "[1/4] build: octree stores");
-  // Under mpirun rank 0 builds (or checks) the stores; the others wait, then open them.
+  // Under mpirun rank 0 builds (or checks) the stores. The others do not
+  // check them again (that hashes every mesh: a second per rank on a
+  // 10M-triangle mesh): they open the stores as they are meanwhile, and
+  // again once rank 0 is done if those were not the very stores it checked
+  // (it built them, or another budget names other stores).
   StatusOr<SceneStores> stores = Status::error("the stores were not prepared");
-  RAYLOD_RETURN_IF_ERROR(cluster::rank0_first([&] {
-    stores = prepare_scene_stores(scene, options.mesh_override, store_options, cache_dir, log);
-    return stores.status();
-  }));
-  session.stores = std::move(stores.value());
+  const Scene unresolved = scene;
+  if (cluster::is_root()) stores = prepare_scene_stores(scene, options.mesh_override, store_options, cache_dir, log);
+  else stores = prepare_scene_stores(scene, options.mesh_override, store_options, cache_dir, LogFn(), false);
+  RAYLOD_RETURN_IF_ERROR(cluster::agree(cluster::is_root() ? stores.status() : Status::ok()));
   if (cluster::active()) {
-    // Rank 0's budget everywhere: the same coarsening and the same BVH layout on every rank.
+    // Rank 0's budget everywhere: the same store paths, the same coarsening
+    // and the same BVH layout on every rank.
     cluster::broadcast_value(session.budget);
     session.memory_limit = session.budget.working();
+    store_options.memory_limit = session.budget.total;
+    std::string checked = cluster::is_root() ? store_identities(*stores) : std::string();
+    cluster::broadcast(checked);
+    if (!cluster::is_root() && (!stores.is_ok() || store_identities(*stores) != checked)) {
+      stores = Status::error("the stores were not prepared");  // the early ones closed first
+      scene = unresolved;
+      stores = prepare_scene_stores(scene, options.mesh_override, store_options, cache_dir, LogFn(), false);
+      if (stores.is_ok() && store_identities(*stores) != checked)
+        stores = Status::error("the stores were replaced after rank 0 checked them (rebuilt by another run?): " +
+                               stores->store_paths[0].string());
+    }
+    RAYLOD_RETURN_IF_ERROR(cluster::agree(stores.status()));
   }
+  session.stores = std::move(stores.value());
   say(log, "stores ready: " + std::to_string(session.stores.triangles) + " triangles in " +
                std::to_string(session.stores.stores.size()) + " store(s), " + fmt("%.2f s", session.stores.seconds));
   if (options.use_cache) {

@@ -42,16 +42,22 @@ struct SceneStores {
   std::vector<ProbeStore> probe_stores;
   std::vector<ProbeObject> objects;           // one per scene object
   std::vector<BuildReport> builds;            // one per store (reused or built)
+  // One per store: the file opened (inode, size, modification time, taken
+  // before opening it), which tells a rebuilt store from the one it replaced.
+  std::vector<std::string> store_files;
   uint64_t triangles = 0;                     // all stores
   double seconds = 0;
 };
 
 // Resolves generated meshes (into cache_dir), applies mesh_override to the
 // first object, and builds every store that is missing or stale (saying so
-// through log), then opens them.
+// through log), then opens them. With check_stores false the stores are
+// opened as they are, neither checked against their meshes (the content
+// hash reads the whole mesh) nor built: for the ranks of an MPI job after
+// rank 0 has checked them (open_run_session).
 StatusOr<SceneStores> prepare_scene_stores(Scene& scene, const std::optional<std::filesystem::path>& mesh_override,
                                            const StoreOptions& store_options, const std::filesystem::path& cache_dir,
-                                           const LogFn& log);
+                                           const LogFn& log, bool check_stores = true);
 
 struct RunOptions {
   std::optional<std::filesystem::path> mesh_override;

@@ -51,23 +51,37 @@ void free_probe_memory(RunSession& session) {
 #endif
 }
 
+// The order in which views are handed out to ranks: the costliest expected
+// first (most pixels; ties in view order), so that the last views handed out
+// are short and the ranks finish together. One process renders in view order.
+std::vector<size_t> handout_order(std::span<const ViewStats> views) {
+  std::vector<size_t> order(views.size());
+  for (size_t i = 0; i < order.size(); ++i) order[i] = i;
+  if (!cluster::active()) return order;
+  auto pixels = [&](size_t i) { return uint64_t(views[i].camera.width) * uint64_t(views[i].camera.height); };
+  std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) { return pixels(a) > pixels(b); });
+  return order;
+}
+
 // Renders the views the work queue hands this rank (every view, in order, on
 // one process), stopping at the first failure; then the ranks agree.
-Status for_each_view(size_t count, const std::function<Status(size_t)>& view, std::optional<Progress>& progress,
+Status for_each_view(const std::function<Status(size_t)>& view, std::optional<Progress>& progress,
                      std::vector<size_t>& done, ViewsResult& out) {
   Status failed;
+  const std::vector<size_t> order = handout_order(out.views);
   {
-    cluster::WorkQueue queue(count);
+    cluster::WorkQueue queue(order.size());
     out.ranks = cluster::size();
     out.dynamic_handout = queue.dynamic() || !cluster::active();
-    while (const std::optional<uint64_t> i = queue.next()) {
-      out.views[size_t(*i)].rank = cluster::rank();
-      failed = view(size_t(*i));
+    while (const std::optional<uint64_t> next = queue.next()) {
+      const size_t i = order[size_t(*next)];
+      out.views[i].rank = cluster::rank();
+      failed = view(i);
       if (!failed) {
         queue.stop();
         break;
       }
-      done.push_back(size_t(*i));
+      done.push_back(i);
       if (progress) progress->advance(1);
     }
   }
@@ -172,7 +186,7 @@ StatusOr<ViewsResult> run_views(Scene scene, std::span<const Camera> cameras, co
       for (const SimplifiedMesh& m : staged.meshes) v.cache_notes.push_back(m.cache_note);
       return render_view(session, scene, cameras[i], staged.meshes, inner, i, on_image, log, v);
     };
-    RAYLOD_RETURN_IF_ERROR(for_each_view(cameras.size(), one_view, progress, mine, out));
+    RAYLOD_RETURN_IF_ERROR(for_each_view(one_view, progress, mine, out));
   } else {
     // Every view's test rays (the views dealt to the ranks), then one cut
     // over all of them, the same on every rank.
@@ -213,7 +227,7 @@ StatusOr<ViewsResult> run_views(Scene scene, std::span<const Camera> cameras, co
       say(log, "view " + std::to_string(i + 1) + of + ": render");
       return render_view(session, scene, cameras[i], staged.meshes, inner, i, on_image, log, v);
     };
-    RAYLOD_RETURN_IF_ERROR(for_each_view(cameras.size(), one_view, progress, mine, out));
+    RAYLOD_RETURN_IF_ERROR(for_each_view(one_view, progress, mine, out));
   }
   if (progress) progress->finish();
   out.peak_rss = peak_rss_bytes();

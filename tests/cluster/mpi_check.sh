@@ -6,7 +6,14 @@
 # CASE: render (one frame, with a depth AOV) | run (one view: image, cut and
 # mesh; and `raylod probe`'s cut) | views (3 views, a cut each) | shared-cut
 # (3 views, one cut) | fail (a bad views file and an unreadable mesh: non-zero
-# exit, the error printed once by rank 0, no image written).
+# exit, the error printed once by rank 0, no image written) | fail-rank (one
+# rank fails: its mesh unreadable, rank 0's image write, one view's image
+# write: non-zero exit, the error with the rank printed once by rank 0, no
+# image and no temporary written) | kill-rank (the last rank killed with
+# SIGKILL while writing an image: the job ends, no complete image of that
+# view, and the next run removes the dead rank's temporary) | corrupt-store
+# (a page of the store damaged: the job ends with the checksum error, no
+# image; the next run rebuilds the store and renders what one process does).
 # Everything happens in a temporary folder removed on exit, pass or fail.
 set -euo pipefail
 mpiexec="$1" raylod="$2" np="$3" case="$4"
@@ -107,6 +114,94 @@ case "$case" in
     done
     [ -z "$(ls -A mpi)" ] || fail "images were written: $(ls mpi)"
     echo "every failure exited non-zero with one error and no image"
+    ;;
+  fail-rank)
+    # No file but the images asked for: no temporaries (NAME.tmp-...), no partial image.
+    no_temporaries() {
+      local left
+      left="$(find mpi -name '*.tmp-*')"
+      [ -z "$left" ] || fail "temporaries left: $left"
+    }
+    # A status and stderr of the last command: non-zero, and the error once, from rank 0.
+    expect_error() {
+      [ "$status" -ne 0 ] || fail "$1: exited 0"
+      [ "$(grep -c -- "$2" <<<"$out")" -eq 1 ] || fail "$1: '$2' is not printed once: $out"
+    }
+    printf 'ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n\0\0\0\0' > broken.ply
+    # The last rank alone reads a broken mesh (MPMD: its own arguments): it
+    # fails loading, the others wait at the agreement, rank 0 names it.
+    last=$((np - 1))
+    status=0
+    out="$("$mpiexec" --allow-run-as-root --oversubscribe -np "$last" "$raylod" render scene.json -o mpi/f.png -q --threads 1 : \
+           -np 1 "$raylod" render scene.json --mesh broken.ply -o mpi/f.png -q --threads 1 2>&1)" || status=$?
+    expect_error "render, a broken mesh on rank $last" "raylod render: error: rank $last of $np: broken.ply: truncated"
+    [ ! -e mpi/f.png ] || fail "render with a broken mesh on rank $last wrote mpi/f.png"
+    no_temporaries
+    # Rank 0 cannot write the frame (its name is a folder): the others learn it.
+    mkdir mpi/g.png
+    status=0
+    out="$(mpi render scene.json -o mpi/g.png -q 2>&1)" || status=$?
+    expect_error "render, rank 0's write failing" "raylod render: error: rank 0 of $np: mpi/g.png: could not rename into place"
+    [ -z "$(ls -A mpi/g.png)" ] || fail "something was written into mpi/g.png"
+    rmdir mpi/g.png
+    no_temporaries
+    # View 1's image cannot be written (a folder of its name) on whichever
+    # rank renders it: the job fails with that rank's error, other views'
+    # images are whole or absent.
+    mkdir mpi/v_01.png
+    status=0
+    out="$(RAYLOD_CACHE_DIR="$tmp/cache-mpi" mpi run scene.json --views views.json -o mpi/v_##.png --rays 500 -q 2>&1)" ||
+      status=$?
+    expect_error "run --views, view 1's write failing" \
+      "raylod run: error: rank [0-9]* of $np: mpi/v_01.png: could not rename into place"
+    [ -z "$(ls -A mpi/v_01.png)" ] || fail "something was written into mpi/v_01.png"
+    rmdir mpi/v_01.png
+    # Every image written is whole: the same bytes as one process's.
+    RAYLOD_CACHE_DIR="$tmp/cache-one" one run scene.json --views views.json -o one/v_##.png --rays 500 -q
+    for f in mpi/v_*.png; do [ -e "$f" ] && same "$f" "one/${f#mpi/}"; done
+    no_temporaries
+    echo "every failure of one rank exited non-zero with that rank's error once and no partial image"
+    ;;
+  kill-rank)
+    # The last rank dies (SIGKILL, as a lost node) after writing its first
+    # image to a temporary: mpirun ends the job (no rank waits forever).
+    last=$((np - 1))
+    status=0
+    out="$(RAYLOD_CACHE_DIR="$tmp/cache-mpi" "$mpiexec" --allow-run-as-root --oversubscribe \
+           -np "$last" "$raylod" run scene.json --orbit 8 -o mpi/v_##.png --rays 300 -q --threads 1 : \
+           -np 1 -x RAYLOD_FAULT_POINT=image.before_rename \
+           "$raylod" run scene.json --orbit 8 -o mpi/v_##.png --rays 300 -q --threads 1 2>&1)" || status=$?
+    [ "$status" -ne 0 ] || fail "a killed rank: the job exited 0"
+    grep -q "rank $last .*signal 9" <<<"$out" || fail "mpirun does not say rank $last was killed: $out"
+    left="$(find mpi -name '*.tmp-*')"
+    [ -n "$left" ] || fail "the killed rank left no temporary (did it render a view?)"
+    # Its view has no image, only the temporary; the next run removes it.
+    for t in $left; do [ ! -e "${t%%.tmp-*}" ] || fail "${t%%.tmp-*} was written by a killed rank"; done
+    RAYLOD_CACHE_DIR="$tmp/cache-mpi" mpi run scene.json --orbit 8 -o mpi/v_##.png --rays 300 -q
+    [ -z "$(find mpi -name '*.tmp-*')" ] || fail "the next run left temporaries: $(find mpi -name '*.tmp-*')"
+    [ "$(find mpi -name 'v_*.png' | wc -l)" -eq 8 ] || fail "the next run did not write the 8 images"
+    echo "a killed rank ended the job; the next run removed its temporary"
+    ;;
+  corrupt-store)
+    # The store built by one process, then one byte of its page data (the
+    # file's last part) changed: the ranks' probes read the page and fail.
+    one build mesh.ply -q >/dev/null 2>&1
+    size=$(stat -c %s mesh.ply.raylod)
+    printf '\xa5' | dd of=mesh.ply.raylod bs=1 seek=$((size - 5000)) conv=notrunc status=none
+    status=0
+    out="$(RAYLOD_CACHE_DIR="$tmp/cache-mpi" mpi run scene.json --views views.json -o mpi/v_##.png --rays 500 -q 2>&1)" ||
+      status=$?
+    [ "$status" -ne 0 ] || fail "a corrupt store: exited 0"
+    [ "$(grep -c 'raylod run: error: .*mesh.ply.raylod: page 0 .*checksum mismatch' <<<"$out")" -eq 1 ] ||
+      fail "a corrupt store: the checksum error is not printed once: $out"
+    [ -e mesh.ply.raylod.corrupt ] || fail "the corruption was not recorded beside the store"
+    [ -z "$(ls -A mpi)" ] || fail "images or temporaries were written: $(ls -A mpi)"
+    # The next run's check (rank 0) rebuilds the store; the images are one process's.
+    RAYLOD_CACHE_DIR="$tmp/cache-mpi" mpi run scene.json --views views.json -o mpi/v_##.png --rays 500 -q
+    [ ! -e mesh.ply.raylod.corrupt ] || fail "the store was not rebuilt"
+    RAYLOD_CACHE_DIR="$tmp/cache-one" one run scene.json --views views.json -o one/v_##.png --rays 500 -q
+    for i in 00 01 02; do same "mpi/v_$i.png" "one/v_$i.png"; done
+    echo "a corrupt store ended the job with its error; the next run rebuilt it"
     ;;
   *) fail "unknown case $case" ;;
 esac

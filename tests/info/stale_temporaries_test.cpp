@@ -5,10 +5,12 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <csignal>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <string>
+#include <vector>
 
 #include "core/system.h"
 #include "test_tmp.h"
@@ -57,6 +59,56 @@ TEST(StaleTemporaries, DeadProcessTemporaryByName) {
   EXPECT_FALSE(is_dead_process_temporary("k.drc.tmp-insert"));
   EXPECT_FALSE(is_dead_process_temporary("k.drc"));
   EXPECT_FALSE(is_dead_process_temporary(".tmp-" + dead + "-0-1"));
+}
+
+TEST(StaleTemporaries, NamesCarryTheMachineAndOtherMachinesAreNeverJudged) {
+  // Under mpirun several machines write to one shared folder: a pid of
+  // another machine that is not running here says nothing about its process.
+  const std::string dead = std::to_string(dead_pid());
+  const std::string here = process_tag().substr(process_tag().find('@') + 1);
+  EXPECT_EQ(process_tag(), std::to_string(::getpid()) + "@" + here);
+  EXPECT_EQ(here.find('-'), std::string::npos);
+  EXPECT_TRUE(is_dead_process_temporary("v_01.png.tmp-" + dead + "@" + here + "-0-12"));
+  EXPECT_FALSE(is_dead_process_temporary("v_01.png.tmp-" + dead + "@other" + here + "-0-12"));
+  EXPECT_FALSE(is_dead_process_temporary("v_01.png.tmp-" + dead + "@" + here));
+  EXPECT_FALSE(is_dead_process_temporary("v_01.png.tmp-" + std::to_string(::getpid()) + "@" + here + "-0-12"));
+
+  const std::filesystem::path dir = test::scratch_dir("stale-temporaries-hosts");
+  const std::filesystem::path dest = dir / "v_01.png";
+  const std::string other = dest.filename().string() + ".tmp-" + dead + "@other" + here + "-0-1";
+  const std::string mine = dest.filename().string() + ".tmp-" + dead + "@" + here + "-0-2";
+  for (const std::string& f : {other, mine}) std::ofstream(dir / f) << "partial";
+  {
+    AtomicOutput out(dest);
+    EXPECT_NE(out.temp_path().filename().string().find(".tmp-" + process_tag() + "-"), std::string::npos);
+    std::ofstream(out.temp_path()) << "image";
+    ASSERT_TRUE(out.commit().is_ok());
+  }
+  EXPECT_TRUE(std::filesystem::exists(dir / other)) << "another machine's temporary was removed";
+  EXPECT_FALSE(std::filesystem::exists(dir / mine));
+  std::filesystem::remove_all(dir);
+}
+
+// mpirun ends the other ranks of a failed job with SIGTERM: a rank that was
+// writing an image removes its temporary before it dies; what it committed
+// stays.
+TEST(StaleTemporaries, TerminatedProcessRemovesItsLiveTemporaries) {
+  const std::filesystem::path dir = test::scratch_dir("sigterm-temporaries");
+  EXPECT_EXIT(
+      {
+        AtomicOutput done(dir / "v_00.png");
+        std::ofstream(done.temp_path()) << "image";
+        if (!done.commit().is_ok()) std::_Exit(1);
+        AtomicOutput live(dir / "v_01.png");
+        std::ofstream(live.temp_path()) << "partial";
+        std::raise(SIGTERM);
+        std::_Exit(2);
+      },
+      testing::KilledBySignal(SIGTERM), "");
+  std::vector<std::string> left;
+  for (const auto& e : std::filesystem::directory_iterator(dir)) left.push_back(e.path().filename().string());
+  EXPECT_EQ(left, std::vector<std::string>{"v_00.png"});
+  std::filesystem::remove_all(dir);
 }
 
 TEST(StaleTemporaries, RunRemovesMeshesStagedInTheTempFolderByKilledRuns) {
