@@ -727,6 +727,11 @@ StatusOr<RunResult> run_pipeline(Scene scene, const RunOptions& options, const L
   result.seconds.probe = seconds_since(t_probe);
 
   // C. Simplify (A5), or reuse a cached simplified mesh that is fine enough.
+  // The probe's page cache is gone: give its memory back to the system, or
+  // the allocator's arenas keep it resident beside simplify's.
+#if defined(__GLIBC__)
+  malloc_trim(0);
+#endif
   say(log, "[3/4] simplify");
   auto t_simplify = std::chrono::steady_clock::now();
   RAYLOD_ASSIGN_OR_RETURN(StagedMeshes staged, simplify_or_reuse_on_ranks(session, scene, result.cuts, options, log));
