@@ -241,7 +241,7 @@ Status read_header(int fd, const std::filesystem::path& path, StoreHeader& h, La
             r.get(h.triangle_count) && r.get(normals) && r.get(coarsened) && r.get_vec(h.origin) &&
             r.get_vec(h.root_lo) && r.get(h.root_size) && r.get(qd) && r.get(pl) && r.get_vec(h.bounds.lo) &&
             r.get_vec(h.bounds.hi) && r.get(levels);
-  if (ok && levels == uint32_t(qd) + 1 && levels <= kMaxLevel + 1) {
+  if (ok && qd >= 0 && levels == uint32_t(qd) + 1 && levels <= kMaxLevel + 1) {
     l.level_counts.assign(levels, 0);
     for (auto& c : l.level_counts) ok = ok && r.get(c);
   } else {
@@ -267,7 +267,8 @@ Status read_header(int fd, const std::filesystem::path& path, StoreHeader& h, La
   // level above holds at most as many nodes as the one below it.
   for (size_t i = l.level_counts.size(); i-- > 0;) {
     const uint64_t c = l.level_counts[i];
-    const uint64_t cap = i + 1 == l.level_counts.size() ? size / (kLeafFixedBytes + 2) : l.level_counts[i + 1];
+    uint64_t cap = i + 1 == l.level_counts.size() ? size / (kLeafFixedBytes + 2) : l.level_counts[i + 1];
+    cap = std::min<uint64_t>(cap, uint64_t(1) << std::min<size_t>(3 * i, 63));  // level i has at most 8^i cells
     if (c > cap || (c == 0) != (l.level_counts.back() == 0))
       return Status::error(name + ": malformed store header (node counts)");
     nodes += c;
@@ -373,7 +374,10 @@ class FileStore final : public OctreeStore {
     }
     // A page whose checksum matches but does not decode was written wrong
     // (or deliberately altered): an error, but not a record of corruption.
-    Status decoded = decode_page(bytes, grid_, batch);
+    // The page's own counts first: decoding sizes its output from them.
+    Status decoded = page_counts(bytes).triangles == page.triangle_count
+                         ? decode_page(bytes, grid_, batch)
+                         : Status::error("its triangle count is not the page table's");
     if (decoded.is_ok() && (batch.size() != page.triangle_count || batch.normals.empty() == header_.has_normals))
       decoded = Status::error("its counts do not match the page table");
     if (!decoded.is_ok()) {
@@ -403,11 +407,11 @@ class FileStore final : public OctreeStore {
     uint64_t expect = layout_.data_offset, triangles = 0;
     for (size_t i = 0; i < pages_.size(); ++i) {
       const auto& p = pages_[i];
-      // A page of n triangles has at least 24 + 3n/8 bytes (one bit per index) and
-      // at most 24 + 3n x (12 + 4 + 4) bytes.
+      // A page of n triangles has at least 24 + 3n/8 bytes (indices take at
+      // least one bit) and at most 24 + 3n x (12 + 4 + 4) bytes.
       const uint64_t n = p.triangle_count;
       if (p.offset != expect || (i > 0 && pages_[i - 1].code >= p.code) || p.bytes > layout_.file_bytes - expect ||
-          p.bytes < 24 || p.bytes > 24 + 60 * n)
+          p.bytes < 24 + (3 * n + 7) / 8 || p.bytes > 24 + 60 * n)
         return Status::error(name + ": page table is inconsistent at page " + std::to_string(i));
       expect += p.bytes;
       triangles += p.triangle_count;
@@ -447,7 +451,7 @@ class FileStore final : public OctreeStore {
       const size_t a = get_varint(buffer.data() + at, buffer.size() - at, delta);
       const size_t b = a ? get_varint(buffer.data() + at + a, buffer.size() - at - a, corners) : 0;
       const bool code_ok = (i == 0 || delta > 0) && delta <= UINT64_MAX - previous &&
-                           (depth >= 21 || ((previous + delta) >> (3 * depth)) == 0);
+                           ((previous + delta) >> (3 * depth)) == 0;  // depth <= 21: a shift of at most 63
       if (!b || buffer.size() - at - a - b < kLeafFixedBytes || !code_ok) {
         // A checksum mismatch is the better diagnosis, if there is one.
         while (read < layout_.node_table_bytes) {

@@ -28,9 +28,9 @@
 //     are the tight bounds of the page's triangles and cover them. Within a
 //     page triangles keep their input order. Pages are sorted by code.
 //   - Page bytes: indexed vertices, positions quantised on one grid for the
-//     whole store (1/4096 of the finest quadric cell or finer, so a decoded
-//     position is within 1/8192 of that cell per axis of the input, wherever
-//     the model sits) and octahedral normals (streaming/page_codec.h);
+//     whole store (1/4096 of the finest quadric cell or finer up to depth 18,
+//     so a decoded position is within 1/8192 of that cell per axis of the
+//     input, wherever the model sits) and octahedral normals (streaming/page_codec.h);
 //     CRC-32C over the page (crc32c below). read_page gives them back as a
 //     float triangle soup in the page's input order.
 //   - The store does not depend on the thread count (byte-identical files).

@@ -52,6 +52,11 @@ inline uint32_t get_bits(const uint8_t* data, size_t size, uint64_t at, int bits
 
 inline uint64_t packed_bytes(uint64_t count, int bits) { return (count * uint64_t(bits) + 7) / 8; }
 
+// Bits per vertex index: at least one whenever there are vertices (even one),
+// so that a page's size grows with its triangle count and a short page cannot
+// claim billions of triangles.
+inline int index_bits_for(uint32_t vertices) { return vertices > 0 ? std::max(1, int(std::bit_width(vertices - 1))) : 0; }
+
 inline uint32_t quantise(float v, double lo, double inv_step, uint32_t max) {
   const double q = std::nearbyint((double(v) - lo) * inv_step);
   return q <= 0 ? 0 : q >= double(max) ? max : uint32_t(q);
@@ -195,7 +200,7 @@ Bbox encode_page(std::span<const uint32_t> positions, std::span<const uint32_t> 
   uint32_t extent = 0;
   for (int a = 0; a < 3 && nv > 0; ++a) extent = std::max(extent, top[a] - origin[a]);
   const int position_bits = std::bit_width(extent);
-  const int index_bits = nv > 0 ? std::bit_width(uint32_t(nv - 1)) : 0;
+  const int index_bits = index_bits_for(uint32_t(nv));
 
   out.reserve(kHeaderBytes + packed_bytes(3 * nv, position_bits) + (has_normals ? 4 * nv : 0) +
               packed_bytes(corners, index_bits));
@@ -251,7 +256,7 @@ Status parse_page(std::span<const uint8_t> bytes, const PageGrid& grid, GridPage
   if (p[22] > 1 || p[23] != 0) return Status::error("page header has unknown flags");
   if ((nt == 0) != (nv == 0) || uint64_t(nv) > 3 * uint64_t(nt))
     return Status::error("page has " + std::to_string(nt) + " triangles and " + std::to_string(nv) + " vertices");
-  if (position_bits > 31 || index_bits != (nv > 0 ? int(std::bit_width(nv - 1)) : 0))
+  if (position_bits > 31 || index_bits != index_bits_for(nv))
     return Status::error("page has bad bit widths");
   const uint64_t pos_bytes = packed_bytes(3 * uint64_t(nv), position_bits);
   const uint64_t nrm_bytes = out.has_normals ? 4 * uint64_t(nv) : 0;

@@ -7,7 +7,8 @@
 // Positions are quantised on one grid for the whole store (PageGrid): the
 // root cube divided into 2^bits steps per axis, bits = the planned quadric
 // depth + 12 (at least 20, at most 30), so a step is 1/4096 of the finest
-// quadric cell or finer. The build quantises every corner as it reads it, and
+// quadric cell or finer up to depth 18 (the default --max-depth is 12), and
+// 2^(depth - 30) of it beyond. The build quantises every corner as it reads it, and
 // computes quadrics, sums and pages from the quantised mesh, so the store is
 // consistent with what read_page gives back. A vertex is the integer point nearest to it, so the error per
 // axis is at most half a step (1/8192 of the finest cell), wherever the model
@@ -21,7 +22,7 @@
 // Normals are octahedral-encoded in two int16 (under 1e-4 rad of error; the
 // largest over 2M random unit normals was 4.3e-5 rad); a
 // zero normal keeps a code of its own. Indices use index_bits bits (the bit
-// width of vertex_count - 1).
+// width of vertex_count - 1, at least 1).
 //
 // Page bytes (little-endian):
 //   u32 triangle_count, u32 vertex_count, u32 origin[3] (grid point),

@@ -37,9 +37,8 @@ void repair_checksums(std::string& bytes) {
     fuzz::MemFile file(reinterpret_cast<const uint8_t*>(bytes.data()), bytes.size());
     if (!store_format::read_header(file.fd(), file.path(), h, l)) return;
   }
-  uint64_t nodes = 0;
-  for (uint64_t c : l.level_counts) nodes += c;
-  if (nodes > bytes.size() / sizeof(NodeRecord) || l.page_count > bytes.size() / sizeof(PageInfo)) return;
+  // Only the leaves are on disk: the node table is l.node_table_bytes long.
+  if (l.node_table_bytes > bytes.size() || l.page_count > bytes.size() / sizeof(PageInfo)) return;
   l.node_table_crc = crc_of(bytes, l.node_table_offset, l.node_table_bytes);
   const uint64_t page_table_bytes = l.page_count * sizeof(PageInfo);
   if (l.page_table_offset <= bytes.size() && page_table_bytes <= bytes.size() - l.page_table_offset) {

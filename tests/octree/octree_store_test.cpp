@@ -192,6 +192,15 @@ TEST(OctreeStore, RefusesAHeaderWhoseCountsWrapAroundWithAValidChecksum) {
     ASSERT_NO_THROW(opened = OctreeStore::open(p));
     expect_error_contains(opened.status(), {p.string(), "malformed store header"});
   }
+  {  // A negative quadric depth with no levels: refused, not read as level -1.
+    StoreHeader negative = h;
+    negative.quadric_depth = -1;
+    store_format::Layout none = l;
+    none.level_counts.clear();
+    const std::string header = store_format::encode_header(negative, none);
+    ASSERT_TRUE(store_format::pwrite_all(fd, header.data(), header.size(), 0, p).is_ok());
+    expect_error_contains(OctreeStore::open(p).status(), {p.string(), "malformed store header"});
+  }
   ::close(fd);
 }
 

@@ -141,6 +141,16 @@ TEST(PageCodec, MalformedBytesAreRefused) {
   refused(put(e.bytes, 4, 7), "more vertices than the bytes hold");
   refused(put(e.bytes, 4, 0), "triangles without vertices");
   refused(put(e.bytes, 8, (1u << 20) + 1), "origin outside the root cube");
+  // 24 bytes claiming 2^32 - 1 triangles of one vertex: indices take a bit
+  // each, so such a page would need over a gigabyte, and is refused before
+  // anything is allocated for it.
+  std::vector<uint8_t> claims(24, 0);
+  const uint32_t many = 0xffffffffu, one_vertex = 1;
+  std::memcpy(claims.data(), &many, 4);
+  std::memcpy(claims.data() + 4, &one_vertex, 4);
+  refused(claims, "a short page claiming billions of triangles");
+  claims[21] = 1;
+  refused(claims, "the same with one index bit");
   auto wide = e.bytes;
   wide[21] = 3;  // index width not that of 4 vertices
   refused(wide, "index width");
