@@ -55,6 +55,7 @@
 
 #include "core/progress.h"
 #include "core/fault_point.h"
+#include "core/ordered_pipeline.h"
 #include "core/parallelism.h"
 #include "core/system.h"
 #include "streaming/octree_format.h"
@@ -826,20 +827,19 @@ Status bin_pass(MeshReader& reader, size_t ntokens, const Plan& plan, bool has_n
 
 // One page in flight through write_pages.
 struct PageToken {
-  uint32_t id = 0;  // page id (PageIds)
   std::vector<uint32_t> positions, normals;  // grid coordinates, normal codes
   std::vector<uint8_t> segment;              // one run segment's bytes
   std::vector<uint8_t> bytes;
   PageEncoder encoder;
   Bbox bounds;
-  Status error;
+  uint32_t checksum = 0;  // of `bytes`
 };
 
 // Reads page `id`'s segments back from the runs (input order) and encodes it.
-Status encode_run_page(RunFile& runs, bool has_normals, const PageGrid& grid, PageToken& t) {
+Status encode_run_page(RunFile& runs, bool has_normals, const PageGrid& grid, uint32_t id, PageToken& t) {
   t.positions.clear();
   t.normals.clear();
-  for (const auto& seg : runs.segments()[t.id]) {
+  for (const auto& seg : runs.segments()[id]) {
     t.segment.resize(seg.bytes);
     RAYLOD_RETURN_IF_ERROR(pread_all(runs.fd(), t.segment.data(), seg.bytes, seg.offset, runs.path()));
     Status s = decode_page_grid(t.segment, grid, t.positions, t.normals);
@@ -848,6 +848,7 @@ Status encode_run_page(RunFile& runs, bool has_normals, const PageGrid& grid, Pa
                            s.message());
   }
   t.bounds = encode_page(t.positions, t.normals, grid, t.encoder, t.bytes);
+  t.checksum = crc32c(t.bytes.data(), t.bytes.size());
   return {};
 }
 
@@ -869,54 +870,26 @@ StatusOr<uint64_t> write_pages(int fd, const std::filesystem::path& out_path, Ru
   Progress progress("pages", binned.triangles, "triangles");
   pages.clear();
   pages.reserve(num_pages);
-  std::vector<std::unique_ptr<PageToken>> tokens;
-  tbb::concurrent_queue<PageToken*> free_tokens;
-  for (size_t i = 0; i < ntokens; ++i) {
-    tokens.push_back(std::make_unique<PageToken>());
-    free_tokens.push(tokens.back().get());
-  }
-  size_t next = 0;
-  Status failed;                   // the output stage's; the input stage reads `stop`
-  std::atomic<bool> stop{false};
-  tbb::parallel_pipeline(
-      ntokens,
-      tbb::make_filter<void, PageToken*>(tbb::filter_mode::serial_in_order,
-                                         [&](tbb::flow_control& fc) -> PageToken* {
-                                           PageToken* t = nullptr;
-                                           if (next == num_pages || stop || !free_tokens.try_pop(t)) {
-                                             fc.stop();  // ntokens bound the flight, so a token is always free
-                                             return nullptr;
-                                           }
-                                           t->id = order[next++];
-                                           return t;
-                                         }) &
-          tbb::make_filter<PageToken*, PageToken*>(tbb::filter_mode::parallel,
-                                                   [&](PageToken* t) {
-                                                     t->error = encode_run_page(runs, has_normals, grid, *t);
-                                                     return t;
-                                                   }) &
-          tbb::make_filter<PageToken*, void>(tbb::filter_mode::serial_in_order, [&](PageToken* t) {
-            if (failed.is_ok()) failed = t->error;
-            if (failed.is_ok()) failed = pwrite_all(fd, t->bytes.data(), t->bytes.size(), offset, out_path);
-            if (failed.is_ok()) {
-              PageInfo info;
-              info.code = binned.pages.codes[t->id];
-              info.offset = offset;
-              info.triangle_count = uint32_t(binned.page_counts[t->id]);
-              info.checksum = crc32c(t->bytes.data(), t->bytes.size());
-              info.bounds = t->bounds;
-              info.bytes = t->bytes.size();
-              offset += t->bytes.size();
-              pages.push_back(info);
-              progress.advance(info.triangle_count);
-              if (pages.size() == std::max<size_t>(1, num_pages / 2)) fault_point("build.pages");
-            } else {
-              stop = true;
-            }
-            free_tokens.push(t);
-          }));
+  Status written = ordered_pipeline<PageToken>(
+      num_pages, ntokens,
+      [&](PageToken& t, size_t i) { return encode_run_page(runs, has_normals, grid, order[i], t); },
+      [&](PageToken& t, size_t i) -> Status {
+        RAYLOD_RETURN_IF_ERROR(pwrite_all(fd, t.bytes.data(), t.bytes.size(), offset, out_path));
+        PageInfo info;
+        info.code = binned.pages.codes[order[i]];
+        info.offset = offset;
+        info.triangle_count = uint32_t(binned.page_counts[order[i]]);
+        info.checksum = t.checksum;
+        info.bounds = t.bounds;
+        info.bytes = t.bytes.size();
+        offset += t.bytes.size();
+        pages.push_back(info);
+        progress.advance(info.triangle_count);
+        if (pages.size() == std::max<size_t>(1, num_pages / 2)) fault_point("build.pages");
+        return {};
+      });
   progress.finish();
-  RAYLOD_RETURN_IF_ERROR(failed);
+  RAYLOD_RETURN_IF_ERROR(written);
   if (pages.size() != num_pages) return Status::error(out_path.string() + ": internal error: pages were lost");
   return offset;
 }

@@ -11,7 +11,6 @@
 #include "simplify/collapse.h"
 
 #include <algorithm>
-#include <atomic>
 #include <cassert>
 #include <chrono>
 #include <cmath>
@@ -20,9 +19,8 @@
 #include <numeric>
 #include <optional>
 
-#include <tbb/concurrent_queue.h>
-#include <tbb/parallel_pipeline.h>
 
+#include "core/ordered_pipeline.h"
 #include "core/parallelism.h"
 #include "core/progress.h"
 #include "core/system.h"
@@ -365,7 +363,6 @@ namespace {
 // A page in flight through collapse_pass: its triangles and the cut cell of
 // each corner.
 struct PageWork {
-  size_t index = 0;
   TriangleBatch batch;
   std::vector<uint32_t> cells;
   // Consecutive corners in a page are close, and each vertex is shared by
@@ -374,7 +371,6 @@ struct PageWork {
   static constexpr size_t kCache = 1 << 12;
   std::vector<uint64_t> cache_code = std::vector<uint64_t>(kCache, ~uint64_t(0));
   std::vector<uint32_t> cache_cell = std::vector<uint32_t>(kCache, kKeepVertex);
-  Status status;
 };
 
 // One pass over the store's pages collapsing `keys` (cells the store has
@@ -391,61 +387,34 @@ Status collapse_pass(const OctreeStore& store, std::span<const CellKey> keys, co
   if (config.progress) progress.emplace("simplify", pages.size(), "pages");
 
   const size_t ntokens = std::clamp<size_t>(2 * size_t(ambient_parallelism()), 2, 8);
-  std::vector<std::unique_ptr<PageWork>> pool;
-  tbb::concurrent_queue<PageWork*> free_work;
-  for (size_t i = 0; i < ntokens; ++i) {
-    pool.push_back(std::make_unique<PageWork>());
-    free_work.push(pool.back().get());
-  }
-  size_t next = 0;
-  std::atomic<bool> stop{false};
-  Status failed;
-  tbb::parallel_pipeline(
-      ntokens,
-      tbb::make_filter<void, PageWork*>(tbb::filter_mode::serial_in_order,
-                                        [&](tbb::flow_control& fc) -> PageWork* {
-                                          PageWork* w = nullptr;
-                                          if (next == pages.size() || stop || !free_work.try_pop(w)) {
-                                            fc.stop();  // ntokens bound the flight, so work is always free
-                                            return nullptr;
-                                          }
-                                          w->index = next++;
-                                          return w;
-                                        }) &
-          tbb::make_filter<PageWork*, PageWork*>(
-              tbb::filter_mode::parallel,
-              [&](PageWork* w) {
-                w->status = store.read_page(w->index, w->batch);
-                if (!w->status.is_ok()) return w;
-                w->cells.resize(w->batch.positions.size());
-                for (size_t k = 0; k < w->batch.positions.size(); ++k) {
-                  const uint64_t code = lookup.code_of(Vec3d(w->batch.positions[k]));
-                  const size_t slot = (code ^ (code >> 17)) & (PageWork::kCache - 1);
-                  if (w->cache_code[slot] != code) {
-                    w->cache_code[slot] = code;
-                    w->cache_cell[slot] = lookup.find_code(code);
-                  }
-                  w->cells[k] = w->cache_cell[slot];
-                }
-                return w;
-              }) &
-          tbb::make_filter<PageWork*, void>(tbb::filter_mode::serial_in_order, [&](PageWork* w) {
-            if (failed.is_ok()) failed = w->status;
-            if (failed.is_ok()) {
-              ++pages_read;
-              builder.add(w->batch, w->cells);
-              if (config.memory_limit && builder.memory_bytes() > config.memory_limit)
-                failed = Status::error("the simplified mesh outgrew the memory limit of " +
-                                       format_bytes(config.memory_limit) + " after " +
-                                       std::to_string(builder.triangles()) + " triangles (page " +
-                                       std::to_string(w->index + 1) + " of " + std::to_string(pages.size()) +
-                                       "); raise --memory-limit or collapse more cells");
-              if (progress) progress->advance(1);
-            }
-            if (!failed.is_ok()) stop = true;
-            free_work.push(w);
-          }));
-  RAYLOD_RETURN_IF_ERROR(failed);
+  Status done = ordered_pipeline<PageWork>(
+      pages.size(), ntokens,
+      [&](PageWork& w, size_t i) -> Status {
+        RAYLOD_RETURN_IF_ERROR(store.read_page(i, w.batch));
+        w.cells.resize(w.batch.positions.size());
+        for (size_t k = 0; k < w.batch.positions.size(); ++k) {
+          const uint64_t code = lookup.code_of(Vec3d(w.batch.positions[k]));
+          const size_t slot = (code ^ (code >> 17)) & (PageWork::kCache - 1);
+          if (w.cache_code[slot] != code) {
+            w.cache_code[slot] = code;
+            w.cache_cell[slot] = lookup.find_code(code);
+          }
+          w.cells[k] = w.cache_cell[slot];
+        }
+        return {};
+      },
+      [&](PageWork& w, size_t i) -> Status {
+        ++pages_read;
+        builder.add(w.batch, w.cells);
+        if (config.memory_limit && builder.memory_bytes() > config.memory_limit)
+          return Status::error("the simplified mesh outgrew the memory limit of " + format_bytes(config.memory_limit) +
+                               " after " + std::to_string(builder.triangles()) + " triangles (page " +
+                               std::to_string(i + 1) + " of " + std::to_string(pages.size()) +
+                               "); raise --memory-limit or collapse more cells");
+        if (progress) progress->advance(1);
+        return {};
+      });
+  RAYLOD_RETURN_IF_ERROR(done);
   if (progress) progress->finish();
   return Status::ok();
 }
