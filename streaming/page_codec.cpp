@@ -106,13 +106,13 @@ PageGrid page_grid(const Vec3d& root_lo, double root_size, int bits) {
   g.lo = root_lo;
   g.bits = bits;
   g.step = std::ldexp(root_size, -bits);
+  g.inv_step = 1.0 / g.step;
   return g;
 }
 
 void quantise_position(const Vec3& p, const PageGrid& g, uint32_t q[3]) {
-  const double inv_step = 1.0 / g.step;  // exact: a power of two
   const uint32_t max_q = uint32_t(1) << g.bits;
-  for (int a = 0; a < 3; ++a) q[a] = quantise(p[a], g.lo[a], inv_step, max_q);
+  for (int a = 0; a < 3; ++a) q[a] = quantise(p[a], g.lo[a], g.inv_step, max_q);
 }
 
 Vec3 grid_position(const uint32_t q[3], const PageGrid& g) {

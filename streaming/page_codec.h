@@ -48,6 +48,7 @@ namespace raylod {
 struct PageGrid {
   Vec3d lo{0};     // the root cube's corner (world)
   double step = 1; // grid spacing (world), root_size / 2^bits, a power of two times root_size
+  double inv_step = 1;  // 1 / step (exact: a power of two)
   int bits = 20;   // grid points per axis: 2^bits + 1
 };
 
