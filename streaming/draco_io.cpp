@@ -95,6 +95,9 @@ int choose_position_bits(double extent, double max_abs, double max_error) {
   return kMaxDracoBits;
 }
 
+// The geometry metadata entry holding IndexedMesh::origin.
+constexpr const char* kOriginEntry = "raylod_origin";
+
 StatusOr<DracoEncoded> encode_draco(const std::filesystem::path& path, const IndexedMesh& mesh,
                                      const DracoOptions& options) {
   RAYLOD_RETURN_IF_ERROR(check_mesh(path, mesh));
@@ -169,6 +172,12 @@ StatusOr<DracoEncoded> encode_draco(const std::filesystem::path& path, const Ind
   dm.DeduplicateAttributeValues();
   dm.DeduplicatePointIds();
 
+  if (mesh.origin != Vec3d(0)) {
+    auto metadata = std::make_unique<draco::GeometryMetadata>();
+    metadata->AddEntryDoubleArray(kOriginEntry, {mesh.origin.x, mesh.origin.y, mesh.origin.z});
+    dm.AddMetadata(std::move(metadata));
+  }
+
   draco::Encoder encoder;
   encoder.SetAttributeQuantization(draco::GeometryAttribute::POSITION, report.position_bits);
   if (normals) encoder.SetAttributeQuantization(draco::GeometryAttribute::NORMAL, report.normal_bits);
@@ -228,6 +237,14 @@ StatusOr<IndexedMesh> decode_draco(const char* data, size_t size, const std::str
   if (nrm && nrm->num_components() != 3) nrm = nullptr;
 
   IndexedMesh mesh;
+  if (const draco::GeometryMetadata* metadata = dm->GetMetadata()) {
+    std::vector<double> origin;
+    if (metadata->GetEntryDoubleArray(kOriginEntry, &origin)) {
+      if (origin.size() != 3 || !is_finite(Vec3d(origin[0], origin[1], origin[2])))
+        return Status::error(where + "bad " + kOriginEntry + " metadata (expected 3 finite numbers)");
+      mesh.origin = Vec3d(origin[0], origin[1], origin[2]);
+    }
+  }
   const uint32_t n = dm->num_points();
   mesh.positions.resize(n);
   if (nrm) mesh.normals.resize(n);
@@ -269,6 +286,7 @@ class DracoReader final : public MeshReader {
     header_.face_count = mesh_.triangle_count();
     header_.has_normals = !mesh_.normals.empty();
     header_.file_bytes = bytes;
+    header_.origin = mesh_.origin;
   }
 
   StatusOr<bool> next(TriangleBatch& batch) override {

@@ -10,6 +10,11 @@
 namespace raylod {
 
 struct IndexedMesh {
+  // Positions are relative to this point (the mesh's local origin,
+  // MeshHeader::origin): (0, 0, 0) unless the mesh lies far from zero. A .drc
+  // file carries it as the geometry metadata entry "raylod_origin" (three
+  // doubles), so the file's coordinates are origin + position.
+  Vec3d origin{0};
   std::vector<Vec3> positions;
   std::vector<Vec3> normals;      // empty or one per position
   std::vector<uint32_t> indices;  // 3 per triangle

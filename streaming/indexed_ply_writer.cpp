@@ -21,7 +21,15 @@ inline void put32(unsigned char* dst, uint32_t v) {
 }
 inline void put_float(unsigned char* dst, float f) { put32(dst, std::bit_cast<uint32_t>(f)); }
 
-size_t vertex_record_bytes(const IndexedPlyLayout& l) { return l.normals ? 24 : 12; }
+inline void put_double(unsigned char* dst, double d) {
+  const uint64_t v = std::bit_cast<uint64_t>(d);
+  put32(dst, uint32_t(v));
+  put32(dst + 4, uint32_t(v >> 32));
+}
+
+bool double_positions(const IndexedPlyLayout& l) { return l.origin != Vec3d(0); }
+size_t position_bytes(const IndexedPlyLayout& l) { return double_positions(l) ? 24 : 12; }
+size_t vertex_record_bytes(const IndexedPlyLayout& l) { return position_bytes(l) + (l.normals ? 12 : 0); }
 constexpr size_t kFaceRecordBytes = 1 + 3 * 4;
 
 }  // namespace
@@ -31,7 +39,8 @@ std::string indexed_ply_header(const IndexedPlyLayout& l) {
   h << "ply\nformat binary_little_endian 1.0\n";
   for (const auto& c : l.comments) h << "comment " << c << "\n";
   h << "element vertex " << l.vertex_count << "\n"
-    << "property float x\nproperty float y\nproperty float z\n";
+    << (double_positions(l) ? "property double x\nproperty double y\nproperty double z\n"
+                            : "property float x\nproperty float y\nproperty float z\n");
   if (l.normals) h << "property float nx\nproperty float ny\nproperty float nz\n";
   h << "element face " << l.face_count << "\n"
     << "property list uchar int vertex_indices\nend_header\n";
@@ -98,7 +107,8 @@ Status IndexedPlyWriter::append_vertices(std::span<const Vec3> positions, std::s
                 std::to_string(normals.size()) + " normals");
   if (vertices_ + positions.size() > layout_.vertex_count)
     return fail("more vertices than the " + std::to_string(layout_.vertex_count) + " declared");
-  const size_t rec = vertex_record_bytes(layout_);
+  const size_t rec = vertex_record_bytes(layout_), pb = position_bytes(layout_);
+  const bool wide = double_positions(layout_);
   const size_t per_batch = kStagingBytes / rec;
   for (size_t first = 0; first < positions.size(); first += per_batch) {
     const size_t n = std::min(per_batch, positions.size() - first);
@@ -107,13 +117,20 @@ Status IndexedPlyWriter::append_vertices(std::span<const Vec3> positions, std::s
     staging_.resize(at + n * rec);
     unsigned char* dst = staging_.data() + at;
     for (size_t i = first; i < first + n; ++i, dst += rec) {
-      put_float(dst + 0, positions[i].x);
-      put_float(dst + 4, positions[i].y);
-      put_float(dst + 8, positions[i].z);
+      if (wide) {
+        const Vec3d p = layout_.origin + Vec3d(positions[i]);
+        put_double(dst + 0, p.x);
+        put_double(dst + 8, p.y);
+        put_double(dst + 16, p.z);
+      } else {
+        put_float(dst + 0, positions[i].x);
+        put_float(dst + 4, positions[i].y);
+        put_float(dst + 8, positions[i].z);
+      }
       if (layout_.normals) {
-        put_float(dst + 12, normals[i].x);
-        put_float(dst + 16, normals[i].y);
-        put_float(dst + 20, normals[i].z);
+        put_float(dst + pb + 0, normals[i].x);
+        put_float(dst + pb + 4, normals[i].y);
+        put_float(dst + pb + 8, normals[i].z);
       }
     }
     bytes_ += n * rec;

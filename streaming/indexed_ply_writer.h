@@ -6,7 +6,8 @@
 // (AtomicOutput), so a failure never leaves a partial mesh under the name.
 //
 // Layout (what streaming/ply_reader reads, and every common PLY tool):
-//   element vertex V: float x y z [nx ny nz]
+//   element vertex V: float x y z [nx ny nz]   (double x y z when the layout
+//                     has an origin: origin + position, in full precision)
 //   element face F:   list uchar int vertex_indices   (always 3)
 // Memory: one staging buffer of at most kStagingBytes plus the caller's chunk.
 #pragma once
@@ -30,6 +31,9 @@ struct IndexedPlyLayout {
   uint64_t face_count = 0;         // triangles
   bool normals = true;             // write nx ny nz per vertex
   std::vector<std::string> comments;  // "comment" header lines (no newlines)
+  // Positions are relative to this point (IndexedMesh::origin); when it is
+  // not (0, 0, 0) they are written as double x y z = origin + position.
+  Vec3d origin{0};
 };
 
 // The header text and the exact file size a layout produces.

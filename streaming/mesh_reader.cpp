@@ -2,7 +2,9 @@
 // summary behind `raylod info`.
 #include "streaming/mesh_reader.h"
 
+#include <algorithm>
 #include <cctype>
+#include <cmath>
 #include <cinttypes>
 #include <cstdio>
 #include <mutex>
@@ -24,6 +26,12 @@ const char* to_string(MeshFormat f) {
     case MeshFormat::Gltf: return "glTF";
   }
   return "unknown";
+}
+
+Vec3d local_origin_for(const Vec3d& p) {
+  if (!is_finite(p)) return Vec3d(0);
+  if (!(std::max({std::fabs(p.x), std::fabs(p.y), std::fabs(p.z)}) >= kLocalOriginThreshold)) return Vec3d(0);
+  return Vec3d(std::round(p.x), std::round(p.y), std::round(p.z));
 }
 
 void MeshReader::warn_repaired_normals() const {
@@ -98,7 +106,7 @@ StatusOr<MeshSummary> summarize_mesh(const std::filesystem::path& path) {
     if (!more) break;
     s.triangle_count += batch.size();
     // Float bounds per batch, then one double expand: exact, since every
-    // coordinate is a float.
+    // coordinate (relative to the local origin) is a float.
     Vec3 lo(std::numeric_limits<float>::infinity()), hi(-std::numeric_limits<float>::infinity());
     for (const Vec3& p : batch.positions) {
       lo = glm::min(lo, p);
@@ -107,6 +115,8 @@ StatusOr<MeshSummary> summarize_mesh(const std::filesystem::path& path) {
     s.bounds.expand(lo);
     s.bounds.expand(hi);
   }
+  // In the file's coordinates.
+  if (!s.bounds.empty()) s.bounds = Bbox{s.header.origin + s.bounds.lo, s.header.origin + s.bounds.hi};
   return s;
 }
 

@@ -59,7 +59,8 @@ namespace raylod {
 enum class MeshFormat { Ply, Stl, Obj, Draco, Gltf };
 const char* to_string(MeshFormat f);
 
-// A batch of independent triangles: positions[3*i+k] is vertex k of triangle i.
+// A batch of independent triangles: positions[3*i+k] is vertex k of triangle i,
+// relative to the reader's MeshHeader::origin.
 // normals is either empty (the file has no vertex normals) or the same size
 // as positions, holding unit-length per-vertex normals.
 struct TriangleBatch {
@@ -77,7 +78,21 @@ struct MeshHeader {
   uint64_t face_count = 0;         // as declared (polygons); for OBJ counted on open
   bool has_normals = false;        // per-vertex normals present
   uint64_t file_bytes = 0;
+  // Batch positions are relative to this point: the file's coordinates are
+  // origin + position. It is (0, 0, 0) unless the file holds more precision
+  // than a float keeps far from zero (double or integer PLY coordinates,
+  // text formats) and its first vertex lies kLocalOriginThreshold or more
+  // from zero; then it is that vertex rounded to integers, so a mesh at a
+  // 1e7 offset keeps its 1e-3 detail (floats near 1e7 are 1 apart).
+  Vec3d origin{0};
 };
+
+// How far from zero (largest coordinate magnitude) a mesh's first vertex must
+// lie for its reader to keep positions relative to a local origin (floats are
+// 2^-11 apart there, about 5e-4).
+inline constexpr double kLocalOriginThreshold = 4096;
+// The local origin for a mesh whose first vertex is p (MeshHeader::origin).
+Vec3d local_origin_for(const Vec3d& p);
 
 struct ReaderOptions {
   size_t batch_triangles = 1 << 16;

@@ -292,6 +292,7 @@ struct Scan {
   Bbox bounds;
   uint64_t triangles = 0;
   bool has_normals = false;
+  Vec3d mesh_origin{0};      // the reader's local origin (MeshHeader::origin)
   uint64_t vertex_hint = 0;  // declared vertex count (0 = unknown)
   uint64_t reader_bytes = 0; // what the reader may keep resident (its vertex table)
   uint64_t stride = 1;
@@ -305,6 +306,7 @@ struct ScanToken : TokenBase {
 StatusOr<Scan> scan_pass(MeshReader& reader, size_t ntokens) {
   Scan scan;
   scan.has_normals = reader.header().has_normals;
+  scan.mesh_origin = reader.header().origin;
   scan.vertex_hint = reader.header().format == MeshFormat::Stl ? 0 : reader.header().vertex_count;
   // Indexed readers keep a memory-mapped vertex table whose touched pages
   // count as resident (12 bytes per position, 12 per normal). The binary PLY
@@ -935,6 +937,8 @@ StatusOr<BuildReport> build_store_from_stream(const MeshStreamOpener& open, cons
     RAYLOD_ASSIGN_OR_RETURN(auto reader2, open());
     if (reader2->header().has_normals != scan.has_normals)
       return Status::error(reader2->path().string() + ": changed while building (normals appeared or vanished)");
+    if (reader2->header().origin != scan.mesh_origin)
+      return Status::error(reader2->path().string() + ": changed while building (its first vertex moved)");
     RAYLOD_RETURN_IF_ERROR(bin_pass(*reader2, ntokens, plan, scan.has_normals, scan.triangles, runs, binned));
   }
   const std::vector<NodeRecord>& leaves = binned.leaves;
@@ -954,6 +958,7 @@ StatusOr<BuildReport> build_store_from_stream(const MeshStreamOpener& open, cons
   header.options = options;
   header.triangle_count = scan.triangles;
   header.has_normals = scan.has_normals;
+  header.mesh_origin = scan.mesh_origin;
   header.origin = plan.origin;
   header.root_lo = plan.root_lo;
   header.root_size = plan.root_size;

@@ -46,7 +46,9 @@ inline constexpr char kMagic[8] = {'R', 'L', 'O', 'D', 'S', 'T', 'O', 'R'};
 // (StoreHeader::reuse_limit_lo/hi).
 // 3: compact pages (page_codec.h; PageInfo::bytes); version 2 pages were
 // float triangle soup, 72 bytes per triangle with normals.
-inline constexpr uint32_t kVersion = 3;
+// 4: the mesh's local origin (StoreHeader::mesh_origin): store coordinates
+// are relative to it, so a mesh far from zero keeps its detail.
+inline constexpr uint32_t kVersion = 4;
 inline constexpr uint32_t kMaxLevel = 21;  // Morton codes hold 3 x 21 bits
 
 struct Layout {

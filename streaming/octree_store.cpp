@@ -171,6 +171,7 @@ std::string encode_header(const StoreHeader& h, const Layout& l) {
   blob.put(l.data_offset); blob.put(l.data_bytes); blob.put(l.file_bytes);
   blob.put(h.reuse_limit_lo); blob.put(h.reuse_limit_hi);
   blob.put(int32_t(h.grid_bits));
+  blob.put_vec(h.mesh_origin);
 
   ByteWriter out;
   out.out.append(kMagic, 8);
@@ -249,8 +250,9 @@ Status read_header(int fd, const std::filesystem::path& path, StoreHeader& h, La
   }
   ok = ok && r.get(l.node_table_offset) && r.get(l.node_table_crc) && r.get(l.node_table_bytes) && r.get(l.page_count) &&
        r.get(l.page_table_offset) && r.get(l.page_table_crc) && r.get(l.data_offset) && r.get(l.data_bytes) &&
-       r.get(l.file_bytes) && r.get(h.reuse_limit_lo) && r.get(h.reuse_limit_hi) && r.get(grid_bits) && r.at_end();
-  if (!ok || pl < 0 || pl > int(kMaxLevel) || !(h.root_size > 0) || grid_bits < 1 || grid_bits > 30)
+       r.get(l.file_bytes) && r.get(h.reuse_limit_lo) && r.get(h.reuse_limit_hi) && r.get(grid_bits) && r.get_vec(h.mesh_origin) && r.at_end();
+  if (!ok || pl < 0 || pl > int(kMaxLevel) || !(h.root_size > 0) || grid_bits < 1 || grid_bits > 30 ||
+      !is_finite(h.mesh_origin))
     return Status::error(name + ": malformed store header");
   h.options.max_depth = max_depth;
   h.has_normals = normals != 0;
@@ -609,8 +611,13 @@ Status print_store_info(const std::filesystem::path& path, std::FILE* out) {
                format_bytes(h.reuse_limit_lo).c_str(),
                h.reuse_limit_hi == UINT64_MAX ? "any larger" : format_bytes(h.reuse_limit_hi).c_str());
   std::fprintf(out, "  triangles     %" PRIu64 "%s\n", h.triangle_count, h.has_normals ? " (with vertex normals)" : "");
-  std::fprintf(out, "  bounds        [%.9g %.9g %.9g] - [%.9g %.9g %.9g]\n", h.bounds.lo.x, h.bounds.lo.y,
-               h.bounds.lo.z, h.bounds.hi.x, h.bounds.hi.y, h.bounds.hi.z);
+  std::fprintf(out, "  bounds        [%.9g %.9g %.9g] - [%.9g %.9g %.9g]%s\n", h.bounds.lo.x, h.bounds.lo.y,
+               h.bounds.lo.z, h.bounds.hi.x, h.bounds.hi.y, h.bounds.hi.z,
+               h.mesh_origin == Vec3d(0) ? "" : " (store coordinates, relative to the mesh origin)");
+  if (h.mesh_origin != Vec3d(0))
+    std::fprintf(out, "  mesh origin   [%.12g %.12g %.12g] (the mesh lies far from zero; its coordinates are kept "
+                      "relative to this point)\n",
+                 h.mesh_origin.x, h.mesh_origin.y, h.mesh_origin.z);
   std::fprintf(out, "  root cube     corner [%.9g %.9g %.9g], side %.9g; quadric origin [%.9g %.9g %.9g]\n",
                h.root_lo.x, h.root_lo.y, h.root_lo.z, h.root_size, h.origin.x, h.origin.y, h.origin.z);
   std::fprintf(out, "  levels        0..%d with quadrics%s; pages at level %d\n", h.quadric_depth,

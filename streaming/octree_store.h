@@ -105,13 +105,18 @@ struct StoreHeader {
   StoreOptions options;
   uint64_t triangle_count = 0;
   bool has_normals = false;
-  Vec3d origin{0};            // quadrics and sums are relative to this point
-  Vec3d root_lo{0};           // root cube corner (world)
-  double root_size = 0;       // root cube side (world)
+  // Store coordinates (pages, cells, bounds) are the mesh file's coordinates
+  // minus mesh_origin: the reader's local origin (MeshHeader::origin), which
+  // is (0, 0, 0) unless the mesh lies far from zero. Whoever places the
+  // store in a scene composes its transform with translate(mesh_origin).
+  Vec3d mesh_origin{0};
+  Vec3d origin{0};            // quadrics and sums are relative to this point (store coordinates)
+  Vec3d root_lo{0};           // root cube corner (store coordinates)
+  double root_size = 0;       // root cube side
   int quadric_depth = 0;      // deepest level with NodeRecords
   int page_level = 0;         // level whose cells are the pages
   int grid_bits = 20;         // positions are on a grid of root_size / 2^grid_bits (page_codec.h)
-  Bbox bounds;                // mesh bounds (world)
+  Bbox bounds;                // mesh bounds (store coordinates)
   // Layout facts filled in by OctreeStore::open (not needed to build).
   uint64_t file_bytes = 0;        // whole store file
   uint64_t node_table_bytes = 0;  // all levels' NodeRecords

@@ -302,6 +302,11 @@ Status PlyReader::locate_binary() {
       nrm_.offset[c] = offs[3 + c];
     }
   }
+  if (pos_.count > 0 && pos_.wider_than_float()) {
+    pos_.finalize();  // load_exact does not depend on it
+    pos_.origin = local_origin_for(pos_.load_exact(0));
+    header_.origin = pos_.origin;
+  }
   pos_.finalize();
   nrm_.finalize();
   const PlyElement& fe = elements_[face_el_];
@@ -431,6 +436,10 @@ Status PlyReader::corner_error(int64_t index, uint64_t face, uint64_t line) cons
     const Vec3d exact = pos_.load_exact(uint64_t(index));
     if (beyond_float_range(exact))
       return error(at + vertex + " has a coordinate beyond the float range (about +-3.4e38) " + vec_text(exact));
+    if (beyond_float_range(exact - pos_.origin))
+      return error(at + vertex + " " + vec_text(exact) + " lies " + vec_text(exact - pos_.origin) +
+                   " from the mesh's first vertex " + vec_text(pos_.origin) +
+                   ": the mesh spans more than the float range (about 3.4e38)");
     return error(at + vertex + " has a non-finite coordinate " + vec_text(p));
   }
   const Vec3d exact = nrm_.load_exact(uint64_t(index));

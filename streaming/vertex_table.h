@@ -90,10 +90,15 @@ struct Vec3Table {
   bool swap = false;
   // Three native float32 scalars at offset[0], +4, +8: one memcpy per record.
   bool packed_float = true;
+  // Subtracted (in double) before rounding to float: the reader's local
+  // origin (MeshHeader::origin). Only tables of double or integer scalars
+  // have one; packed float tables keep (0, 0, 0).
+  Vec3d origin{0};
 
   void finalize() {
     packed_float = !swap && type[0] == ScalarType::Float32 && type[1] == ScalarType::Float32 &&
-                   type[2] == ScalarType::Float32 && offset[1] == offset[0] + 4 && offset[2] == offset[0] + 8;
+                   type[2] == ScalarType::Float32 && offset[1] == offset[0] + 4 && offset[2] == offset[0] + 8 &&
+                   origin == Vec3d(0);
   }
   [[gnu::always_inline]] Vec3 load(uint64_t i) const {
     const uint8_t* r = base + i * stride;
@@ -101,11 +106,15 @@ struct Vec3Table {
     if (packed_float) {
       std::memcpy(&v.x, r + offset[0], sizeof(float) * 3);
     } else {
-      v.x = to_float(load_scalar(r + offset[0], type[0], swap));
-      v.y = to_float(load_scalar(r + offset[1], type[1], swap));
-      v.z = to_float(load_scalar(r + offset[2], type[2], swap));
+      v.x = to_float(load_scalar(r + offset[0], type[0], swap) - origin.x);
+      v.y = to_float(load_scalar(r + offset[1], type[1], swap) - origin.y);
+      v.z = to_float(load_scalar(r + offset[2], type[2], swap) - origin.z);
     }
     return v;
+  }
+  // Whether the scalars hold more than a float does (double or integer).
+  bool wider_than_float() const {
+    return type[0] != ScalarType::Float32 || type[1] != ScalarType::Float32 || type[2] != ScalarType::Float32;
   }
   // The stored values exactly (for error messages about a record load() rejected).
   Vec3d load_exact(uint64_t i) const {

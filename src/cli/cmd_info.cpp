@@ -29,8 +29,12 @@ int print_mesh_info(const std::filesystem::path& path) {
     std::printf("vertices:   %" PRIu64 "\n", h.vertex_count);
   if (h.face_count != s.triangle_count)
     std::printf("faces:      %" PRIu64 " (polygons, triangulated as fans)\n", h.face_count);
-  std::printf("bounds:     min (%.9g, %.9g, %.9g)\n", s.bounds.lo.x, s.bounds.lo.y, s.bounds.lo.z);
-  std::printf("            max (%.9g, %.9g, %.9g)\n", s.bounds.hi.x, s.bounds.hi.y, s.bounds.hi.z);
+  // 12 digits: a mesh far from zero (e.g. at 1e7) shows its detail.
+  std::printf("bounds:     min (%.12g, %.12g, %.12g)\n", s.bounds.lo.x, s.bounds.lo.y, s.bounds.lo.z);
+  std::printf("            max (%.12g, %.12g, %.12g)\n", s.bounds.hi.x, s.bounds.hi.y, s.bounds.hi.z);
+  if (h.origin != Vec3d(0))
+    std::printf("origin:     (%.12g, %.12g, %.12g): positions are read relative to it (far from zero)\n", h.origin.x,
+                h.origin.y, h.origin.z);
   const Vec3d e = s.bounds.extent();
   std::printf("size:       %.9g x %.9g x %.9g (diagonal %.9g)\n", e.x, e.y, e.z, s.bounds.diagonal());
   std::printf("normals:    %s\n", h.has_normals ? "yes (per vertex)" : "no");

@@ -8,6 +8,8 @@
 #include <cstdio>
 #include <string>
 
+#include <glm/gtc/matrix_transform.hpp>
+
 #include "cli/cli.h"
 #include "core/system.h"
 #include "pipeline/pipeline.h"
@@ -35,7 +37,7 @@ StatusOr<DracoWriteReport> write_simplified_glb(const std::filesystem::path& out
   std::vector<GlbMesh> meshes(1);
   meshes[0].name = out.stem().string();
   meshes[0].draco = std::move(encoded.bytes);
-  RAYLOD_ASSIGN_OR_RETURN(report.bytes, write_glb(out, meshes, {GlbNode{meshes[0].name, 0, glm::dmat4(1.0)}}));
+  RAYLOD_ASSIGN_OR_RETURN(report.bytes, write_glb(out, meshes, {GlbNode{meshes[0].name, 0, glm::translate(glm::dmat4(1.0), mesh.origin)}}));
   return report;
 }
 

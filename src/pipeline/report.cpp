@@ -1,3 +1,5 @@
+#include <glm/gtc/matrix_transform.hpp>
+
 #include "pipeline/report.h"
 
 #include <chrono>
@@ -50,7 +52,8 @@ Vec3 level_colour(int level, int lo, int hi) {
 // octree level of the collapsed cell each visible point lies in.
 StatusOr<Image> cut_picture(const Scene& scene, const fs::path& simplified, const OctreeStore& store, const Cut& cut,
                             std::string* legend) {
-  const glm::dmat4 to_world = scene.objects[0].transform;
+  const Scene frame = in_render_frame(scene);
+  const glm::dmat4 to_world = frame.objects[0].transform;
   RAYLOD_ASSIGN_OR_RETURN(TriangleMesh mesh, load_triangle_mesh(simplified, to_world, 0, scene.crease_angle_deg));
   std::vector<TriangleMesh> meshes;
   meshes.push_back(std::move(mesh));
@@ -63,8 +66,9 @@ StatusOr<Image> cut_picture(const Scene& scene, const fs::path& simplified, cons
     hi = std::max(hi, int(c.key.level));
   }
   CutLookup lookup(store.header().root_lo, store.header().root_size, keys);
-  const glm::dmat4 to_object = glm::inverse(to_world);
-  PinholeCamera cam = make_pinhole_camera(scene.camera);
+  // Store coordinates are relative to the mesh origin (the .drc's, composed in by the load).
+  const glm::dmat4 to_object = glm::inverse(to_world * glm::translate(glm::dmat4(1.0), store.header().mesh_origin));
+  PinholeCamera cam = make_pinhole_camera(frame.camera);
   Image img(scene.camera.width, scene.camera.height, 3);
   for (int y = 0; y < img.height; ++y)
     for (int x = 0; x < img.width; ++x) {
@@ -370,12 +374,13 @@ StatusOr<ReportResult> run_report(const Scene& input_scene, const std::optional<
   ro.memory_limit = memory_limit;
   ro.progress = cfg.progress;
 
-  // The baselines simplify the fully loaded mesh: load it once, in world space.
+  // The baselines simplify the fully loaded mesh: load it once, in world
+  // space (the render frame's, as render_embree_scene traces it).
   std::optional<TriangleMesh> loaded;
   double load_seconds = 0;
   if (cfg.baselines) {
     auto t0 = std::chrono::steady_clock::now();
-    RAYLOD_ASSIGN_OR_RETURN(TriangleMesh m, load_triangle_mesh(mesh_path, base.objects[0].transform,
+    RAYLOD_ASSIGN_OR_RETURN(TriangleMesh m, load_triangle_mesh(mesh_path, in_render_frame(base).objects[0].transform,
                                                               base.objects[0].material, base.crease_angle_deg));
     load_seconds = seconds_since(t0);
     loaded = std::move(m);
@@ -496,7 +501,10 @@ StatusOr<ReportResult> run_report(const Scene& input_scene, const std::optional<
           row.memory_bytes = b.peak_bytes;
           std::vector<TriangleMesh> meshes;
           meshes.push_back(std::move(b.mesh));
-          if (run.scene.ground) meshes.push_back(make_ground_mesh(*run.scene.ground, run.scene.camera));
+          if (run.scene.ground) {
+            const Scene frame = in_render_frame(run.scene);
+            meshes.push_back(make_ground_mesh(*frame.ground, frame.camera));
+          }
           auto t0 = std::chrono::steady_clock::now();
           RAYLOD_ASSIGN_OR_RETURN(auto geometry, EmbreeScene::build(std::move(meshes)));
           RenderResult img = render_embree_scene(*geometry, run.scene, ro);

@@ -1,5 +1,7 @@
 // The probe (Miyashita, Kanai & Kishinami, steps A2-A4) with Igehy ray
 // differentials; the policy for unreached cells is documented in probe.h.
+#include <glm/gtc/matrix_transform.hpp>
+
 #include "probe/probe.h"
 
 #include <algorithm>
@@ -52,10 +54,12 @@ struct ObjectXf {
   int material = 0;
 };
 
-ObjectXf make_object_xf(const ProbeObject& o) {
+// Store coordinates to world: the object's transform after the store's mesh
+// origin (StoreHeader::mesh_origin).
+ObjectXf make_object_xf(const ProbeObject& o, std::span<const ProbeStore> stores) {
   ObjectXf x;
-  x.m = o.transform;
-  x.minv = glm::inverse(o.transform);
+  x.m = o.transform * glm::translate(glm::dmat4(1.0), stores[o.store].store->header().mesh_origin);
+  x.minv = glm::inverse(x.m);
   const Mat3d l(o.transform);
   x.linv = glm::inverse(l);
   x.normal = glm::transpose(x.linv);
@@ -107,7 +111,7 @@ class ProbeTracer {
     for (const ProbeStore& s : stores) tracers_.emplace_back(*s.store, cache);
     Bbox world;
     for (const ProbeObject& o : objects) {
-      const ObjectXf x = make_object_xf(o);
+      const ObjectXf x = make_object_xf(o, stores);
       xf_.push_back(x);
       const Bbox b = tracers_[o.store].bounds();
       if (!b.empty())
@@ -603,7 +607,7 @@ StatusOr<ProbeResult> select_shared_cuts(std::span<const ProbeView> views, const
   uint64_t total_rays = 0;
   for (const ProbeView& v : views) total_rays += v.trace->rays;
   std::vector<ObjectXf> xf;
-  for (const ProbeObject& o : objects) xf.push_back(make_object_xf(o));
+  for (const ProbeObject& o : objects) xf.push_back(make_object_xf(o, stores));
 
   bool specular = false;
   for (const ProbeObject& o : objects) specular |= scene.materials[size_t(o.material)].reflects();

@@ -124,7 +124,9 @@ struct ProbeStore {
 };
 
 // One scene object: its store (index into the stores span), its transform
-// from store coordinates to world, its material (index into scene.materials).
+// from mesh coordinates to world (the probe composes it with the store's
+// mesh origin, StoreHeader::mesh_origin), its material (index into
+// scene.materials).
 struct ProbeObject {
   size_t store = 0;
   glm::dmat4 transform{1.0};

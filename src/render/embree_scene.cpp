@@ -1,5 +1,7 @@
 // Loading meshes into one Embree 3 scene: streaming read, corner welding,
 // world transform, BVH build with a quality chosen by size.
+#include <glm/gtc/matrix_transform.hpp>
+
 #include "render/embree_scene.h"
 
 #include <atomic>
@@ -165,7 +167,9 @@ StatusOr<TriangleMesh> load_triangle_mesh(const std::filesystem::path& path, con
   if (mesh.indices.empty()) return Status::error(path.string() + ": empty mesh (no triangles)");
   welder.reset();
   if (!with_normals) add_crease_normals(mesh, crease_angle_deg);
-  transform_mesh(mesh, object_to_world);
+  // Positions are relative to the reader's local origin (a mesh far from zero).
+  const Vec3d origin = reader->header().origin;
+  transform_mesh(mesh, origin == Vec3d(0) ? object_to_world : object_to_world * glm::translate(glm::dmat4(1.0), origin));
   for (const Vec3& p : mesh.positions)
     if (!is_finite(p)) return Status::error(path.string() + ": the object transform maps a vertex to Inf/NaN");
   return mesh;

@@ -44,7 +44,8 @@ void add_crease_normals(TriangleMesh& mesh, double crease_angle_deg);
 
 // Streams a mesh file with open_mesh (PLY, STL, OBJ, Draco), welds it, gives
 // it crease-angle normals if the file has none (in object space, as the
-// collapse does), and transforms it to world space: positions by
+// collapse does), and transforms it to world space: positions (relative to
+// the reader's MeshHeader::origin, which is composed in first) by
 // object_to_world, normals by its inverse transpose; a mirroring transform
 // (negative determinant) reverses the winding so that front faces stay front
 // faces. on_triangles (optional) is told how many triangles each batch added,

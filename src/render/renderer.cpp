@@ -2,6 +2,8 @@
 // -> image files. Determinism: every pixel draws its samples from its own
 // generator seeded by (scene seed, pixel), and sums them in a fixed order, so
 // the image does not depend on the thread count or the tile schedule.
+#include <glm/gtc/matrix_transform.hpp>
+
 #include "render/renderer.h"
 
 #include <algorithm>
@@ -227,8 +229,23 @@ StatusOr<uint64_t> declared_scene_triangles(const Scene& scene, const RenderOpti
   return sp.declared;
 }
 
-StatusOr<std::vector<TriangleMesh>> load_scene_meshes(const Scene& scene, const RenderOptions& options,
+Scene in_render_frame(const Scene& scene) {
+  Scene s = scene;
+  const Vec3d r = scene.render_origin;
+  if (r == Vec3d(0)) return s;
+  s.camera.eye -= r;
+  s.camera.look_at -= r;
+  for (Light& light : s.lights) light.position -= r;  // directional lights ignore it
+  if (s.ground) s.ground->height -= r.y;
+  const glm::dmat4 shift = glm::translate(glm::dmat4(1.0), -r);
+  for (SceneObject& o : s.objects) o.transform = shift * o.transform;
+  s.render_origin = Vec3d(0);
+  return s;
+}
+
+StatusOr<std::vector<TriangleMesh>> load_scene_meshes(const Scene& world_scene, const RenderOptions& options,
                                                       RenderStats& stats, BvhConfig* bvh) {
+  const Scene scene = in_render_frame(world_scene);
   const auto start = std::chrono::steady_clock::now();
   RAYLOD_ASSIGN_OR_RETURN(ScenePaths sp, scene_mesh_paths(scene, options));
   const std::vector<std::filesystem::path>& paths = sp.paths;
@@ -277,8 +294,9 @@ StatusOr<std::vector<TriangleMesh>> load_scene_meshes(const Scene& scene, const 
   return meshes;
 }
 
-RenderResult render_embree_scene(const EmbreeScene& geometry, const Scene& scene, const RenderOptions& options) {
+RenderResult render_embree_scene(const EmbreeScene& geometry, const Scene& world_scene, const RenderOptions& options) {
   const auto start = std::chrono::steady_clock::now();
+  const Scene scene = in_render_frame(world_scene);
   const int width = scene.camera.width, height = scene.camera.height;
   const PinholeCamera camera = make_pinhole_camera(scene.camera);
   std::vector<int> used;

@@ -110,6 +110,15 @@ StatusOr<uint64_t> declared_scene_triangles(const Scene& scene, const RenderOpti
 // before reading any triangle. Fills the load part of stats, and `bvh` (if
 // given) with the configuration to build with (bvh_for_memory_limit).
 // Warns through options.log about a mesh whose every triangle is degenerate.
+// The scene as the renderer sees it: every world position minus
+// scene.render_origin, computed in double (camera, point lights, ground
+// height, object transforms), and render_origin zero. Images do not change
+// (distances and directions are the same); floats near a far scene's camera
+// keep their detail. load_scene_meshes and render_embree_scene apply it
+// themselves; whoever builds an EmbreeScene by other means applies it to
+// the transforms and ground it uses.
+Scene in_render_frame(const Scene& scene);
+
 StatusOr<std::vector<TriangleMesh>> load_scene_meshes(const Scene& scene, const RenderOptions& options,
                                                       RenderStats& stats, BvhConfig* bvh = nullptr);
 

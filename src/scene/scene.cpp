@@ -426,6 +426,7 @@ StatusOr<Scene> parse_scene(const std::string& text, const std::filesystem::path
     if (!(deg >= 0 && deg <= 180)) return p.fail("crease_angle", "must be between 0 and 180 degrees");
     scene.crease_angle_deg = deg;
   }
+  scene.render_origin = local_origin_for(scene.camera.look_at);
   return scene;
 }
 

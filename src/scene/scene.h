@@ -98,6 +98,13 @@ struct Scene {
   // Shading normals for meshes without their own (geometry/crease_normals.h):
   // facets meeting at more than this many degrees are shaded as a crease.
   double crease_angle_deg = 30.0;
+  // The renderer's frame (render/renderer.h, in_render_frame): it subtracts
+  // this point, in double, from every world position before Embree sees
+  // floats, so a scene far from zero keeps its detail. (0, 0, 0) unless the
+  // camera's look-at point lies kLocalOriginThreshold (mesh_reader.h) or
+  // more from zero; then that point rounded to integers. Set by parse_scene;
+  // views of the scene (copies with another camera) keep it.
+  Vec3d render_origin{0};
 
   bool any_reflection() const;
   bool any_refraction() const;

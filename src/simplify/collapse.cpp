@@ -481,6 +481,7 @@ StatusOr<SimplifyResult> simplify(const OctreeStore& store, const Cut& cut, cons
     ++result.fold_passes;
   }
   for (const Representative& r : reps) result.clamped_representatives += r.clamped;
+  result.mesh.origin = h.mesh_origin;  // the store's coordinates are the mesh's, relative to it
   result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return result;
 }

@@ -16,6 +16,7 @@ IndexedPlyLayout layout_of(const IndexedMesh& mesh) {
   layout.vertex_count = mesh.positions.size();
   layout.face_count = mesh.triangle_count();
   layout.normals = !mesh.normals.empty();
+  layout.origin = mesh.origin;
   layout.comments = {"raylod simplified mesh"};
   return layout;
 }
@@ -44,8 +45,12 @@ Status write_indexed_obj(const std::filesystem::path& path, const IndexedMesh& m
   if (!f) return Status::error(path.string() + ": cannot create output file");
   f << "# raylod simplified mesh: " << mesh.positions.size() << " vertices, " << mesh.triangle_count() << " triangles\n";
   char line[160];
-  for (const Vec3& p : mesh.positions) {
-    std::snprintf(line, sizeof line, "v %.9g %.9g %.9g\n", p.x, p.y, p.z);
+  // Far from zero (mesh.origin), enough digits for the detail a float
+  // relative to the origin keeps.
+  const bool far = mesh.origin != Vec3d(0);
+  for (const Vec3& q : mesh.positions) {
+    const Vec3d p = mesh.origin + Vec3d(q);
+    std::snprintf(line, sizeof line, far ? "v %.17g %.17g %.17g\n" : "v %.9g %.9g %.9g\n", p.x, p.y, p.z);
     f << line;
   }
   const bool normals = !mesh.normals.empty();

@@ -18,13 +18,13 @@ using test::write_file;
 
 TEST(WideMesh, StoreBuildRejectsAMeshWiderThanTheFloatRange) {
   Progress::set_enabled(false);
+  // Float coordinates: each reads fine, the build rejects the extent.
   Bytes b;
-  b.text("ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty double x\nproperty double y\n"
-         "property double z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n");
-  for (double c : {-3e38, 0.0, 0.0, 3e38, 0.0, 0.0, 0.0, 1.0, 0.0}) b.put<double>(c);
+  b.text("ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+         "property float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n");
+  for (float c : {-3e38f, 0.0f, 0.0f, 3e38f, 0.0f, 0.0f, 0.0f, 1.0f, 0.0f}) b.put<float>(c);
   b.put<uint8_t>(3).put<int32_t>(0).put<int32_t>(1).put<int32_t>(2);
   const fs::path mesh = write_file("wide.ply", b.data);
-  // Each coordinate reads fine: the reader is not what rejects it.
   ASSERT_TRUE(test::read_all(mesh).status.is_ok());
   const fs::path store = test::scratch_dir() / "wide.raylod";
   auto built = build_store(mesh, store, StoreOptions{});
@@ -34,6 +34,23 @@ TEST(WideMesh, StoreBuildRejectsAMeshWiderThanTheFloatRange) {
             std::string::npos) << msg;
   for (const auto& entry : fs::directory_iterator(test::scratch_dir()))
     EXPECT_EQ(entry.path(), mesh) << "left behind: " << entry.path();
+}
+
+TEST(WideMesh, ReaderRejectsADoubleMeshWiderThanTheFloatRange) {
+  // Double coordinates far from zero are read relative to the first vertex
+  // (MeshHeader::origin), so the reader itself finds the extent too wide.
+  Bytes b;
+  b.text("ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty double x\nproperty double y\n"
+         "property double z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n");
+  for (double c : {-3e38, 0.0, 0.0, 3e38, 0.0, 0.0, 0.0, 1.0, 0.0}) b.put<double>(c);
+  b.put<uint8_t>(3).put<int32_t>(0).put<int32_t>(1).put<int32_t>(2);
+  const fs::path mesh = write_file("wide.ply", b.data);
+  const auto read = test::read_all(mesh);
+  ASSERT_FALSE(read.status.is_ok());
+  const std::string msg = read.status.message();
+  for (const char* part : {"wide.ply", "vertex 1 (3e+38, 0, 0) lies (6e+38, 0, 0) from the mesh's first vertex (-3e+38, 0, 0)",
+                           "more than the float range"})
+    EXPECT_NE(msg.find(part), std::string::npos) << msg << " lacks " << part;
 }
 
 TEST(WideMesh, DracoWriterRefusesInsteadOfCrashing) {
