@@ -145,10 +145,20 @@ Status ObjReader::first_pass() {
     text::Tokens tok(line);
     if (!tok.next(kw)) continue;
     if (kw == "v" || kw == "vn") {
+      if (kw == "v" && nv == 0) {
+        // The first vertex decides the local origin (MeshHeader::origin).
+        text::Tokens first = tok;
+        double d[3];
+        std::string_view u;
+        bool ok = true;
+        for (double& c : d) ok = ok && first.next(u) && text::parse_double(u, c);
+        if (ok) header_.origin = local_origin_for(Vec3d(d[0], d[1], d[2]));
+      }
       float x[3];
-      for (float& c : x) {
+      for (int i = 0; i < 3; ++i) {
+        float& c = x[i];
         if (!tok.next(t)) return at(ln, "'" + std::string(kw) + "' needs 3 coordinates");
-        const text::FloatParse parsed = text::parse_float(t, c);
+        const text::FloatParse parsed = text::parse_coordinate(t, kw == "v" ? header_.origin[i] : 0.0, c);
         if (parsed == text::FloatParse::NotANumber) return at(ln, "'" + std::string(text::clip(t)) + "' is not a number");
         if (parsed == text::FloatParse::OutOfRange)
           return at(ln, (kw == "v" ? "vertex " + std::to_string(nv + 1) + " coordinate "

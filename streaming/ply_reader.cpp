@@ -73,6 +73,7 @@ class PlyReader final : public MeshReader {
   Status check_elements();
   Status locate_binary();
   Status load_ascii();
+  Vec3d first_vertex_origin(const PlyElement& ve, std::string_view line) const;
   Status skip_binary_record(const PlyElement& e, size_t& pos, uint64_t record) const;
   Status skip_binary_element(const PlyElement& e, size_t& pos) const;
   Status finish_binary();
@@ -355,6 +356,7 @@ Status PlyReader::load_ascii() {
       float v[6] = {0, 0, 0, 0, 0, 0};
       text::Tokens tok(line);
       std::string_view t;
+      if (r == 0) header_.origin = first_vertex_origin(ve, line);
       for (size_t k = 0; k < ve.props.size(); ++k) {
         const PlyProperty& p = ve.props[k];
         if (!tok.next(t)) return error(ln + "vertex " + std::to_string(r) + " has too few values for its header");
@@ -367,7 +369,7 @@ Status PlyReader::load_ascii() {
         }
         for (int c = 0; c < ncoords; ++c) {
           if (coord_prop_[c] != int(k)) continue;
-          const text::FloatParse parsed = text::parse_float(t, v[c]);
+          const text::FloatParse parsed = text::parse_coordinate(t, c < 3 ? header_.origin[c] : 0.0, v[c]);
           if (parsed == text::FloatParse::NotANumber)
             return error(ln + "'" + std::string(text::clip(t)) + "' is not a number");
           if (parsed == text::FloatParse::OutOfRange)
@@ -397,6 +399,27 @@ Status PlyReader::load_ascii() {
   file_.advise_sequential(lines_.offset(), file_.size());
   released_ = lines_.offset();
   return Status::ok();
+}
+
+// The local origin (MeshHeader::origin) from an ASCII file's first vertex
+// record; (0, 0, 0) if the record does not parse (load_ascii then reports it).
+Vec3d PlyReader::first_vertex_origin(const PlyElement& ve, std::string_view line) const {
+  double d[3] = {0, 0, 0};
+  text::Tokens tok(line);
+  std::string_view t;
+  for (size_t k = 0; k < ve.props.size(); ++k) {
+    if (!tok.next(t)) return Vec3d(0);
+    if (ve.props[k].is_list) {
+      int64_t n = 0;
+      if (!text::parse_number(t, n) || n < 0) return Vec3d(0);
+      for (int64_t j = 0; j < n; ++j)
+        if (!tok.next(t)) return Vec3d(0);
+      continue;
+    }
+    for (int c = 0; c < 3; ++c)
+      if (coord_prop_[c] == int(k) && !text::parse_double(t, d[c])) return Vec3d(0);
+  }
+  return local_origin_for(Vec3d(d[0], d[1], d[2]));
 }
 
 StatusOr<std::unique_ptr<MeshReader>> PlyReader::open(const std::filesystem::path& path, ReaderOptions options) {

@@ -152,4 +152,29 @@ inline bool iequals(std::string_view a, std::string_view b) {
 // Shortens a token for an error message.
 inline std::string_view clip(std::string_view s, size_t n = 40) { return s.size() > n ? s.substr(0, n) : s; }
 
+// A number as double (the first vertex of a text mesh, which decides the
+// mesh's local origin). False if the token is not a number or not finite.
+inline bool parse_double(std::string_view tok, double& out) {
+  if (!tok.empty() && tok.front() == '+') tok.remove_prefix(1);
+  const char* end = tok.data() + tok.size();
+  auto r = std::from_chars(tok.data(), end, out);
+  return !tok.empty() && r.ptr == end && r.ec == std::errc() && std::isfinite(out);
+}
+
+// A vertex coordinate relative to the mesh's local origin along its axis
+// (MeshHeader::origin): exactly parse_float when the origin is 0; otherwise
+// the double value minus the origin, rounded to float once. The value
+// itself must lie in the float range, as for parse_float.
+inline FloatParse parse_coordinate(std::string_view tok, double origin, float& out) {
+  if (origin == 0) return parse_float(tok, out);
+  const FloatParse range = parse_float(tok, out);
+  if (range != FloatParse::Ok) return range;
+  double d = 0;
+  if (!tok.empty() && tok.front() == '+') tok.remove_prefix(1);
+  // In range for parse_float, so out of range for a double means underflow.
+  if (std::from_chars(tok.data(), tok.data() + tok.size(), d).ec == std::errc::result_out_of_range) d = 0;
+  out = float(d - origin);
+  return FloatParse::Ok;
+}
+
 }  // namespace raylod::text

@@ -1,5 +1,3 @@
-#include <glm/gtc/matrix_transform.hpp>
-
 #include "pipeline/report.h"
 
 #include <chrono>
@@ -11,6 +9,7 @@
 #include <thread>
 
 #include <nlohmann/json.hpp>
+#include <glm/gtc/matrix_transform.hpp>
 
 #include "core/system.h"
 #include "gen/generate.h"

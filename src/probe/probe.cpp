@@ -1,7 +1,5 @@
 // The probe (Miyashita, Kanai & Kishinami, steps A2-A4) with Igehy ray
 // differentials; the policy for unreached cells is documented in probe.h.
-#include <glm/gtc/matrix_transform.hpp>
-
 #include "probe/probe.h"
 
 #include <algorithm>
@@ -15,6 +13,7 @@
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
+#include <glm/gtc/matrix_transform.hpp>
 
 #include "core/random.h"
 #include "core/progress.h"

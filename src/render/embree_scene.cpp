@@ -1,7 +1,5 @@
 // Loading meshes into one Embree 3 scene: streaming read, corner welding,
 // world transform, BVH build with a quality chosen by size.
-#include <glm/gtc/matrix_transform.hpp>
-
 #include "render/embree_scene.h"
 
 #include <atomic>
@@ -14,6 +12,7 @@
 #include <mutex>
 
 #include <tbb/parallel_for.h>
+#include <glm/gtc/matrix_transform.hpp>
 
 #include "geometry/crease_normals.h"
 #include "geometry/optics.h"

@@ -2,8 +2,6 @@
 // -> image files. Determinism: every pixel draws its samples from its own
 // generator seeded by (scene seed, pixel), and sums them in a fixed order, so
 // the image does not depend on the thread count or the tile schedule.
-#include <glm/gtc/matrix_transform.hpp>
-
 #include "render/renderer.h"
 
 #include <algorithm>
@@ -19,6 +17,7 @@
 #include <nlohmann/json.hpp>
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
+#include <glm/gtc/matrix_transform.hpp>
 
 #include "core/cluster.h"
 #include "core/fault_point.h"
@@ -27,6 +26,7 @@
 #include "core/random.h"
 #include "core/system.h"
 #include "scene/scene_camera.h"
+#include "streaming/mesh_reader.h"
 
 namespace raylod {
 
@@ -231,7 +231,9 @@ StatusOr<uint64_t> declared_scene_triangles(const Scene& scene, const RenderOpti
 
 Scene in_render_frame(const Scene& scene) {
   Scene s = scene;
-  const Vec3d r = scene.render_origin;
+  // A scene built in code rather than parsed has no render origin: the same
+  // rule from its camera.
+  const Vec3d r = scene.render_origin != Vec3d(0) ? scene.render_origin : local_origin_for(scene.camera.look_at);
   if (r == Vec3d(0)) return s;
   s.camera.eye -= r;
   s.camera.look_at -= r;

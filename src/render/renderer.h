@@ -111,7 +111,8 @@ StatusOr<uint64_t> declared_scene_triangles(const Scene& scene, const RenderOpti
 // given) with the configuration to build with (bvh_for_memory_limit).
 // Warns through options.log about a mesh whose every triangle is degenerate.
 // The scene as the renderer sees it: every world position minus
-// scene.render_origin, computed in double (camera, point lights, ground
+// scene.render_origin (if that is zero, as in a scene built in code, the
+// parse rule applied to the camera's look-at point), computed in double (camera, point lights, ground
 // height, object transforms), and render_origin zero. Images do not change
 // (distances and directions are the same); floats near a far scene's camera
 // keep their detail. load_scene_meshes and render_embree_scene apply it

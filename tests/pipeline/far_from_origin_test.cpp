@@ -1,0 +1,216 @@
+// A mesh 1e7 from zero with 1e-3 detail: a staircase of 1e-3 risers written
+// as double PLY (the usual form of georeferenced scans and plant models).
+// Floats near 1e7 are 1 apart, so reading it into floats would flatten it.
+// Checked against double-precision brute force: the full render's depth at
+// every pixel that brute force sees wholly on one triangle (its corner and
+// centre rays hit the same triangle) lies within the depths of those rays,
+// and pixels brute force sees wholly empty stay empty. Then the whole of
+// `raylod run` (build, probe, simplify, render) on the far staircase matches
+// the same staircase near zero.
+#include <gtest/gtest.h>
+
+#include <glm/gtc/matrix_transform.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <limits>
+
+#include "geometry/pinhole_camera.h"
+#include "pipeline/image_compare.h"
+#include "pipeline/pipeline.h"
+#include "probe/store_tracer.h"
+#include "render/renderer.h"
+#include "streaming/draco_io.h"
+#include "streaming/indexed_ply_writer.h"
+#include "streaming/octree_store.h"
+#include "test_tmp.h"
+
+namespace raylod {
+namespace {
+
+namespace fs = std::filesystem;
+
+struct ScratchDir {
+  fs::path path = test::scratch_dir("far-from-origin");
+  ~ScratchDir() {
+    std::error_code ec;
+    fs::remove_all(path, ec);
+  }
+};
+
+// 12 steps along +x, each 4e-3 deep and 1e-3 high, 0.02 wide along z; local
+// coordinates (the file holds origin + these, in double).
+struct Staircase {
+  std::vector<Vec3> positions;
+  std::vector<uint32_t> indices;
+};
+
+Staircase make_staircase() {
+  Staircase s;
+  auto quad = [&](Vec3 a, Vec3 b, Vec3 c, Vec3 d) {  // counter-clockwise seen from the front
+    const uint32_t i = uint32_t(s.positions.size());
+    s.positions.insert(s.positions.end(), {a, b, c, d});
+    s.indices.insert(s.indices.end(), {i, i + 1, i + 2, i, i + 2, i + 3});
+  };
+  const float run = 4e-3f, rise = 1e-3f, width = 0.02f;
+  for (int k = 0; k < 12; ++k) {
+    const float x0 = run * float(k), x1 = x0 + run, y = rise * float(k);
+    quad({x0, y, width}, {x1, y, width}, {x1, y, 0}, {x0, y, 0});                // tread, facing +y
+    quad({x1, y, 0}, {x1, y + rise, 0}, {x1, y + rise, width}, {x1, y, width});  // riser, facing -x
+  }
+  return s;
+}
+
+fs::path write_staircase(const fs::path& path, const Staircase& s, const Vec3d& origin) {
+  IndexedPlyLayout layout;
+  layout.vertex_count = s.positions.size();
+  layout.face_count = s.indices.size() / 3;
+  layout.normals = false;
+  layout.origin = origin;
+  auto w = IndexedPlyWriter::create(path, layout);
+  EXPECT_TRUE(w.is_ok()) << w.status().message();
+  EXPECT_TRUE((*w)->append_vertices(s.positions, {}).is_ok());
+  EXPECT_TRUE((*w)->append_triangles(s.indices).is_ok());
+  EXPECT_TRUE((*w)->finish().is_ok());
+  return path;
+}
+
+Scene staircase_scene(const Vec3d& origin, const fs::path& mesh) {
+  Scene s;
+  s.camera.eye = origin + Vec3d(-0.025, 0.035, 0.045);
+  s.camera.look_at = origin + Vec3d(0.022, 0.006, 0.01);
+  s.camera.fov_y_deg = 40;
+  s.camera.width = 160;
+  s.camera.height = 120;
+  Material m;
+  m.type = MaterialType::Diffuse;
+  m.color = Vec3(0.7f, 0.6f, 0.5f);
+  s.materials = {m};
+  SceneObject o;
+  o.mesh = mesh;
+  s.objects = {o};
+  Light l;
+  l.position = origin + Vec3d(0.1, 0.2, 0.15);
+  l.intensity = 0.05f;
+  s.lights = {l};
+  s.background = Vec3(0.3f, 0.4f, 0.6f);
+  s.spp = 1;
+  s.seed = 3;
+  return s;
+}
+
+TEST(FarFromOrigin, FullRenderAgreesWithDoublePrecisionBruteForce) {
+  ScratchDir scratch;
+  const Vec3d origin(1e7 + 0.375, 1e7 + 0.5, -1e7 + 0.625);
+  const Staircase stairs = make_staircase();
+  const fs::path mesh = write_staircase(scratch.path / "far.ply", stairs, origin);
+  const Scene scene = staircase_scene(origin, mesh);
+
+  RenderOptions ro;
+  ro.progress = false;
+  ro.aov_depth = true;
+  auto r = render(scene, ro);
+  ASSERT_TRUE(r.is_ok()) << r.status().message();
+
+  // The triangles as the file holds them, in double.
+  std::vector<Vec3d> tri;
+  for (uint32_t i : stairs.indices) tri.push_back(origin + Vec3d(stairs.positions[i]));
+  const PinholeCamera cam = make_pinhole_camera(scene.camera.eye, scene.camera.look_at, scene.camera.up,
+                                                scene.camera.fov_y_deg, scene.camera.width, scene.camera.height);
+  struct BruteHit { int triangle = -1; double t = 0; };
+  auto trace = [&](double px, double py) {
+    const Ray ray = cam.generate(px, py);
+    BruteHit best;
+    double tmax = std::numeric_limits<double>::infinity();
+    for (size_t k = 0; k < tri.size() / 3; ++k) {
+      double t, b1, b2;
+      if (intersect_triangle(ray.origin, ray.direction, tri[3 * k], tri[3 * k + 1], tri[3 * k + 2], 0.0, tmax, t, b1, b2)) {
+        tmax = t;
+        best = {int(k), t};
+      }
+    }
+    return best;
+  };
+  int inside = 0, empty = 0, wrong = 0;
+  std::string first_wrong;
+  for (int y = 0; y < scene.camera.height; ++y)
+    for (int x = 0; x < scene.camera.width; ++x) {
+      const BruteHit h[5] = {trace(x, y), trace(x + 1, y), trace(x, y + 1), trace(x + 1, y + 1), trace(x + 0.5, y + 0.5)};
+      const float depth = *r->depth.at(x, y);
+      bool same = true, none = true;
+      double lo = h[0].t, hi = h[0].t;
+      for (const BruteHit& b : h) {
+        same = same && b.triangle == h[0].triangle && b.triangle >= 0;
+        none = none && b.triangle < 0;
+        lo = std::min(lo, b.t);
+        hi = std::max(hi, b.t);
+      }
+      bool ok = true;
+      if (same) {
+        ++inside;
+        // 1e-5: a hundredth of the staircase's detail; reading the file into
+        // floats would move it by up to 0.5.
+        ok = depth >= lo - 1e-5 && depth <= hi + 1e-5;
+      } else if (none) {
+        ++empty;
+        ok = depth == 0.0f;
+      }
+      if (!ok && wrong++ == 0)
+        first_wrong = "pixel (" + std::to_string(x) + ", " + std::to_string(y) + "): depth " + std::to_string(depth) +
+                      ", brute force " + std::to_string(lo) + " .. " + std::to_string(hi) + (none ? " (empty)" : "");
+    }
+  const int pixels = scene.camera.width * scene.camera.height;
+  EXPECT_EQ(wrong, 0) << first_wrong;
+  // Thousands of pixels lie wholly on one tread or riser, and the sky fills
+  // the rest: both checks bite.
+  EXPECT_GT(inside, pixels / 20);
+  EXPECT_GT(empty, pixels / 10);
+}
+
+TEST(FarFromOrigin, RunMatchesTheSameStaircaseNearZero) {
+  ScratchDir scratch;
+  const Staircase stairs = make_staircase();
+  auto run_at = [&](const Vec3d& origin, const std::string& name) {
+    const fs::path mesh = write_staircase(scratch.path / (name + ".ply"), stairs, origin);
+    RunOptions run;
+    run.cache_dir = scratch.path / "cache";
+    run.use_cache = true;  // keeps the .drc (in the scratch cache) to look at
+    run.progress = false;
+    run.rays = 2000;
+    auto r = run_pipeline(staircase_scene(origin, mesh), run, nullptr);
+    EXPECT_TRUE(r.is_ok()) << r.status().message();
+    return r;
+  };
+  const Vec3d far_origin(1e7 + 0.375, 1e7 + 0.5, -1e7 + 0.625);
+  auto near = run_at(Vec3d(0), "near");
+  auto far = run_at(far_origin, "far");
+  ASSERT_TRUE(near.is_ok() && far.is_ok());
+  EXPECT_EQ(far->triangles_in, stairs.indices.size() / 3);
+  // The flat treads collapse, the risers stay, in both.
+  EXPECT_LT(far->triangles_out, far->triangles_in);
+  EXPECT_NEAR(double(far->triangles_out), double(near->triangles_out), 0.1 * double(near->triangles_out));
+  auto e = compare_images(far->render.color, near->render.color);
+  ASSERT_TRUE(e.is_ok()) << e.status().message();
+  EXPECT_GT(e->psnr, 40.0) << "the far run's image differs from the near run's";
+
+  // The store and the simplified mesh carry the mesh origin.
+  auto store = OctreeStore::open(scratch.path / "far.ply.raylod");
+  ASSERT_TRUE(store.is_ok()) << store.status().message();
+  const Vec3d mesh_origin = (*store)->header().mesh_origin;
+  EXPECT_EQ(mesh_origin, Vec3d(std::round(far_origin.x), std::round(far_origin.y), std::round(far_origin.z)));
+  // The cache holds the two simplified meshes: the near one at (0, 0, 0), the
+  // far one relative to the mesh origin.
+  std::vector<Vec3d> origins;
+  for (const auto& entry : fs::recursive_directory_iterator(scratch.path / "cache"))
+    if (entry.path().extension() == ".drc") {
+      auto drc = read_draco(entry.path());
+      ASSERT_TRUE(drc.is_ok()) << drc.status().message();
+      origins.push_back(drc->origin);
+    }
+  ASSERT_EQ(origins.size(), 2u);
+  EXPECT_TRUE((origins[0] == Vec3d(0) && origins[1] == mesh_origin) || (origins[1] == Vec3d(0) && origins[0] == mesh_origin));
+}
+
+}  // namespace
+}  // namespace raylod
