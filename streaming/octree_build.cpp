@@ -60,6 +60,7 @@
 #include "core/system.h"
 #include "streaming/octree_format.h"
 #include "streaming/octree_store.h"
+#include "streaming/open_edges.h"
 #include "streaming/page_codec.h"
 
 namespace raylod {
@@ -835,6 +836,8 @@ struct PageToken {
   PageEncoder encoder;
   Bbox bounds;
   uint32_t checksum = 0;  // of `bytes`
+  std::vector<GridEdge> open_edges;  // edges of one triangle of this page (open_edges.h)
+  OpenEdgeScratch edge_scratch;
 };
 
 // Reads page `id`'s segments back from the runs (input order) and encodes it.
@@ -851,15 +854,18 @@ Status encode_run_page(RunFile& runs, bool has_normals, const PageGrid& grid, ui
   }
   t.bounds = encode_page(t.positions, t.normals, grid, t.encoder, t.bytes);
   t.checksum = crc32c(t.bytes.data(), t.bytes.size());
+  t.open_edges.clear();
+  find_open_edges(t.positions, t.edge_scratch, t.open_edges);
   return {};
 }
 
 // Pages in code order: each is read back from its run segments and encoded
 // in parallel (page_codec.h), then written in order, one after another from
-// data_offset. Returns the end offset of the page data.
+// data_offset; its open edges go to `edges` in the same order. Returns the
+// end offset of the page data.
 StatusOr<uint64_t> write_pages(int fd, const std::filesystem::path& out_path, RunFile& runs, const Binned& binned,
                                bool has_normals, const PageGrid& grid, uint64_t data_offset, size_t ntokens,
-                               std::vector<PageInfo>& pages) {
+                               std::vector<PageInfo>& pages, OpenEdgeMatcher& edges) {
   const size_t num_pages = binned.pages.codes.size();
   std::vector<uint32_t> order(num_pages);
   for (size_t i = 0; i < num_pages; ++i) order[i] = uint32_t(i);
@@ -886,6 +892,7 @@ StatusOr<uint64_t> write_pages(int fd, const std::filesystem::path& out_path, Ru
         info.bytes = t.bytes.size();
         offset += t.bytes.size();
         pages.push_back(info);
+        edges.add(t.open_edges);
         progress.advance(info.triangle_count);
         if (pages.size() == std::max<size_t>(1, num_pages / 2)) fault_point("build.pages");
         return {};
@@ -894,6 +901,26 @@ StatusOr<uint64_t> write_pages(int fd, const std::filesystem::path& out_path, Ru
   RAYLOD_RETURN_IF_ERROR(written);
   if (pages.size() != num_pages) return Status::error(out_path.string() + ": internal error: pages were lost");
   return offset;
+}
+
+// Flags the leaves (at `depth`, sorted by code) that hold an end of an open edge.
+std::vector<uint8_t> boundary_leaves(const OpenEdgeMatcher& edges, std::span<const NodeRecord> leaves, int depth,
+                                     const PageGrid& grid) {
+  std::vector<uint8_t> flags(leaves.size(), 0);
+  const int shift = grid.bits - depth;
+  const uint32_t max_cell = (uint32_t(1) << depth) - 1;
+  auto flag = [&](const uint32_t* g) {
+    auto cell = [&](uint32_t v) { return std::min(v >> shift, max_cell); };  // the far face belongs to the last cell
+    const uint64_t code = morton_encode(cell(g[0]), cell(g[1]), cell(g[2]));
+    auto it = std::lower_bound(leaves.begin(), leaves.end(), code,
+                               [](const NodeRecord& n, uint64_t c) { return n.code < c; });
+    if (it != leaves.end() && it->code == code) flags[size_t(it - leaves.begin())] = 1;
+  };
+  for (const GridEdge& e : edges.open()) {
+    flag(&e[0]);
+    flag(&e[3]);
+  }
+  return flags;
 }
 
 }  // namespace
@@ -993,8 +1020,12 @@ StatusOr<BuildReport> build_store_from_stream(const MeshStreamOpener& open, cons
   } closer{fd};
 
   std::vector<PageInfo> pages;
+  OpenEdgeMatcher open_edges;
   RAYLOD_ASSIGN_OR_RETURN(const uint64_t data_end, write_pages(fd, tmp, runs, binned, scan.has_normals, plan.grid,
-                                                               layout.data_offset, ntokens, pages));
+                                                               layout.data_offset, ntokens, pages, open_edges));
+  const std::vector<uint8_t> boundary = boundary_leaves(open_edges, leaves, binned.depth, plan.grid);
+  report.open_edges = open_edges.open().size();
+  report.open_edges_peak = open_edges.peak();
   layout.data_bytes = data_end - layout.data_offset;
   layout.file_bytes = data_end;
   // Closing the unlinked runs file frees its blocks and page cache (about a
@@ -1006,8 +1037,9 @@ StatusOr<BuildReport> build_store_from_stream(const MeshStreamOpener& open, cons
     std::string chunk;
     for (size_t i = 0; i < leaves.size(); i += 65536) {
       chunk.clear();
-      encode_leaves(std::span<const NodeRecord>(leaves).subspan(i, std::min<size_t>(65536, leaves.size() - i)), previous,
-                    chunk);
+      const size_t n = std::min<size_t>(65536, leaves.size() - i);
+      encode_leaves(std::span<const NodeRecord>(leaves).subspan(i, n), std::span<const uint8_t>(boundary).subspan(i, n),
+                    previous, chunk);
       RAYLOD_RETURN_IF_ERROR(pwrite_all(fd, chunk.data(), chunk.size(), offset, tmp));
       crc = crc32c(chunk.data(), chunk.size(), crc);
       offset += chunk.size();

@@ -2,7 +2,9 @@
 //
 //   offset 0      magic "RLODSTOR", u32 version, u32 blob_bytes, blob, u32 CRC-32C of all before
 //   node table    (64-aligned) the leaves (level quadric_depth) sorted by code, each as
-//                 varint(code - previous code; the first code itself), varint(corner_count),
+//                 varint(code - previous code; the first code itself),
+//                 varint(corner_count << 1 | boundary: the leaf holds an end of an
+//                 open boundary edge, an edge of one triangle only),
 //                 then the quadric, vertex_sum and normal_sum as in NodeRecord (128 bytes);
 //                 levels above are the sums of their children, computed on open
 //                 (sum_parent_levels), so they are not stored
@@ -48,7 +50,9 @@ inline constexpr char kMagic[8] = {'R', 'L', 'O', 'D', 'S', 'T', 'O', 'R'};
 // float triangle soup, 72 bytes per triangle with normals.
 // 4: the mesh's local origin (StoreHeader::mesh_origin): store coordinates
 // are relative to it, so a mesh far from zero keeps its detail.
-inline constexpr uint32_t kVersion = 4;
+// 5: the leaves that hold open boundary vertices are flagged (the low bit of
+// the corner count's varint).
+inline constexpr uint32_t kVersion = 5;
 inline constexpr uint32_t kMaxLevel = 21;  // Morton codes hold 3 x 21 bits
 
 struct Layout {
@@ -74,9 +78,11 @@ inline constexpr size_t kLeafFixedBytes = 128;  // quadric, vertex_sum, normal_s
 inline constexpr size_t kLeafMaxBytes = 10 + 10 + kLeafFixedBytes;
 // Bytes the leaves take on disk.
 uint64_t encoded_leaves_bytes(std::span<const NodeRecord> leaves);
-// Appends the leaves' encoding to `out`; `previous_code` carries the last
-// code between calls (start with 0).
-void encode_leaves(std::span<const NodeRecord> leaves, uint64_t& previous_code, std::string& out);
+// Appends the leaves' encoding to `out`; boundary[i] != 0 flags leaf i (or
+// empty: none); `previous_code` carries the last code between calls (start
+// with 0).
+void encode_leaves(std::span<const NodeRecord> leaves, std::span<const uint8_t> boundary, uint64_t& previous_code,
+                   std::string& out);
 // Nodes per level 0..depth above sorted leaves at `depth`.
 std::vector<uint64_t> level_counts_of(std::span<const NodeRecord> leaves, int depth);
 // Fills levels 0..depth-1 of `nodes` (level l at level_begin[l] ..

@@ -106,16 +106,19 @@ void add_node(NodeRecord& a, const NodeRecord& b) {
 uint64_t encoded_leaves_bytes(std::span<const NodeRecord> leaves) {
   uint64_t bytes = 0, previous = 0;
   for (const NodeRecord& n : leaves) {
-    bytes += varint_bytes(n.code - previous) + varint_bytes(n.corner_count) + kLeafFixedBytes;
+    // The boundary flag takes the low bit and never changes the length.
+    bytes += varint_bytes(n.code - previous) + varint_bytes(n.corner_count << 1) + kLeafFixedBytes;
     previous = n.code;
   }
   return bytes;
 }
 
-void encode_leaves(std::span<const NodeRecord> leaves, uint64_t& previous_code, std::string& out) {
-  for (const NodeRecord& n : leaves) {
+void encode_leaves(std::span<const NodeRecord> leaves, std::span<const uint8_t> boundary, uint64_t& previous_code,
+                   std::string& out) {
+  for (size_t i = 0; i < leaves.size(); ++i) {
+    const NodeRecord& n = leaves[i];
     put_varint(out, n.code - previous_code);
-    put_varint(out, n.corner_count);
+    put_varint(out, n.corner_count << 1 | uint64_t(!boundary.empty() && boundary[i]));
     out.append(reinterpret_cast<const char*>(&n) + offsetof(NodeRecord, quadric), kLeafFixedBytes);
     previous_code = n.code;
   }
@@ -349,6 +352,16 @@ class FileStore final : public OctreeStore {
 
   std::span<const PageInfo> pages() const override { return pages_; }
 
+  bool touches_boundary(const CellKey& key) const override {
+    const int q = header_.quadric_depth;
+    if (int(key.level) > q) return false;
+    const int shift = 3 * (q - int(key.level));
+    const uint64_t lo = key.code << shift, end = (key.code + 1) << shift;
+    auto it = std::lower_bound(boundary_.begin(), boundary_.end(), lo);
+    return it != boundary_.end() && *it < end;
+  }
+  uint64_t boundary_leaves() const override { return boundary_.size(); }
+
   Status read_page(size_t i, TriangleBatch& batch) const override {
     batch.clear();
     if (i >= pages_.size())
@@ -469,7 +482,8 @@ class FileStore final : public OctreeStore {
       }
       NodeRecord& n = nodes_[first + i];
       n.code = previous + delta;
-      n.corner_count = corners;
+      n.corner_count = corners >> 1;
+      if (corners & 1) boundary_.push_back(n.code);
       std::memcpy(reinterpret_cast<char*>(&n) + offsetof(NodeRecord, quadric), buffer.data() + at + a + b, kLeafFixedBytes);
       previous = n.code;
       at += a + b + kLeafFixedBytes;
@@ -486,6 +500,7 @@ class FileStore final : public OctreeStore {
   StoreHeader header_;
   Layout layout_;
   std::vector<NodeRecord> nodes_;
+  std::vector<uint64_t> boundary_;  // codes of the leaves holding an open boundary's vertex, sorted
   std::vector<uint64_t> level_begin_;
   std::vector<PageInfo> pages_;
   PageGrid grid_;
@@ -635,6 +650,8 @@ Status print_store_info(const std::filesystem::path& path, std::FILE* out) {
   for (const auto& p : pages) counts.push_back(p.triangle_count);
   std::sort(counts.begin(), counts.end());
   std::fprintf(out, "  nodes         %" PRIu64 " (quadric memory %s)\n", nodes, format_bytes(h.node_table_bytes).c_str());
+  std::fprintf(out, "  boundary      %" PRIu64 " leaves hold a vertex of an open boundary (a hole's or an open surface's rim)\n",
+               store->boundary_leaves());
   if (!counts.empty())
     std::fprintf(out, "  pages         %zu, triangles per page min %u / median %u / max %u\n", counts.size(),
                  counts.front(), counts[counts.size() / 2], counts.back());

@@ -140,6 +140,13 @@ class OctreeStore {
   // The node with this key, or nullptr if the cell is empty or below quadric_depth.
   virtual const NodeRecord* find(const CellKey& key) const = 0;
   virtual std::span<const PageInfo> pages() const = 0;
+  // Whether the cell holds a vertex of an open boundary (a hole's rim, the
+  // edge of an open surface: an edge of exactly one triangle, matched by
+  // its quantised end points over the whole mesh). A quadric does not see
+  // how far collapsing such a cell moves the rim (collapse_deviation.h).
+  virtual bool touches_boundary(const CellKey& key) const = 0;
+  // Leaves flagged so.
+  virtual uint64_t boundary_leaves() const = 0;
   // Reads page i into batch (cleared first); fails with a clear message if
   // its checksum does not match, and then records the mismatch beside the
   // store (record_store_corruption) so that the next build rebuilds it.
@@ -174,6 +181,8 @@ struct BuildReport {
   uint64_t store_bytes = 0;       // size of the written store file
   uint64_t source_bytes = 0;
   bool coarsened = false;         // quadric_depth had to be lowered during the build
+  uint64_t open_edges = 0;        // open boundary edges (edges of one triangle)
+  uint64_t open_edges_peak = 0;   // most edges pending a match across pages at once
   // Wall time of the phases: pass 1 (bounds), pass 2 (binning and quadrics),
   // page assembly and writing, fsync + rename.
   double scan_seconds = 0, bin_seconds = 0, write_seconds = 0, commit_seconds = 0;

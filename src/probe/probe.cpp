@@ -723,7 +723,7 @@ StatusOr<ProbeResult> select_shared_cuts(std::span<const ProbeView> views, const
     // inside an accepted one is collapsed with it).
     const QemSolveConfig qem;
     const Vec3d origin = st.header().origin;
-    uint64_t rejected_deviation = 0, rejected_normal = 0;
+    uint64_t rejected_deviation = 0, rejected_normal = 0, rejected_boundary = 0;
     std::vector<std::vector<char>> collapsed(size_t(Q) + 1);
     for (int L = 0; L <= Q; ++L) {
       const auto nodes = st.level(L);
@@ -739,7 +739,8 @@ StatusOr<ProbeResult> select_shared_cuts(std::span<const ProbeView> views, const
           inside[i] = j < parents.size() && parents[j].code == (nodes[i].code >> 3) && collapsed[size_t(L) - 1][j];
         }
       }
-      // 0 = keep, 1 = collapse, 2 = kept for its deviation, 3 = for its normal.
+      // 0 = keep, 1 = collapse, 2 = kept for its deviation, 3 = for its
+      // normal, 4 = for an open boundary in it.
       std::vector<char> verdict(nodes.size(), 0);
       tbb::parallel_for(tbb::blocked_range<size_t>(0, nodes.size(), 256), [&](const tbb::blocked_range<size_t>& r) {
         for (size_t i = r.begin(); i != r.end(); ++i) {
@@ -750,6 +751,14 @@ StatusOr<ProbeResult> select_shared_cuts(std::span<const ProbeView> views, const
           const Bbox cell = st.cell_bounds(CellKey{uint32_t(L), nodes[i].code});
           const CollapseDeviation dev = collapse_deviation(nodes[i], Bbox{cell.lo - origin, cell.hi - origin}, qem);
           if (dev.position > config.tolerance_px * f) { verdict[i] = 2; continue; }
+          // The quadric does not see a rim (collapse_deviation.h), which the
+          // representative may pull anywhere in the cell: a cell with an
+          // open boundary collapses only while the whole cell is within the
+          // tolerance.
+          if (!(diag <= config.tolerance_px * f) && st.touches_boundary(CellKey{uint32_t(L), nodes[i].code})) {
+            verdict[i] = 4;
+            continue;
+          }
           if (bound_normals && 2.0 * dev.normal > config.tolerance_px * angular[size_t(L)][i]) { verdict[i] = 3; continue; }
           verdict[i] = 1;
         }
@@ -758,6 +767,7 @@ StatusOr<ProbeResult> select_shared_cuts(std::span<const ProbeView> views, const
         if (inside[i]) { collapsed[size_t(L)][i] = 1; continue; }
         rejected_deviation += verdict[i] == 2;
         rejected_normal += verdict[i] == 3;
+        rejected_boundary += verdict[i] == 4;
         if (verdict[i] == 1) {
           collapsed[size_t(L)][i] = 1;
           cut.cells.push_back({CellKey{uint32_t(L), nodes[i].code}, 0.0f, 0});
@@ -766,6 +776,7 @@ StatusOr<ProbeResult> select_shared_cuts(std::span<const ProbeView> views, const
     }
     cut.counters["cells_kept_for_deviation"] = rejected_deviation;
     cut.counters["cells_kept_for_normals"] = rejected_normal;
+    cut.counters["cells_kept_for_boundary"] = rejected_boundary;
     std::sort(cut.cells.begin(), cut.cells.end(), [](const CollapsedCell& a, const CollapsedCell& b) { return a.key < b.key; });
     // Footprints and hit counts of the marked cells (each hit counted once per cell).
     std::unordered_map<uint64_t, size_t> cell_index;  // (level << 58 | code) -> index

@@ -331,7 +331,7 @@ TEST(OctreeStore, OldFormatStoreIsRebuiltWithAMessage) {
   auto rebuilt = build_store(mesh, store, opt);
   ASSERT_TRUE(rebuilt.is_ok()) << rebuilt.status().message();
   EXPECT_FALSE(rebuilt->reused);
-  for (const char* part : {"format version 2", "reads version 4", store.c_str()})
+  for (const char* part : {"format version 2", "reads version 5", store.c_str()})
     EXPECT_NE(rebuilt->reason.find(part), std::string::npos) << rebuilt->reason << " lacks " << part;
   EXPECT_TRUE(store_is_current(mesh, store, opt, &why)) << why;
 }
