@@ -909,12 +909,24 @@ std::vector<uint8_t> boundary_leaves(const OpenEdgeMatcher& edges, std::span<con
   std::vector<uint8_t> flags(leaves.size(), 0);
   const int shift = grid.bits - depth;
   const uint32_t max_cell = (uint32_t(1) << depth) - 1;
-  auto flag = [&](const uint32_t* g) {
-    auto cell = [&](uint32_t v) { return std::min(v >> shift, max_cell); };  // the far face belongs to the last cell
-    const uint64_t code = morton_encode(cell(g[0]), cell(g[1]), cell(g[2]));
+  const double cell_size = std::ldexp(grid.step, shift);
+  auto flag_code = [&](uint64_t code) {
     auto it = std::lower_bound(leaves.begin(), leaves.end(), code,
                                [](const NodeRecord& n, uint64_t c) { return n.code < c; });
     if (it != leaves.end() && it->code == code) flags[size_t(it - leaves.begin())] = 1;
+  };
+  auto flag = [&](const uint32_t* g) {
+    // The leaf of the grid point, and the leaf OctreeStore::cell_of finds for
+    // the float a page decodes it to (rounding can put a point on a cell
+    // face into the cell below): both, if they differ.
+    uint32_t by_grid[3], by_float[3];
+    for (int a = 0; a < 3; ++a) {
+      by_grid[a] = std::min(g[a] >> shift, max_cell);  // the far face belongs to the last cell
+      const double p = double(float(grid.lo[a] + double(g[a]) * grid.step));
+      by_float[a] = uint32_t(std::clamp(std::floor((p - grid.lo[a]) / cell_size), 0.0, double(max_cell)));
+    }
+    flag_code(morton_encode(by_grid[0], by_grid[1], by_grid[2]));
+    flag_code(morton_encode(by_float[0], by_float[1], by_float[2]));
   };
   for (const GridEdge& e : edges.open()) {
     flag(&e[0]);

@@ -112,11 +112,18 @@ TEST(Run, OtherViewsReuseOrRebuildByTheRule) {
   };
   auto mid = run("mid.json", "mid");
   EXPECT_FALSE(mid["cache_hit"].get<bool>());
-  // Farther away every footprint grows, so the cached mesh is fine enough.
+  // Farther away the view resolves less: either the cached mesh collapses
+  // no cell the new cut keeps and is reused, or the new cut is coarser. (Not
+  // always the first: a rim the near view saw at a grazing angle, where the
+  // measured footprint is long, can be a cell no test ray reaches from
+  // farther, where the pinhole bound is shorter.)
   auto far = run("far.json", "far");
-  EXPECT_TRUE(far["cache_hit"].get<bool>()) << far.dump(2);
-  EXPECT_NE(far["meshes"][0]["cache_note"].get<std::string>().find("reusing"), std::string::npos);
-  EXPECT_EQ(far["triangles_out"], mid["triangles_out"]);
+  if (far["cache_hit"].get<bool>()) {
+    EXPECT_NE(far["meshes"][0]["cache_note"].get<std::string>().find("reusing"), std::string::npos);
+    EXPECT_EQ(far["triangles_out"], mid["triangles_out"]);
+  } else {
+    EXPECT_LT(far["triangles_out"].get<uint64_t>(), mid["triangles_out"].get<uint64_t>()) << far.dump(2);
+  }
   // Closer, the view needs finer cells than the cached mesh has: rebuilt.
   auto near = run("near.json", "near");
   EXPECT_FALSE(near["cache_hit"].get<bool>()) << near.dump(2);

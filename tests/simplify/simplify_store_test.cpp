@@ -228,5 +228,55 @@ TEST(SimplifyStore, MemoryLimitRefusesBeforeWork) {
   EXPECT_NEAR(double(e.triangles), double(ok->stats.output_triangles), 0.25 * double(ok->stats.output_triangles));
 }
 
+// Open boundaries (streaming/open_edges.h): a closed box built over many
+// pages has none (its edges that cross pages are matched across them); a
+// plate with a square hole has exactly the leaves of its two rims flagged.
+TEST(SimplifyStore, OpenBoundaryLeavesAreTheRimsExactly) {
+  BuiltStore box = build(test::closed_box({-1, -0.5f, -2}, {2, 0.5f, 1}, 24), "closed-box");
+  ASSERT_TRUE(box.store);
+  ASSERT_GT(box.store->pages().size(), 4u);
+  EXPECT_EQ(box.store->boundary_leaves(), 0u);
+
+  // A 32 x 32 plate of unit quads with the middle 8 x 8 missing.
+  TriangleBatch plate;
+  std::vector<Vec3> rim;
+  const int n = 32;
+  auto at = [](int i, int j) { return Vec3(float(i) / 8, 0.25f, float(j) / 8); };
+  auto hole = [&](int i, int j) { return i >= 12 && i < 20 && j >= 12 && j < 20; };
+  for (int i = 0; i < n; ++i)
+    for (int j = 0; j < n; ++j) {
+      if (hole(i, j)) continue;
+      add_tri(plate, at(i, j), at(i, j + 1), at(i + 1, j + 1));
+      add_tri(plate, at(i, j), at(i + 1, j + 1), at(i + 1, j));
+    }
+  for (int i = 0; i <= n; ++i)
+    for (int j = 0; j <= n; ++j) {
+      const bool outer = i == 0 || j == 0 || i == n || j == n;
+      const bool inner = i >= 12 && i <= 20 && j >= 12 && j <= 20 && (i == 12 || i == 20 || j == 12 || j == 20);
+      if (outer || inner) rim.push_back(at(i, j));
+    }
+  BuiltStore b = build(plate, "plate-with-hole");
+  ASSERT_TRUE(b.store);
+  ASSERT_GE(b.store->pages().size(), 4u);  // the hole's rim crosses pages
+  const int q = b.store->header().quadric_depth;
+  std::set<uint64_t> rim_cells;
+  for (const Vec3& p : rim) rim_cells.insert(b.store->cell_of(Vec3d(p), q).code);
+  EXPECT_EQ(b.store->boundary_leaves(), rim_cells.size());
+  size_t interior = 0;
+  for (const NodeRecord& leaf : b.store->level(q)) {
+    const bool flagged = b.store->touches_boundary({uint32_t(q), leaf.code});
+    EXPECT_EQ(flagged, rim_cells.count(leaf.code) == 1) << "leaf " << leaf.code;
+    interior += !flagged;
+  }
+  EXPECT_GT(interior, 0u);
+  // A parent touches the boundary exactly when one of its leaves does.
+  for (int level = 0; level < q; ++level)
+    for (const NodeRecord& node : b.store->level(level)) {
+      bool any = false;
+      for (uint64_t c : rim_cells) any = any || (c >> (3 * (q - level))) == node.code;
+      EXPECT_EQ(b.store->touches_boundary({uint32_t(level), node.code}), any) << "level " << level;
+    }
+}
+
 }  // namespace
 }  // namespace raylod

@@ -1,0 +1,106 @@
+// Open edges (streaming/open_edges.h): tiny exact cases, and matching across
+// pages against a brute-force count over the whole mesh.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <map>
+#include <random>
+#include <set>
+
+#include "streaming/open_edges.h"
+
+namespace raylod {
+namespace {
+
+using Tri = std::array<uint32_t, 9>;
+
+std::vector<uint32_t> flatten(const std::vector<Tri>& tris) {
+  std::vector<uint32_t> v;
+  for (const Tri& t : tris) v.insert(v.end(), t.begin(), t.end());
+  return v;
+}
+
+GridEdge edge(std::array<uint32_t, 3> a, std::array<uint32_t, 3> b) {
+  if (b < a) std::swap(a, b);
+  return {a[0], a[1], a[2], b[0], b[1], b[2]};
+}
+
+std::vector<GridEdge> open_of(const std::vector<Tri>& tris) {
+  OpenEdgeScratch scratch;
+  std::vector<GridEdge> out;
+  const std::vector<uint32_t> c = flatten(tris);
+  find_open_edges(c, scratch, out);
+  return out;
+}
+
+TEST(OpenEdges, OneTriangleTwoTrianglesATetrahedron) {
+  const Tri t0{0, 0, 0, 4, 0, 0, 0, 4, 0};
+  EXPECT_EQ(open_of({t0}), (std::vector<GridEdge>{edge({0, 0, 0}, {4, 0, 0}), edge({4, 0, 0}, {0, 4, 0}),
+                                                   edge({0, 4, 0}, {0, 0, 0})}));
+  // Sharing the edge (4,0,0)-(0,4,0), in the opposite direction.
+  const Tri t1{4, 0, 0, 4, 4, 0, 0, 4, 0};
+  const auto two = open_of({t0, t1});
+  EXPECT_EQ(two.size(), 4u);
+  EXPECT_EQ(std::count(two.begin(), two.end(), edge({4, 0, 0}, {0, 4, 0})), 0);
+  // A closed tetrahedron has none.
+  const std::array<uint32_t, 3> a{0, 0, 0}, b{4, 0, 0}, c{0, 4, 0}, d{0, 0, 4};
+  auto tri = [](auto p, auto q, auto r) { return Tri{p[0], p[1], p[2], q[0], q[1], q[2], r[0], r[1], r[2]}; };
+  EXPECT_TRUE(open_of({tri(a, c, b), tri(a, b, d), tri(b, c, d), tri(c, a, d)}).empty());
+  // A degenerate triangle (repeated corner) has one edge, twice: not open.
+  EXPECT_TRUE(open_of({tri(a, a, b)}).empty());
+  // Three triangles on one edge (non-manifold): used more than once, not open.
+  const std::array<uint32_t, 3> e{2, 2, 2};
+  const auto fan = open_of({tri(a, b, c), tri(b, a, d), tri(a, b, e)});
+  EXPECT_EQ(std::count(fan.begin(), fan.end(), edge(a, b)), 0);
+  EXPECT_EQ(fan.size(), 6u);
+}
+
+TEST(OpenEdgesProperty, PagesMatchedAgreeWithAWholeMeshCount) {
+  // Random triangles on a small grid (so that edges repeat), cut into random
+  // pages. Each page reports the edges it uses once; the matcher keeps those
+  // reported by an odd number of pages, which includes every edge the whole
+  // mesh uses once (an edge open across two pages is interior).
+  std::mt19937 rng(11);
+  for (int round = 0; round < 20; ++round) {
+    std::vector<Tri> tris;
+    std::uniform_int_distribution<uint32_t> coord(0, 3);
+    for (int i = 0; i < 300; ++i) {
+      Tri t;
+      for (uint32_t& v : t) v = coord(rng);
+      tris.push_back(t);
+    }
+    // Whole-mesh reference: edges used once.
+    std::map<GridEdge, int> uses;
+    for (const Tri& t : tris)
+      for (int k = 0; k < 3; ++k) {
+        const std::array<uint32_t, 3> p{t[3 * k], t[3 * k + 1], t[3 * k + 2]};
+        const int m = (k + 1) % 3;
+        const std::array<uint32_t, 3> q{t[3 * m], t[3 * m + 1], t[3 * m + 2]};
+        if (p != q) ++uses[edge(p, q)];
+      }
+    // Pages: contiguous runs of random length.
+    OpenEdgeMatcher matcher;
+    std::map<GridEdge, int> pages_with_one_use;  // in how many pages an edge is open
+    size_t at = 0;
+    while (at < tris.size()) {
+      const size_t len = std::min<size_t>(tris.size() - at, 1 + rng() % 60);
+      const std::vector<Tri> page(tris.begin() + long(at), tris.begin() + long(at + len));
+      const auto open = open_of(page);
+      for (const GridEdge& e : open) ++pages_with_one_use[e];
+      matcher.add(open);
+      at += len;
+    }
+    // The matcher keeps an edge open in an odd number of pages.
+    std::set<GridEdge> expected;
+    for (const auto& [e, n] : pages_with_one_use)
+      if (n % 2 == 1) expected.insert(e);
+    std::set<GridEdge> got(matcher.open().begin(), matcher.open().end());
+    EXPECT_EQ(got, expected) << "round " << round;
+    // Every edge of one use in the whole mesh is among them.
+    for (const auto& [e, n] : uses)
+      if (n == 1) EXPECT_EQ(got.count(e), 1u) << "round " << round;
+  }
+}
+
+}  // namespace
+}  // namespace raylod
