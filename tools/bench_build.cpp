@@ -45,6 +45,7 @@ struct ChildResult {
   double scan = 0, bin = 0, write = 0, commit = 0, inside = 0;
   uint64_t triangles = 0, nodes = 0, pages = 0, store_bytes = 0, node_bytes = 0;
   uint64_t written = 0;  // bytes the process passed to write calls (/proc/self/io wchar): runs and store
+  uint64_t open_edges = 0, open_edges_peak = 0;
   int quadric_depth = 0, page_level = 0;
   // OpenMesh
   uint64_t faces = 0, vertices = 0;
@@ -191,6 +192,7 @@ int main(int argc, char** argv) {
         out.triangles = built->triangles; out.nodes = built->nodes; out.pages = built->pages;
         out.store_bytes = built->store_bytes; out.node_bytes = built->node_table_bytes;
         out.quadric_depth = built->quadric_depth; out.page_level = built->page_level;
+        out.open_edges = built->open_edges; out.open_edges_peak = built->open_edges_peak;
       });
       if (!r.ok) { std::fprintf(stderr, "bench_build: %s: %s\n", mesh.c_str(), r.error); return 1; }
       walls.push_back(r.wall);
@@ -237,6 +239,9 @@ int main(int argc, char** argv) {
                 " pages at level %d)\n",
                 format_bytes(last.store_bytes).c_str(), double(last.store_bytes) / double(mesh_bytes),
                 format_bytes(last.node_bytes).c_str(), last.nodes, last.quadric_depth, last.pages, last.page_level);
+    std::printf("  open edges       %" PRIu64 " (a hole's or open surface's rim); at most %" PRIu64
+                " pending a match across pages at once\n",
+                last.open_edges, last.open_edges_peak);
     std::printf("  read back        %" PRIu64 " triangles, every page checksum verified: %.2f s (%.1f M triangles/s, "
                 "open + node table included), peak RSS %s\n",
                 rb.triangles, rb.wall, double(rb.triangles) / rb.wall / 1e6, format_bytes(rb.max_rss).c_str());

@@ -33,8 +33,9 @@
 // compares that with ||dD||).
 //
 // Not seen by a quadric: open boundaries (a hole's rim in a flat plate has
-// one plane and deviation 0); the cut's cap on the cell size in footprints
-// bounds how far such a rim can move.
+// one plane and deviation 0). The store flags the cells that hold a rim
+// vertex (OctreeStore::touches_boundary), and the cut lets such a cell
+// collapse only while the whole cell is within the tolerance (probe.h).
 #pragma once
 
 #include "core/math.h"

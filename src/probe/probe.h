@@ -51,8 +51,12 @@
 //     the angular spread ||dD|| of the rays leaving that surface, taken
 //     as the smallest along the rest of each path (a later surface may focus
 //     the beam while the error stays); the smallest measured at hits in the
-//     cell, else a_min * m for unreached cells. K then only caps how large a cell may get relative to the
-//     footprint (bounding what a quadric cannot see, such as open rims).
+//     cell, else a_min * m for unreached cells; AND, for a cell holding an
+//     open boundary vertex (OctreeStore::touches_boundary: a hole's rim, the
+//     edge of an open surface), which a quadric does not see and the
+//     representative may pull anywhere in the cell, diagonal(cell) is at
+//     most tolerance_px * need(cell). K then only caps how large a cell may
+//     get relative to the footprint.
 //
 // Cells that no ray path can reach -- outside the view frustum in a scene
 // with no mirror or glass (so no secondary ray can turn towards them) -- only
