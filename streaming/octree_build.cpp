@@ -828,6 +828,71 @@ Status bin_pass(MeshReader& reader, size_t ntokens, const Plan& plan, bool has_n
   return {};
 }
 
+// The leaves (at `depth`, sorted by code) that hold an end of an open edge.
+// Pages hand their open edges over in order; an edge waits for the page on
+// the other side of it. Past `cap` pending edges matching stops: the pending
+// ones are flagged as they are, and so is every later page's open edge. An
+// interior edge across two pages then flags its leaves too: more cells kept,
+// never a rim missed; the memory stays bounded for meshes with very many
+// open edges (a soup of separate triangles has three each).
+struct BoundaryFlags {
+  std::span<const NodeRecord> leaves;
+  int depth = 0;
+  PageGrid grid;
+  size_t cap = 0;
+  std::vector<uint8_t> flags;
+  OpenEdgeMatcher matcher;
+  bool capped = false;
+  uint64_t flagged_edges = 0;  // edges flagged without a match (past the cap, or at the end)
+
+  BoundaryFlags(std::span<const NodeRecord> l, int d, const PageGrid& g, size_t c)
+      : leaves(l), depth(d), grid(g), cap(c), flags(l.size(), 0) {}
+
+  void add(std::span<const GridEdge> edges) {
+    if (capped) {
+      for (const GridEdge& e : edges) flag_edge(e);
+      return;
+    }
+    matcher.add(edges);
+    if (matcher.open().size() > cap) {
+      flush();
+      capped = true;
+    }
+  }
+  void flush() {
+    for (const GridEdge& e : matcher.open()) flag_edge(e);
+    matcher.clear();
+  }
+
+ private:
+  void flag_code(uint64_t code) {
+    auto it = std::lower_bound(leaves.begin(), leaves.end(), code,
+                               [](const NodeRecord& n, uint64_t c) { return n.code < c; });
+    if (it != leaves.end() && it->code == code) flags[size_t(it - leaves.begin())] = 1;
+  }
+  // The leaf of the grid point, and the leaf OctreeStore::cell_of finds for
+  // the float a page decodes it to (rounding can put a point on a cell face
+  // into the cell below): both, if they differ.
+  void flag_point(const uint32_t* g) {
+    const int shift = grid.bits - depth;
+    const uint32_t max_cell = (uint32_t(1) << depth) - 1;
+    const double cell_size = std::ldexp(grid.step, shift);
+    uint32_t by_grid[3], by_float[3];
+    for (int a = 0; a < 3; ++a) {
+      by_grid[a] = std::min(g[a] >> shift, max_cell);  // the far face belongs to the last cell
+      const double p = double(float(grid.lo[a] + double(g[a]) * grid.step));
+      by_float[a] = uint32_t(std::clamp(std::floor((p - grid.lo[a]) / cell_size), 0.0, double(max_cell)));
+    }
+    flag_code(morton_encode(by_grid[0], by_grid[1], by_grid[2]));
+    flag_code(morton_encode(by_float[0], by_float[1], by_float[2]));
+  }
+  void flag_edge(const GridEdge& e) {
+    flag_point(&e[0]);
+    flag_point(&e[3]);
+    ++flagged_edges;
+  }
+};
+
 // One page in flight through write_pages.
 struct PageToken {
   std::vector<uint32_t> positions, normals;  // grid coordinates, normal codes
@@ -855,17 +920,19 @@ Status encode_run_page(RunFile& runs, bool has_normals, const PageGrid& grid, ui
   t.bounds = encode_page(t.positions, t.normals, grid, t.encoder, t.bytes);
   t.checksum = crc32c(t.bytes.data(), t.bytes.size());
   t.open_edges.clear();
-  find_open_edges(t.positions, t.edge_scratch, t.open_edges);
+  find_open_edges(t.encoder.keys, t.encoder.index, t.edge_scratch, t.open_edges);
+  // A page far above the usual size leaves large tables: free them.
+  if (t.edge_scratch.slots.size() > (size_t(1) << 22)) t.edge_scratch = OpenEdgeScratch{};
   return {};
 }
 
 // Pages in code order: each is read back from its run segments and encoded
 // in parallel (page_codec.h), then written in order, one after another from
-// data_offset; its open edges go to `edges` in the same order. Returns the
-// end offset of the page data.
+// data_offset; its open edges go to `boundary` in the same order. Returns
+// the end offset of the page data.
 StatusOr<uint64_t> write_pages(int fd, const std::filesystem::path& out_path, RunFile& runs, const Binned& binned,
                                bool has_normals, const PageGrid& grid, uint64_t data_offset, size_t ntokens,
-                               std::vector<PageInfo>& pages, OpenEdgeMatcher& edges) {
+                               std::vector<PageInfo>& pages, BoundaryFlags& boundary) {
   const size_t num_pages = binned.pages.codes.size();
   std::vector<uint32_t> order(num_pages);
   for (size_t i = 0; i < num_pages; ++i) order[i] = uint32_t(i);
@@ -892,7 +959,7 @@ StatusOr<uint64_t> write_pages(int fd, const std::filesystem::path& out_path, Ru
         info.bytes = t.bytes.size();
         offset += t.bytes.size();
         pages.push_back(info);
-        edges.add(t.open_edges);
+        boundary.add(t.open_edges);
         progress.advance(info.triangle_count);
         if (pages.size() == std::max<size_t>(1, num_pages / 2)) fault_point("build.pages");
         return {};
@@ -901,38 +968,6 @@ StatusOr<uint64_t> write_pages(int fd, const std::filesystem::path& out_path, Ru
   RAYLOD_RETURN_IF_ERROR(written);
   if (pages.size() != num_pages) return Status::error(out_path.string() + ": internal error: pages were lost");
   return offset;
-}
-
-// Flags the leaves (at `depth`, sorted by code) that hold an end of an open edge.
-std::vector<uint8_t> boundary_leaves(const OpenEdgeMatcher& edges, std::span<const NodeRecord> leaves, int depth,
-                                     const PageGrid& grid) {
-  std::vector<uint8_t> flags(leaves.size(), 0);
-  const int shift = grid.bits - depth;
-  const uint32_t max_cell = (uint32_t(1) << depth) - 1;
-  const double cell_size = std::ldexp(grid.step, shift);
-  auto flag_code = [&](uint64_t code) {
-    auto it = std::lower_bound(leaves.begin(), leaves.end(), code,
-                               [](const NodeRecord& n, uint64_t c) { return n.code < c; });
-    if (it != leaves.end() && it->code == code) flags[size_t(it - leaves.begin())] = 1;
-  };
-  auto flag = [&](const uint32_t* g) {
-    // The leaf of the grid point, and the leaf OctreeStore::cell_of finds for
-    // the float a page decodes it to (rounding can put a point on a cell
-    // face into the cell below): both, if they differ.
-    uint32_t by_grid[3], by_float[3];
-    for (int a = 0; a < 3; ++a) {
-      by_grid[a] = std::min(g[a] >> shift, max_cell);  // the far face belongs to the last cell
-      const double p = double(float(grid.lo[a] + double(g[a]) * grid.step));
-      by_float[a] = uint32_t(std::clamp(std::floor((p - grid.lo[a]) / cell_size), 0.0, double(max_cell)));
-    }
-    flag_code(morton_encode(by_grid[0], by_grid[1], by_grid[2]));
-    flag_code(morton_encode(by_float[0], by_float[1], by_float[2]));
-  };
-  for (const GridEdge& e : edges.open()) {
-    flag(&e[0]);
-    flag(&e[3]);
-  }
-  return flags;
 }
 
 }  // namespace
@@ -1032,12 +1067,17 @@ StatusOr<BuildReport> build_store_from_stream(const MeshStreamOpener& open, cons
   } closer{fd};
 
   std::vector<PageInfo> pages;
-  OpenEdgeMatcher open_edges;
+  // Pending open edges take about 64 bytes each: at most a 64th of the
+  // memory limit (at least 64k, at most 4M of them).
+  const size_t edge_cap = size_t(std::clamp<uint64_t>(memory_limit / 64 / 64, uint64_t(1) << 16, uint64_t(1) << 22));
+  BoundaryFlags boundary_flags(leaves, binned.depth, plan.grid, edge_cap);
   RAYLOD_ASSIGN_OR_RETURN(const uint64_t data_end, write_pages(fd, tmp, runs, binned, scan.has_normals, plan.grid,
-                                                               layout.data_offset, ntokens, pages, open_edges));
-  const std::vector<uint8_t> boundary = boundary_leaves(open_edges, leaves, binned.depth, plan.grid);
-  report.open_edges = open_edges.open().size();
-  report.open_edges_peak = open_edges.peak();
+                                                               layout.data_offset, ntokens, pages, boundary_flags));
+  boundary_flags.flush();
+  report.open_edges = boundary_flags.flagged_edges;
+  report.open_edges_peak = boundary_flags.matcher.peak();
+  report.open_edges_capped = boundary_flags.capped;
+  const std::vector<uint8_t> boundary = std::move(boundary_flags.flags);
   layout.data_bytes = data_end - layout.data_offset;
   layout.file_bytes = data_end;
   // Closing the unlinked runs file frees its blocks and page cache (about a

@@ -181,8 +181,9 @@ struct BuildReport {
   uint64_t store_bytes = 0;       // size of the written store file
   uint64_t source_bytes = 0;
   bool coarsened = false;         // quadric_depth had to be lowered during the build
-  uint64_t open_edges = 0;        // open boundary edges (edges of one triangle)
+  uint64_t open_edges = 0;        // open boundary edges (edges of one triangle) flagged
   uint64_t open_edges_peak = 0;   // most edges pending a match across pages at once
+  bool open_edges_capped = false; // matching stopped at the cap (later pages' open edges flagged unmatched)
   // Wall time of the phases: pass 1 (bounds), pass 2 (binning and quadrics),
   // page assembly and writing, fsync + rename.
   double scan_seconds = 0, bin_seconds = 0, write_seconds = 0, commit_seconds = 0;

@@ -6,50 +6,92 @@
 
 namespace raylod {
 
-void find_open_edges(std::span<const uint32_t> corners, OpenEdgeScratch& scratch, std::vector<GridEdge>& out) {
-  const size_t triangles = corners.size() / 9;
-  if (triangles == 0) return;
-  // Open addressing, at most half full.
-  const size_t size = std::bit_ceil(std::max<size_t>(16, 6 * triangles));
-  scratch.table.assign(size, {});
-  const GridEdgeHash hash;
-  auto point = [&](size_t t, int k) { return &corners[9 * t + 3 * size_t(k)]; };
-  for (size_t t = 0; t < triangles; ++t)
-    for (int k = 0; k < 3; ++k) {
-      const uint32_t* a = point(t, k);
-      const uint32_t* b = point(t, (k + 1) % 3);
-      if (std::equal(a, a + 3, b)) continue;
-      if (std::lexicographical_compare(b, b + 3, a, a + 3)) std::swap(a, b);
-      const GridEdge e{a[0], a[1], a[2], b[0], b[1], b[2]};
-      for (size_t i = hash(e) & (size - 1);; i = (i + 1) & (size - 1)) {
-        OpenEdgeScratch::Slot& s = scratch.table[i];
-        if (s.count == 0) {
-          s.edge = e;
-          s.count = 1;
-          break;
-        }
-        if (s.edge == e) {
-          ++s.count;
-          break;
-        }
+namespace {
+
+constexpr int kFan = 8;  // neighbours listed per position; more go to the overflow list
+
+inline uint64_t mix(uint64_t h) {
+  h ^= h >> 33;
+  h *= 0xff51afd7ed558ccdull;
+  h ^= h >> 33;
+  h *= 0xc4ceb9fe1a85ec53ull;
+  return h ^ (h >> 33);
+}
+
+}  // namespace
+
+void find_open_edges(std::span<const uint32_t> vertex_keys, std::span<const uint32_t> corner_vertex,
+                     OpenEdgeScratch& scratch, std::vector<GridEdge>& out) {
+  const size_t nv = vertex_keys.size() / 4;
+  if (nv == 0 || corner_vertex.size() < 3) return;
+  // Positions: the distinct grid points of the vertices, in first-use order.
+  const size_t nslots = std::bit_ceil(std::max<size_t>(16, 2 * nv));
+  scratch.slots.assign(nslots, 0);
+  scratch.position.resize(nv);
+  scratch.points.clear();
+  for (size_t v = 0; v < nv; ++v) {
+    const uint32_t* p = &vertex_keys[4 * v];
+    for (uint64_t h = mix((uint64_t(p[0]) << 32 | p[1]) ^ mix(p[2]));; ++h) {
+      uint32_t& slot = scratch.slots[h & (nslots - 1)];
+      if (slot == 0) {
+        scratch.points.insert(scratch.points.end(), p, p + 3);
+        slot = uint32_t(scratch.points.size() / 3);
+        scratch.position[v] = slot - 1;
+        break;
       }
-    }
-  // First-use order: scan the triangles again and report each open edge once.
-  for (size_t t = 0; t < triangles; ++t)
-    for (int k = 0; k < 3; ++k) {
-      const uint32_t* a = point(t, k);
-      const uint32_t* b = point(t, (k + 1) % 3);
-      if (std::equal(a, a + 3, b)) continue;
-      if (std::lexicographical_compare(b, b + 3, a, a + 3)) std::swap(a, b);
-      const GridEdge e{a[0], a[1], a[2], b[0], b[1], b[2]};
-      for (size_t i = hash(e) & (size - 1);; i = (i + 1) & (size - 1)) {
-        OpenEdgeScratch::Slot& s = scratch.table[i];
-        if (s.edge != e) continue;
-        if (s.count == 1) out.push_back(e);
-        s.count = 0xffffffffu;  // reported (or interior): not again
+      const uint32_t* q = &scratch.points[3 * size_t(slot - 1)];
+      if (q[0] == p[0] && q[1] == p[1] && q[2] == p[2]) {
+        scratch.position[v] = slot - 1;
         break;
       }
     }
+  }
+  const size_t np = scratch.points.size() / 3;
+  // Each edge is listed at its smaller position, with a use count; a
+  // position's list is short (its fan) and was touched a moment ago, so the
+  // lookups stay in cache.
+  scratch.neighbour.resize(np * kFan);
+  scratch.uses.resize(np * kFan);
+  scratch.fan.assign(np, 0);
+  scratch.overflow.clear();
+  for (size_t c = 0; c + 2 < corner_vertex.size(); c += 3)
+    for (int k = 0; k < 3; ++k) {
+      uint32_t a = scratch.position[corner_vertex[c + size_t(k)]];
+      uint32_t b = scratch.position[corner_vertex[c + size_t((k + 1) % 3)]];
+      if (a == b) continue;
+      if (b < a) std::swap(a, b);
+      uint32_t* list = &scratch.neighbour[size_t(a) * kFan];
+      uint8_t* uses = &scratch.uses[size_t(a) * kFan];
+      const int n = scratch.fan[a];
+      int j = 0;
+      while (j < n && list[j] != b) ++j;
+      if (j < n) {
+        uses[j] = 2;
+      } else if (n < kFan) {
+        list[n] = b;
+        uses[n] = 1;
+        scratch.fan[a] = uint8_t(n + 1);
+      } else {
+        scratch.overflow.push_back({a, b});
+      }
+    }
+  auto edge = [&](uint32_t a, uint32_t b) {
+    const uint32_t* p = &scratch.points[3 * size_t(a)];
+    const uint32_t* q = &scratch.points[3 * size_t(b)];
+    if (std::lexicographical_compare(q, q + 3, p, p + 3)) std::swap(p, q);
+    return GridEdge{p[0], p[1], p[2], q[0], q[1], q[2]};
+  };
+  for (uint32_t a = 0; a < np; ++a)
+    for (int j = 0; j < scratch.fan[a]; ++j)
+      if (scratch.uses[size_t(a) * kFan + size_t(j)] == 1) out.push_back(edge(a, scratch.neighbour[size_t(a) * kFan + size_t(j)]));
+  // Edges from positions with more than kFan neighbours: counted by sorting.
+  std::sort(scratch.overflow.begin(), scratch.overflow.end());
+  for (size_t i = 0; i < scratch.overflow.size();) {
+    size_t j = i + 1;
+    while (j < scratch.overflow.size() && scratch.overflow[j] == scratch.overflow[i]) ++j;
+    if (j == i + 1) out.push_back(edge(scratch.overflow[i].first, scratch.overflow[i].second));
+    i = j;
+  }
 }
 
 void OpenEdgeMatcher::add(std::span<const GridEdge> page_open_edges) {

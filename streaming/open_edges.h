@@ -21,33 +21,44 @@ using GridEdge = std::array<uint32_t, 6>;
 
 struct GridEdgeHash {
   size_t operator()(const GridEdge& e) const {
-    uint64_t h = 0x9e3779b97f4a7c15ull;
-    for (uint32_t v : e) h = (h ^ v) * 0xff51afd7ed558ccdull, h ^= h >> 32;
-    return size_t(h);
+    // Three independent multiplies (no serial chain), then a fold.
+    const uint64_t w0 = e[0] | uint64_t(e[1]) << 32, w1 = e[2] | uint64_t(e[3]) << 32, w2 = e[4] | uint64_t(e[5]) << 32;
+    uint64_t h = (w0 * 0x9e3779b97f4a7c15ull) ^ (w1 * 0xc2b2ae3d27d4eb4full) ^ (w2 * 0x165667b19e3779f9ull);
+    return size_t(h ^ (h >> 29));
   }
 };
 
 // Reusable storage for find_open_edges (one per worker).
 struct OpenEdgeScratch {
-  struct Slot {
-    GridEdge edge;
-    uint32_t count = 0;  // 0 = empty
-  };
-  std::vector<Slot> table;
+  std::vector<uint32_t> slots;     // position hash table: 1 + position index, 0 = empty
+  std::vector<uint32_t> position;  // vertex -> position index
+  std::vector<uint32_t> points;    // 3 grid coordinates per position
+  std::vector<uint32_t> neighbour; // kFan per position: the larger end of edges from it
+  std::vector<uint8_t> uses;       // kFan per position: how often that edge was seen (2 = twice or more)
+  std::vector<uint8_t> fan;        // per position: neighbours listed
+  std::vector<std::pair<uint32_t, uint32_t>> overflow;  // edges from positions with a full list
 };
 
-// The edges of the triangles in `corners` (9 grid coordinates per triangle)
-// used by exactly one triangle, appended to `out` in first-use order.
-// Degenerate edges (equal end points) are not edges.
-void find_open_edges(std::span<const uint32_t> corners, OpenEdgeScratch& scratch, std::vector<GridEdge>& out);
+// The edges of a page's triangles used by exactly one triangle, appended to
+// `out` (the same order for the same input). The page is given as the page
+// encoder has it (page_codec.h): `vertex_keys` holds 4 words per distinct
+// corner (3 grid coordinates, then the normal code, ignored here: corners
+// split at a crease are one position), `corner_vertex` 3 corners per
+// triangle. Degenerate edges (equal end points) are not edges.
+void find_open_edges(std::span<const uint32_t> vertex_keys, std::span<const uint32_t> corner_vertex,
+                     OpenEdgeScratch& scratch, std::vector<GridEdge>& out);
 
 // Matches the open edges of the pages, given in any fixed order: an edge
-// that two pages report is interior. What stays is open in the whole mesh.
+// that two pages report is interior. What stays is open in the whole mesh
+// (or used an odd number of times past two: a non-manifold edge, which is
+// flagged like a rim; a T-junction's crack is open too). Pending edges take
+// about 64 bytes each; the build caps them (octree_build.cpp).
 class OpenEdgeMatcher {
  public:
   void add(std::span<const GridEdge> page_open_edges);
   const std::unordered_set<GridEdge, GridEdgeHash>& open() const { return pending_; }
   size_t peak() const { return peak_; }  // most edges pending at once
+  void clear() { std::unordered_set<GridEdge, GridEdgeHash>().swap(pending_); }  // and free the memory
 
  private:
   std::unordered_set<GridEdge, GridEdgeHash> pending_;

@@ -215,7 +215,8 @@ int main(int argc, char** argv) {
 
     // Side by side: the renderer's camera rays (packets and single) and the
     // bare loops, interleaved within each run.
-    const PinholeCamera pc = make_pinhole_camera(scene.camera);
+    // The geometry is in the render frame (in_render_frame), so is the camera.
+    const PinholeCamera pc = make_pinhole_camera(in_render_frame(scene).camera);
     RenderOptions single = o;
     single.camera_packets = false;
     Variant cam{"camera-only", {}, 0}, cam1{"camera-single", {}, 0};

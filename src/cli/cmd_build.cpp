@@ -72,8 +72,11 @@ int run_build(int argc, char** argv) {
               format_bytes(r.node_table_bytes).c_str());
   std::printf("  pages          %llu (%.0f triangles per page on average)\n", (unsigned long long)r.pages,
               r.pages ? double(r.triangles) / double(r.pages) : 0.0);
-  std::printf("  open edges     %llu (edges of one triangle: holes' and open surfaces' rims)\n",
-              (unsigned long long)r.open_edges);
+  std::printf("  open edges     %llu (edges of one triangle: holes' and open surfaces' rims)%s\n",
+              (unsigned long long)r.open_edges,
+              r.open_edges_capped ? "; too many to match across pages within the memory limit, so some interior "
+                                    "edges between pages were flagged too (more cells kept near them)"
+                                  : "");
   std::printf("  store          %s (%.2fx the mesh's %s)\n", format_bytes(r.store_bytes).c_str(),
               r.source_bytes ? double(r.store_bytes) / double(r.source_bytes) : 0.0,
               format_bytes(r.source_bytes).c_str());

@@ -21,6 +21,7 @@
 #include <type_traits>
 
 #include <nlohmann/json.hpp>
+#include <glm/gtc/matrix_transform.hpp>
 
 #include "core/cluster.h"
 #include "core/fault_point.h"
@@ -315,7 +316,11 @@ StatusOr<uint64_t> export_simplified_glb(const fs::path& out, const std::vector<
   for (size_t o = 0; o < stores.objects.size(); ++o) {
     const ProbeObject& obj = stores.objects[o];
     if (glb_index[obj.store] == SIZE_MAX) continue;
-    nodes.push_back(GlbNode{"objects[" + std::to_string(o) + "]", glb_index[obj.store], obj.transform});
+    // The Draco positions are relative to the mesh origin (a far mesh's); glTF
+    // readers know nothing of its metadata, so the node carries it.
+    const Vec3d origin = stores.stores[obj.store]->header().mesh_origin;
+    nodes.push_back(GlbNode{"objects[" + std::to_string(o) + "]", glb_index[obj.store],
+                            obj.transform * glm::translate(glm::dmat4(1.0), origin)});
   }
   if (nodes.empty()) return Status::error(out.string() + ": no simplified mesh has triangles; nothing was exported");
   return write_glb(out, glb_meshes, nodes);

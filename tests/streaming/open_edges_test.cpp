@@ -14,29 +14,42 @@ namespace {
 
 using Tri = std::array<uint32_t, 9>;
 
-std::vector<uint32_t> flatten(const std::vector<Tri>& tris) {
-  std::vector<uint32_t> v;
-  for (const Tri& t : tris) v.insert(v.end(), t.begin(), t.end());
-  return v;
-}
-
 GridEdge edge(std::array<uint32_t, 3> a, std::array<uint32_t, 3> b) {
   if (b < a) std::swap(a, b);
   return {a[0], a[1], a[2], b[0], b[1], b[2]};
 }
 
-std::vector<GridEdge> open_of(const std::vector<Tri>& tris) {
+// A page as the encoder gives it: one vertex per corner here (positions
+// repeat; normal code = the corner number, as if every corner had its own
+// normal, so only positions can join them).
+struct Page {
+  std::vector<uint32_t> keys, corners;
+};
+Page page_of(const std::vector<Tri>& tris) {
+  Page p;
+  for (const Tri& t : tris)
+    for (int k = 0; k < 3; ++k) {
+      p.corners.push_back(uint32_t(p.keys.size() / 4));
+      p.keys.insert(p.keys.end(), {t[3 * k], t[3 * k + 1], t[3 * k + 2], uint32_t(p.corners.size())});
+    }
+  return p;
+}
+
+// Sorted (find_open_edges reports in its own order).
+std::vector<GridEdge> open_of(const std::vector<Tri>& tris, OpenEdgeScratch* reuse = nullptr) {
   OpenEdgeScratch scratch;
   std::vector<GridEdge> out;
-  const std::vector<uint32_t> c = flatten(tris);
-  find_open_edges(c, scratch, out);
+  const Page p = page_of(tris);
+  find_open_edges(p.keys, p.corners, reuse ? *reuse : scratch, out);
+  std::sort(out.begin(), out.end());
   return out;
 }
 
 TEST(OpenEdges, OneTriangleTwoTrianglesATetrahedron) {
   const Tri t0{0, 0, 0, 4, 0, 0, 0, 4, 0};
-  EXPECT_EQ(open_of({t0}), (std::vector<GridEdge>{edge({0, 0, 0}, {4, 0, 0}), edge({4, 0, 0}, {0, 4, 0}),
-                                                   edge({0, 4, 0}, {0, 0, 0})}));
+  std::vector<GridEdge> three{edge({0, 0, 0}, {4, 0, 0}), edge({4, 0, 0}, {0, 4, 0}), edge({0, 4, 0}, {0, 0, 0})};
+  std::sort(three.begin(), three.end());
+  EXPECT_EQ(open_of({t0}), three);
   // Sharing the edge (4,0,0)-(0,4,0), in the opposite direction.
   const Tri t1{4, 0, 0, 4, 4, 0, 0, 4, 0};
   const auto two = open_of({t0, t1});
@@ -53,6 +66,31 @@ TEST(OpenEdges, OneTriangleTwoTrianglesATetrahedron) {
   const auto fan = open_of({tri(a, b, c), tri(b, a, d), tri(a, b, e)});
   EXPECT_EQ(std::count(fan.begin(), fan.end(), edge(a, b)), 0);
   EXPECT_EQ(fan.size(), 6u);
+}
+
+TEST(OpenEdges, AReusedScratchForgetsThePreviousPage) {
+  OpenEdgeScratch scratch;
+  const Tri t0{0, 0, 0, 4, 0, 0, 0, 4, 0}, t1{4, 0, 0, 4, 4, 0, 0, 4, 0};
+  EXPECT_EQ(open_of({t0, t1}, &scratch).size(), 4u);
+  // The next page shares nothing with the last: its one triangle's three edges.
+  EXPECT_EQ(open_of({t1}, &scratch).size(), 3u);
+}
+
+TEST(OpenEdges, AFanOfManyTrianglesAroundOneVertex) {
+  // 40 triangles around the origin (more neighbours than a vertex's short
+  // list holds): closed fan, so only the 40 rim edges are open.
+  std::vector<Tri> fan;
+  auto rim = [](int i) { return std::array<uint32_t, 3>{1000 + uint32_t(i % 40), 7, 9}; };
+  for (int i = 0; i < 40; ++i) {
+    const auto a = rim(i), b = rim(i + 1);
+    fan.push_back(Tri{500, 500, 500, a[0], a[1], a[2], b[0], b[1], b[2]});
+  }
+  const auto open = open_of(fan);
+  EXPECT_EQ(open.size(), 40u);
+  for (const GridEdge& e : open) EXPECT_NE(e[0], 500u);  // no spoke is open
+  // Half of it: the two outer spokes are open too.
+  const auto half = open_of(std::vector<Tri>(fan.begin(), fan.begin() + 20));
+  EXPECT_EQ(half.size(), 22u);
 }
 
 TEST(OpenEdgesProperty, PagesMatchedAgreeWithAWholeMeshCount) {
@@ -86,6 +124,7 @@ TEST(OpenEdgesProperty, PagesMatchedAgreeWithAWholeMeshCount) {
       const size_t len = std::min<size_t>(tris.size() - at, 1 + rng() % 60);
       const std::vector<Tri> page(tris.begin() + long(at), tris.begin() + long(at + len));
       const auto open = open_of(page);
+      EXPECT_TRUE(std::is_sorted(open.begin(), open.end()));
       for (const GridEdge& e : open) ++pages_with_one_use[e];
       matcher.add(open);
       at += len;
