@@ -854,13 +854,13 @@ struct BoundaryFlags {
       return;
     }
     matcher.add(edges);
-    if (matcher.open().size() > cap) {
+    if (matcher.size() > cap) {
       flush();
       capped = true;
     }
   }
   void flush() {
-    for (const GridEdge& e : matcher.open()) flag_edge(e);
+    matcher.for_each([&](const GridEdge& e) { flag_edge(e); });
     matcher.clear();
   }
 

@@ -95,9 +95,54 @@ void find_open_edges(std::span<const uint32_t> vertex_keys, std::span<const uint
 }
 
 void OpenEdgeMatcher::add(std::span<const GridEdge> page_open_edges) {
-  for (const GridEdge& e : page_open_edges)
-    if (pending_.erase(e) == 0) pending_.insert(e);
-  peak_ = std::max(peak_, pending_.size());
+  for (const GridEdge& e : page_open_edges) toggle(e);
+  peak_ = std::max(peak_, count_);
+}
+
+void OpenEdgeMatcher::toggle(const GridEdge& e) {
+  if (2 * (count_ + 1) > slots_.size()) grow();
+  const size_t mask = slots_.size() - 1;
+  const GridEdgeHash hash;
+  size_t i = hash(e) & mask;
+  for (; slots_[i] != kEmpty; i = (i + 1) & mask) {
+    if (slots_[i] != e) continue;
+    // Matched: erase, shifting back every later entry of the run whose home
+    // is not between the hole and it.
+    for (size_t j = i;;) {
+      j = (j + 1) & mask;
+      if (slots_[j] == kEmpty) break;
+      const size_t home = hash(slots_[j]) & mask;
+      const bool stays = i <= j ? (i < home && home <= j) : (i < home || home <= j);
+      if (stays) continue;
+      slots_[i] = slots_[j];
+      i = j;
+    }
+    slots_[i] = kEmpty;
+    --count_;
+    return;
+  }
+  slots_[i] = e;
+  ++count_;
+}
+
+void OpenEdgeMatcher::grow() {
+  std::vector<GridEdge> old(std::max<size_t>(64, 2 * slots_.size()), kEmpty);
+  old.swap(slots_);
+  const size_t mask = slots_.size() - 1;
+  const GridEdgeHash hash;
+  for (const GridEdge& e : old)
+    if (e != kEmpty) {
+      size_t i = hash(e) & mask;
+      while (slots_[i] != kEmpty) i = (i + 1) & mask;
+      slots_[i] = e;
+    }
+}
+
+std::vector<GridEdge> OpenEdgeMatcher::open() const {
+  std::vector<GridEdge> v;
+  for_each([&](const GridEdge& e) { v.push_back(e); });
+  std::sort(v.begin(), v.end());
+  return v;
 }
 
 }  // namespace raylod

@@ -11,7 +11,6 @@
 #include <array>
 #include <cstdint>
 #include <span>
-#include <unordered_set>
 #include <vector>
 
 namespace raylod {
@@ -21,10 +20,13 @@ using GridEdge = std::array<uint32_t, 6>;
 
 struct GridEdgeHash {
   size_t operator()(const GridEdge& e) const {
-    // Three independent multiplies (no serial chain), then a fold.
+    // Three independent multiplies (no serial chain), then a fold that
+    // brings the high bits down to the low ones a power-of-two table uses.
     const uint64_t w0 = e[0] | uint64_t(e[1]) << 32, w1 = e[2] | uint64_t(e[3]) << 32, w2 = e[4] | uint64_t(e[5]) << 32;
     uint64_t h = (w0 * 0x9e3779b97f4a7c15ull) ^ (w1 * 0xc2b2ae3d27d4eb4full) ^ (w2 * 0x165667b19e3779f9ull);
-    return size_t(h ^ (h >> 29));
+    h ^= h >> 32;
+    h *= 0xd6e8feb86659fd93ull;
+    return size_t(h ^ (h >> 32));
   }
 };
 
@@ -56,13 +58,27 @@ void find_open_edges(std::span<const uint32_t> vertex_keys, std::span<const uint
 class OpenEdgeMatcher {
  public:
   void add(std::span<const GridEdge> page_open_edges);
-  const std::unordered_set<GridEdge, GridEdgeHash>& open() const { return pending_; }
+  size_t size() const { return count_; }                // edges pending
+  std::vector<GridEdge> open() const;                   // the pending edges, sorted
+  template <class F>
+  void for_each(F&& f) const {
+    for (const GridEdge& e : slots_)
+      if (e != kEmpty) f(e);
+  }
   size_t peak() const { return peak_; }  // most edges pending at once
-  void clear() { std::unordered_set<GridEdge, GridEdgeHash>().swap(pending_); }  // and free the memory
+  void clear() {  // and free the memory
+    std::vector<GridEdge>().swap(slots_);
+    count_ = 0;
+  }
 
  private:
-  std::unordered_set<GridEdge, GridEdgeHash> pending_;
-  size_t peak_ = 0;
+  // Linear probing without tombstones (an erase shifts the run after it
+  // back); never a real edge: its two ends are equal.
+  static constexpr GridEdge kEmpty{~0u, ~0u, ~0u, ~0u, ~0u, ~0u};
+  void toggle(const GridEdge& e);
+  void grow();
+  std::vector<GridEdge> slots_;
+  size_t count_ = 0, peak_ = 0;
 };
 
 }  // namespace raylod

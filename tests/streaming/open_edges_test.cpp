@@ -133,12 +133,44 @@ TEST(OpenEdgesProperty, PagesMatchedAgreeWithAWholeMeshCount) {
     std::set<GridEdge> expected;
     for (const auto& [e, n] : pages_with_one_use)
       if (n % 2 == 1) expected.insert(e);
-    std::set<GridEdge> got(matcher.open().begin(), matcher.open().end());
+    const std::vector<GridEdge> pending = matcher.open();
+    std::set<GridEdge> got(pending.begin(), pending.end());
+    EXPECT_EQ(matcher.size(), pending.size());
     EXPECT_EQ(got, expected) << "round " << round;
     // Every edge of one use in the whole mesh is among them.
     for (const auto& [e, n] : uses)
       if (n == 1) EXPECT_EQ(got.count(e), 1u) << "round " << round;
   }
+}
+
+TEST(OpenEdgesProperty, MatcherIsASetThatToggles) {
+  // Random edges from a small pool, added in random batches: the matcher
+  // holds exactly those added an odd number of times (a std::set reference),
+  // through its table's growth and its erases.
+  std::mt19937 rng(5);
+  std::vector<GridEdge> pool;
+  for (uint32_t i = 0; i < 3000; ++i) pool.push_back(GridEdge{i % 17, i / 17, 3, i % 5 + 100, i, 7});
+  OpenEdgeMatcher matcher;
+  std::set<GridEdge> reference;
+  size_t most = 0;
+  for (int round = 0; round < 400; ++round) {
+    std::vector<GridEdge> batch;
+    const size_t n = rng() % 300;
+    for (size_t i = 0; i < n; ++i) {
+      const GridEdge& e = pool[rng() % pool.size()];
+      batch.push_back(e);
+      if (!reference.erase(e)) reference.insert(e);
+      most = std::max(most, reference.size());  // an upper bound: the matcher counts per batch
+    }
+    matcher.add(batch);
+    ASSERT_EQ(matcher.size(), reference.size()) << "round " << round;
+  }
+  const std::vector<GridEdge> open = matcher.open();
+  EXPECT_EQ(std::set<GridEdge>(open.begin(), open.end()), reference);
+  EXPECT_LE(matcher.peak(), most);
+  matcher.clear();
+  EXPECT_EQ(matcher.size(), 0u);
+  EXPECT_TRUE(matcher.open().empty());
 }
 
 }  // namespace
