@@ -23,6 +23,7 @@
 #include "render/renderer.h"
 #include "streaming/draco_io.h"
 #include "streaming/indexed_ply_writer.h"
+#include "streaming/mesh_reader.h"
 #include "streaming/octree_store.h"
 #include "test_tmp.h"
 
@@ -211,6 +212,7 @@ TEST(FarFromOrigin, RunMatchesTheSameStaircaseNearZero) {
     const fs::path mesh = write_staircase(scratch.path / (name + ".ply"), stairs, origin);
     const Scene scene = staircase_scene(origin, mesh);
     RunOptions run;
+    run.export_mesh = scratch.path / (name + ".glb");
     run.cache_dir = scratch.path / "cache";
     run.use_cache = true;  // keeps the .drc (in the scratch cache) to look at
     run.progress = false;
@@ -243,6 +245,15 @@ TEST(FarFromOrigin, RunMatchesTheSameStaircaseNearZero) {
   EXPECT_GT(far.psnr, 30.0);
   EXPECT_NEAR(far.psnr, near.psnr, 3.0) << "far " << far.run->triangles_out << " triangles, near "
                                         << near.run->triangles_out;
+
+  // The exported .glb places the far staircase where it is (its node
+  // carries the mesh origin; glTF is read in float, so to within a unit).
+  auto exported = summarize_mesh(scratch.path / "far.glb");
+  ASSERT_TRUE(exported.is_ok()) << exported.status().message();
+  const Vec3d centre = far_origin + Vec3d(0.024, 0.006, 0.01);
+  EXPECT_LT(glm::length(exported->bounds.center() - centre), 2.0)
+      << "exported at " << exported->bounds.center().x << ", " << exported->bounds.center().y << ", "
+      << exported->bounds.center().z;
 
   // The store and the simplified mesh carry the mesh origin.
   auto store = OctreeStore::open(scratch.path / "far.ply.raylod");

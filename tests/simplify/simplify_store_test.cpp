@@ -278,5 +278,35 @@ TEST(SimplifyStore, OpenBoundaryLeavesAreTheRimsExactly) {
     }
 }
 
+// Past the cap on open edges pending a match (the memory limit's share, at
+// least 64k), the build stops matching and flags later open edges as they
+// come: more leaves flagged, never a rim missed. A soup of 30,000 separate
+// triangles has 90,000 open edges, every vertex on a rim.
+TEST(SimplifyStore, PastTheOpenEdgeCapEveryRimLeafIsStillFlagged) {
+  Progress::set_enabled(false);
+  auto mesh = std::make_shared<testing::SoupMesh>();
+  for (int i = 0; i < 30000; ++i) {
+    const Vec3 o(float(i % 31) * 0.03f, float((i / 31) % 31) * 0.03f, float(i / 961) * 0.03f);
+    const Vec3 tri[3] = {o, o + Vec3(0.01f, 0, 0), o + Vec3(0, 0.01f, 0.005f)};
+    mesh->positions.insert(mesh->positions.end(), tri, tri + 3);
+  }
+  const std::filesystem::path dir = testing::scratch_dir("simplify-soup-cap");
+  StoreOptions opt;
+  opt.max_depth = 7;
+  opt.page_triangles = 256;
+  opt.memory_limit = 64 << 20;  // a cap of 64k pending edges
+  auto report = build_store_from_stream(testing::opener(mesh, 700), testing::fake_source(), dir / "s.raylod", opt);
+  ASSERT_TRUE(report.is_ok()) << report.status().message();
+  EXPECT_TRUE(report->open_edges_capped);
+  EXPECT_GE(report->open_edges, 90000u);
+  auto store = OctreeStore::open(dir / "s.raylod");
+  ASSERT_TRUE(store.is_ok()) << store.status().message();
+  const int q = (*store)->header().quadric_depth;
+  std::set<uint64_t> cells;
+  for (const Vec3& p : mesh->positions) cells.insert((*store)->cell_of(Vec3d(p), q).code);
+  EXPECT_EQ((*store)->boundary_leaves(), cells.size());
+  for (uint64_t c : cells) EXPECT_TRUE((*store)->touches_boundary({uint32_t(q), c}));
+}
+
 }  // namespace
 }  // namespace raylod
