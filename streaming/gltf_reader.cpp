@@ -266,7 +266,7 @@ class GltfReader final : public MeshReader {
       if (beyond_float_range(world) || !std::isfinite(world.x) || !std::isfinite(world.y) || !std::isfinite(world.z))
         return Status::error(path_.string() + ": " + what + " is beyond the float range (about +-3.4e38) " +
                              (piece.identity ? "" : "after its node transform ") + vec_text(world));
-      p[k] = Vec3(world);
+      p[k] = Vec3(world - header_.origin);
       if (header_.has_normals) {
         if (!std::isfinite(normal.x) || !std::isfinite(normal.y) || !std::isfinite(normal.z))
           return Status::error(path_.string() + ": " + plan.where + ": the normal of vertex " + std::to_string(v) +
@@ -371,6 +371,10 @@ StatusOr<std::unique_ptr<MeshReader>> open_reader(const std::filesystem::path& p
     h.has_normals = h.has_normals && plan.has_normal;
   }
   h.file_bytes = loaded->file_bytes;
+  // A mesh placed far from zero by its node (a simplified far mesh raylod
+  // exported, a georeferenced model): positions relative to the first
+  // instance's translation, which the node transforms reach in double.
+  h.origin = local_origin_for(Vec3d(reader->pieces_.front().transform[3]));
   return std::unique_ptr<MeshReader>(std::move(reader));
 }
 

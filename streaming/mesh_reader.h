@@ -81,9 +81,13 @@ struct MeshHeader {
   // Batch positions are relative to this point: the file's coordinates are
   // origin + position. It is (0, 0, 0) unless the file holds more precision
   // than a float keeps far from zero (double or integer PLY coordinates,
-  // text formats) and its first vertex lies kLocalOriginThreshold or more
+  // ASCII PLY, OBJ) and its first vertex lies kLocalOriginThreshold or more
   // from zero; then it is that vertex rounded to integers, so a mesh at a
-  // 1e7 offset keeps its 1e-3 detail (floats near 1e7 are 1 apart).
+  // 1e7 offset keeps its 1e-3 detail (floats near 1e7 are 1 apart). (An
+  // unused far-away first vertex would make a mesh near zero lose detail:
+  // the rule looks at the first vertex only.) glTF: the first instance's node
+  // translation, by the same rule. A .drc: its "raylod_origin" metadata.
+  // Binary STL holds floats: always (0, 0, 0).
   Vec3d origin{0};
 };
 
