@@ -42,6 +42,7 @@
 #include <cerrno>
 #include <chrono>
 #include <cmath>
+#include <deque>
 #include <cstdio>
 #include <cstring>
 #include <limits>
@@ -397,6 +398,7 @@ struct Plan {
   uint64_t max_nodes = 0;      // leaf nodes the global table may hold
   uint64_t run_triangles = 0;  // triangles per sorted run
   uint64_t budget_bytes = 0;   // what the plan expects to be resident at most
+  uint64_t memory_limit = 0;   // the build's (UINT64_MAX: none)
   uint64_t overhead = 0;       // bytes resident besides the node table and the runs
   int max_depth = 0;           // --max-depth, capped
   double vertices = 0;         // estimated distinct vertices
@@ -544,6 +546,7 @@ Plan make_plan(const Scan& scan, const StoreOptions& options, uint64_t memory_li
       std::max<uint64_t>(uint64_t(0.25 * avail), std::max<uint64_t>(1 << 20, memory_limit / 20)), 256ull << 20);
   plan.run_triangles = std::max<uint64_t>(1024, run_bytes / (run_triangle_bytes(scan.has_normals) + 8));
   plan.budget_bytes = overhead + node_budget + run_bytes;
+  plan.memory_limit = memory_limit;
   return plan;
 }
 
@@ -554,9 +557,11 @@ Plan make_plan(const Scan& scan, const StoreOptions& options, uint64_t memory_li
 // decodes a page's segments back to grid words and encodes the whole page.
 class RunFile {
  public:
+  // A page's piece of one run: bytes at `offset` in block `block`.
   struct Segment {
-    uint64_t offset;  // of the segment's encoded bytes in the runs file
-    uint32_t count;   // triangles
+    uint32_t block;
+    uint32_t offset;
+    uint32_t count;  // triangles
     uint32_t bytes;
   };
 
@@ -596,7 +601,9 @@ class RunFile {
 
   // Counting sort of the buffered triangles by page (stable: input order
   // within a page); each page's segment is encoded (in parallel) and the
-  // segments are written in page order, one sequential write per 8 MiB.
+  // segments are gathered in page order into 8 MiB blocks. A block stays in
+  // memory while the runs held fit hold_limit (set_hold_limit), else it is
+  // written to the file in one sequential write.
   Status flush(size_t num_pages) {
     const size_t n = page_of_.size();
     if (n == 0) return {};
@@ -626,22 +633,52 @@ class RunFile {
     });
     for (size_t i = 0; i < present.size(); ++i) {
       const uint32_t p = present[i];
+      if (encoded[i].size() > kBlockBytes) {
+        // One segment larger than a block: a block of its own.
+        RAYLOD_RETURN_IF_ERROR(seal());
+      } else if (staging_.size() + encoded[i].size() > kBlockBytes) {
+        RAYLOD_RETURN_IF_ERROR(seal());
+      }
       if (encoded[i].size() > UINT32_MAX) return Status::error(path_.string() + ": a run segment over 4 GiB");
-      segments_[p].push_back(Segment{offset_ + staging_.size(), start[p + 1] - start[p], uint32_t(encoded[i].size())});
+      segments_[p].push_back(Segment{uint32_t(blocks_.size()), uint32_t(staging_.size()), start[p + 1] - start[p],
+                                     uint32_t(encoded[i].size())});
+      ++staging_segments_;
       staging_.insert(staging_.end(), encoded[i].begin(), encoded[i].end());
       std::vector<uint8_t>().swap(encoded[i]);
-      if (staging_.size() >= kStagingBytes) RAYLOD_RETURN_IF_ERROR(drain());
     }
-    RAYLOD_RETURN_IF_ERROR(drain());
+    RAYLOD_RETURN_IF_ERROR(seal());
     positions_.clear();
     normals_data_.clear();
     page_of_.clear();
     return {};
   }
 
-  int fd() const { return fd_; }
+  // Encoded run bytes this run file may keep in memory from now on; blocks
+  // past it are written to the file (the oldest first).
+  Status set_hold_limit(uint64_t bytes) {
+    hold_limit_ = bytes;
+    for (size_t b = 0; b < blocks_.size() && held_ > hold_limit_; ++b)
+      if (!blocks_[b].bytes.empty()) RAYLOD_RETURN_IF_ERROR(spill(blocks_[b]));
+    return {};
+  }
+
+  // Copies a segment's bytes into `out` (from memory or the file). Safe to
+  // call from several threads for different segments; a held block is freed
+  // when its last segment has been read.
+  Status read(const Segment& seg, std::vector<uint8_t>& out) {
+    Block& b = blocks_[seg.block];
+    out.resize(seg.bytes);
+    if (b.in_memory) {
+      std::memcpy(out.data(), b.bytes.data() + seg.offset, seg.bytes);
+      if (b.unread.fetch_sub(1) == 1) std::vector<uint8_t>().swap(b.bytes);
+      return {};
+    }
+    return pread_all(fd_, out.data(), seg.bytes, b.file_offset + seg.offset, path_);
+  }
+
   const std::filesystem::path& path() const { return path_; }
-  uint64_t bytes() const { return offset_; }
+  uint64_t file_bytes() const { return offset_; }  // written to the file
+  uint64_t held_peak() const { return held_peak_; }
   // segments()[page id]: the page's pieces, one per run that holds any of it.
   std::vector<std::vector<Segment>>& segments() { return segments_; }
   void release_buffers() {
@@ -652,12 +689,48 @@ class RunFile {
   }
 
  private:
-  static constexpr size_t kStagingBytes = 8 << 20;
+  static constexpr size_t kBlockBytes = 8 << 20;
 
-  Status drain() {
+  struct Block {
+    std::vector<uint8_t> bytes;      // while held in memory
+    uint64_t file_offset = 0;        // once written
+    bool in_memory = false;
+    std::atomic<uint32_t> unread{0};  // segments not read yet (held blocks)
+    Block() = default;
+    Block(Block&& o) noexcept
+        : bytes(std::move(o.bytes)), file_offset(o.file_offset), in_memory(o.in_memory), unread(o.unread.load()) {}
+  };
+
+  // Closes the block being gathered: held if it fits, else written.
+  Status seal() {
+    if (staging_.empty()) return {};
+    Block b;
+    b.unread = staging_segments_;
+    staging_segments_ = 0;
+    if (held_ + staging_.size() <= hold_limit_) {
+      held_ += staging_.size();
+      held_peak_ = std::max(held_peak_, held_);
+      b.bytes.swap(staging_);
+      b.in_memory = true;
+      staging_.reserve(kBlockBytes);
+      blocks_.push_back(std::move(b));
+      return {};
+    }
     RAYLOD_RETURN_IF_ERROR(pwrite_all(fd_, staging_.data(), staging_.size(), offset_, path_));
+    b.file_offset = offset_;
     offset_ += staging_.size();
     staging_.clear();
+    blocks_.push_back(std::move(b));
+    return {};
+  }
+
+  Status spill(Block& b) {
+    RAYLOD_RETURN_IF_ERROR(pwrite_all(fd_, b.bytes.data(), b.bytes.size(), offset_, path_));
+    b.file_offset = offset_;
+    offset_ += b.bytes.size();
+    held_ -= b.bytes.size();
+    std::vector<uint8_t>().swap(b.bytes);
+    b.in_memory = false;
     return {};
   }
 
@@ -667,9 +740,12 @@ class RunFile {
   std::filesystem::path path_;
   int fd_ = -1;
   uint64_t offset_ = 0;
+  uint64_t hold_limit_ = 0, held_ = 0, held_peak_ = 0;
   std::vector<uint32_t> positions_, normals_data_;
   std::vector<uint8_t> staging_;
+  uint32_t staging_segments_ = 0;
   std::vector<uint32_t> page_of_;
+  std::deque<Block> blocks_;
   std::vector<std::vector<Segment>> segments_;
 };
 
@@ -782,6 +858,18 @@ Status bin_pass(MeshReader& reader, size_t ntokens, const Plan& plan, bool has_n
   // must not become a reservation of terabytes.
   global.nodes.reserve(size_t(std::min<uint64_t>(plan.max_nodes, 3 * expected + 64)));
   int depth = plan.quadric_depth;
+  // Sorted runs stay in memory while the limit has room for them beside
+  // what is resident now: the plan's overhead, the run buffer (with its
+  // sorting arrays) and the node table as it grows (held runs are written
+  // out, the oldest first, as it takes their room). A tenth of the limit is
+  // kept free for the allocator.
+  const double run_buffer = 1.5 * double(plan.run_triangles) * double(run_triangle_bytes(has_normals) + 8);
+  auto hold_limit = [&](size_t nodes) {
+    const double room = 0.9 * double(plan.memory_limit) - double(plan.overhead) - run_buffer -
+                        double(nodes) * double(kBytesPerLeafNode);
+    return room <= 0 ? uint64_t(0) : room >= 1.8e19 ? UINT64_MAX : uint64_t(room);
+  };
+  RAYLOD_RETURN_IF_ERROR(runs.set_hold_limit(hold_limit(0)));
   Progress progress("binning", expected, "triangles");
   Status s = run_pass<BinToken>(
       reader, ntokens,
@@ -808,6 +896,7 @@ Status bin_pass(MeshReader& reader, size_t ntokens, const Plan& plan, bool has_n
         out.triangles += t.batch.size();
         if (out.triangles > expected)
           return Status::error(name + ": the mesh yielded more triangles than in the first pass (changed while building?)");
+        RAYLOD_RETURN_IF_ERROR(runs.set_hold_limit(hold_limit(global.nodes.size())));
         RAYLOD_RETURN_IF_ERROR(runs.append(t.grid_positions.data(), t.normal_codes.data(), t.batch.size(), t.page_ids,
                                            out.pages.codes.size()));
         progress.advance(t.batch.size());
@@ -910,8 +999,7 @@ Status encode_run_page(RunFile& runs, bool has_normals, const PageGrid& grid, ui
   t.positions.clear();
   t.normals.clear();
   for (const auto& seg : runs.segments()[id]) {
-    t.segment.resize(seg.bytes);
-    RAYLOD_RETURN_IF_ERROR(pread_all(runs.fd(), t.segment.data(), seg.bytes, seg.offset, runs.path()));
+    RAYLOD_RETURN_IF_ERROR(runs.read(seg, t.segment));
     Status s = decode_page_grid(t.segment, grid, t.positions, t.normals);
     if (!s.is_ok() || t.positions.size() % 9 != 0 || (has_normals && t.normals.size() * 3 != t.positions.size()))
       return Status::error(runs.path().string() + ": a run segment does not decode (the temporary file changed?): " +
@@ -1077,6 +1165,8 @@ StatusOr<BuildReport> build_store_from_stream(const MeshStreamOpener& open, cons
   report.open_edges = boundary_flags.flagged_edges;
   report.open_edges_peak = boundary_flags.matcher.peak();
   report.open_edges_capped = boundary_flags.capped;
+  report.runs_written = runs.file_bytes();
+  report.runs_held_peak = runs.held_peak();
   const std::vector<uint8_t> boundary = std::move(boundary_flags.flags);
   layout.data_bytes = data_end - layout.data_offset;
   layout.file_bytes = data_end;

@@ -184,6 +184,8 @@ struct BuildReport {
   uint64_t open_edges = 0;        // open boundary edges (edges of one triangle) flagged
   uint64_t open_edges_peak = 0;   // most edges pending a match across pages at once
   bool open_edges_capped = false; // matching stopped at the cap (later pages' open edges flagged unmatched)
+  uint64_t runs_written = 0;      // sorted-run bytes written to the temporary file
+  uint64_t runs_held_peak = 0;    // most sorted-run bytes kept in memory instead at once
   // Wall time of the phases: pass 1 (bounds), pass 2 (binning and quadrics),
   // page assembly and writing, fsync + rename.
   double scan_seconds = 0, bin_seconds = 0, write_seconds = 0, commit_seconds = 0;

@@ -45,7 +45,7 @@ struct ChildResult {
   double scan = 0, bin = 0, write = 0, commit = 0, inside = 0;
   uint64_t triangles = 0, nodes = 0, pages = 0, store_bytes = 0, node_bytes = 0;
   uint64_t written = 0;  // bytes the process passed to write calls (/proc/self/io wchar): runs and store
-  uint64_t open_edges = 0, open_edges_peak = 0;
+  uint64_t open_edges = 0, open_edges_peak = 0, runs_written = 0, runs_held_peak = 0;
   int quadric_depth = 0, page_level = 0;
   // OpenMesh
   uint64_t faces = 0, vertices = 0;
@@ -193,6 +193,7 @@ int main(int argc, char** argv) {
         out.store_bytes = built->store_bytes; out.node_bytes = built->node_table_bytes;
         out.quadric_depth = built->quadric_depth; out.page_level = built->page_level;
         out.open_edges = built->open_edges; out.open_edges_peak = built->open_edges_peak;
+        out.runs_written = built->runs_written; out.runs_held_peak = built->runs_held_peak;
       });
       if (!r.ok) { std::fprintf(stderr, "bench_build: %s: %s\n", mesh.c_str(), r.error); return 1; }
       walls.push_back(r.wall);
@@ -239,6 +240,8 @@ int main(int argc, char** argv) {
                 " pages at level %d)\n",
                 format_bytes(last.store_bytes).c_str(), double(last.store_bytes) / double(mesh_bytes),
                 format_bytes(last.node_bytes).c_str(), last.nodes, last.quadric_depth, last.pages, last.page_level);
+    std::printf("  sorted runs      %s written to the temporary file, at most %s kept in memory instead\n",
+                format_bytes(last.runs_written).c_str(), format_bytes(last.runs_held_peak).c_str());
     std::printf("  open edges       %" PRIu64 " (a hole's or open surface's rim); at most %" PRIu64
                 " pending a match across pages at once\n",
                 last.open_edges, last.open_edges_peak);
