@@ -965,15 +965,9 @@ struct BoundaryFlags {
   void flag_point(const uint32_t* g) {
     const int shift = grid.bits - depth;
     const uint32_t max_cell = (uint32_t(1) << depth) - 1;
-    const double cell_size = std::ldexp(grid.step, shift);
-    uint32_t by_grid[3], by_float[3];
-    for (int a = 0; a < 3; ++a) {
-      by_grid[a] = std::min(g[a] >> shift, max_cell);  // the far face belongs to the last cell
-      const double p = double(float(grid.lo[a] + double(g[a]) * grid.step));
-      by_float[a] = uint32_t(std::clamp(std::floor((p - grid.lo[a]) / cell_size), 0.0, double(max_cell)));
-    }
-    flag_code(morton_encode(by_grid[0], by_grid[1], by_grid[2]));
-    flag_code(morton_encode(by_float[0], by_float[1], by_float[2]));
+    auto cell = [&](uint32_t v) { return std::min(v >> shift, max_cell); };  // the far face belongs to the last cell
+    flag_code(morton_encode(cell(g[0]), cell(g[1]), cell(g[2])));
+    flag_code(cell_in_cube(Vec3d(grid_position(g, grid)), grid.lo, std::ldexp(grid.step, grid.bits), depth).code);
   }
   void flag_edge(const GridEdge& e) {
     flag_point(&e[0]);

@@ -541,15 +541,18 @@ void morton_decode(uint64_t code, uint32_t& x, uint32_t& y, uint32_t& z) {
   z = compact3(code >> 2);
 }
 
-CellKey OctreeStore::cell_of(const Vec3d& p, int level) const {
-  const auto& h = header();
-  const double size = cell_size(level);
+CellKey cell_in_cube(const Vec3d& p, const Vec3d& root_lo, double root_size, int level) {
   const double n = double(uint64_t(1) << level);
+  const double size = root_size / n;
   auto coord = [&](double v, double lo) {
     double t = std::floor((v - lo) / size);
     return uint32_t(std::clamp(t, 0.0, n - 1));
   };
-  return {uint32_t(level), morton_encode(coord(p.x, h.root_lo.x), coord(p.y, h.root_lo.y), coord(p.z, h.root_lo.z))};
+  return {uint32_t(level), morton_encode(coord(p.x, root_lo.x), coord(p.y, root_lo.y), coord(p.z, root_lo.z))};
+}
+
+CellKey OctreeStore::cell_of(const Vec3d& p, int level) const {
+  return cell_in_cube(p, header().root_lo, header().root_size, level);
 }
 
 Bbox OctreeStore::cell_bounds(const CellKey& key) const {

@@ -161,6 +161,10 @@ class OctreeStore {
   Bbox cell_bounds(const CellKey& key) const;
 };
 
+// The cell at `level` of the root cube (corner root_lo, side root_size) that
+// holds p (clamped into the cube): OctreeStore::cell_of, for a store's header.
+CellKey cell_in_cube(const Vec3d& p, const Vec3d& root_lo, double root_size, int level);
+
 // Morton code helpers (3 interleaved 21-bit coordinates).
 uint64_t morton_encode(uint32_t x, uint32_t y, uint32_t z);
 void morton_decode(uint64_t code, uint32_t& x, uint32_t& y, uint32_t& z);

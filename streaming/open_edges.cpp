@@ -4,19 +4,13 @@
 #include <algorithm>
 #include <bit>
 
+#include "streaming/distinct_keys.h"
+
 namespace raylod {
 
 namespace {
 
 constexpr int kFan = 8;  // neighbours listed per position; more go to the overflow list
-
-inline uint64_t mix(uint64_t h) {
-  h ^= h >> 33;
-  h *= 0xff51afd7ed558ccdull;
-  h ^= h >> 33;
-  h *= 0xc4ceb9fe1a85ec53ull;
-  return h ^ (h >> 33);
-}
 
 }  // namespace
 
@@ -25,27 +19,9 @@ void find_open_edges(std::span<const uint32_t> vertex_keys, std::span<const uint
   const size_t nv = vertex_keys.size() / 4;
   if (nv == 0 || corner_vertex.size() < 3) return;
   // Positions: the distinct grid points of the vertices, in first-use order.
-  const size_t nslots = std::bit_ceil(std::max<size_t>(16, 2 * nv));
-  scratch.slots.assign(nslots, 0);
-  scratch.position.resize(nv);
-  scratch.points.clear();
-  for (size_t v = 0; v < nv; ++v) {
-    const uint32_t* p = &vertex_keys[4 * v];
-    for (uint64_t h = mix((uint64_t(p[0]) << 32 | p[1]) ^ mix(p[2]));; ++h) {
-      uint32_t& slot = scratch.slots[h & (nslots - 1)];
-      if (slot == 0) {
-        scratch.points.insert(scratch.points.end(), p, p + 3);
-        slot = uint32_t(scratch.points.size() / 3);
-        scratch.position[v] = slot - 1;
-        break;
-      }
-      const uint32_t* q = &scratch.points[3 * size_t(slot - 1)];
-      if (q[0] == p[0] && q[1] == p[1] && q[2] == p[2]) {
-        scratch.position[v] = slot - 1;
-        break;
-      }
-    }
-  }
+  index_distinct_keys<3>(
+      nv, [&](size_t v) { return std::array<uint32_t, 3>{vertex_keys[4 * v], vertex_keys[4 * v + 1], vertex_keys[4 * v + 2]}; },
+      scratch.slots, scratch.points, scratch.position);
   const size_t np = scratch.points.size() / 3;
   // Each edge is listed at its smaller position, with a use count; a
   // position's list is short (its fan) and was touched a moment ago, so the

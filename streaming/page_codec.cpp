@@ -3,10 +3,13 @@
 #include "streaming/page_codec.h"
 
 #include <algorithm>
+#include <array>
 #include <bit>
 #include <cmath>
 #include <cstring>
 #include <limits>
+
+#include "streaming/distinct_keys.h"
 
 namespace raylod {
 namespace {
@@ -63,14 +66,6 @@ inline uint32_t quantise(float v, double lo, double inv_step, uint32_t max) {
 }
 
 inline float dequantise(uint64_t q, double lo, double step) { return float(lo + double(q) * step); }
-
-inline uint64_t mix(uint64_t h) {
-  h ^= h >> 33;
-  h *= 0xff51afd7ed558ccdull;
-  h ^= h >> 33;
-  h *= 0xc4ceb9fe1a85ec53ull;
-  return h ^ (h >> 33);
-}
 
 inline void put_u32(std::vector<uint8_t>& out, uint32_t v) {
   const size_t at = out.size();
@@ -165,29 +160,13 @@ Bbox encode_page(std::span<const uint32_t> positions, std::span<const uint32_t> 
   const uint32_t max_q = uint32_t(1) << grid.bits;
 
   // Distinct (grid point, normal code) corners in first-use order.
-  size_t nslots = 16;
-  while (nslots < 2 * corners) nslots *= 2;
-  enc.slots.assign(nslots, 0);
-  enc.keys.clear();
-  enc.index.resize(corners);
-  for (size_t c = 0; c < corners; ++c) {
-    const uint32_t key[4] = {positions[3 * c], positions[3 * c + 1], positions[3 * c + 2], has_normals ? normals[c] : 0u};
-    uint64_t h = mix((uint64_t(key[0]) << 32 | key[1]) ^ mix(uint64_t(key[2]) << 32 | key[3]));
-    for (;; h = h + 1) {
-      uint32_t& slot = enc.slots[h & (nslots - 1)];
-      if (slot == 0) {
-        enc.keys.insert(enc.keys.end(), key, key + 4);
-        slot = uint32_t(enc.keys.size() / 4);
-        enc.index[c] = slot - 1;
-        break;
-      }
-      const uint32_t* k = &enc.keys[4 * size_t(slot - 1)];
-      if (k[0] == key[0] && k[1] == key[1] && k[2] == key[2] && k[3] == key[3]) {
-        enc.index[c] = slot - 1;
-        break;
-      }
-    }
-  }
+  index_distinct_keys<4>(
+      corners,
+      [&](size_t c) {
+        return std::array<uint32_t, 4>{positions[3 * c], positions[3 * c + 1], positions[3 * c + 2],
+                                       has_normals ? normals[c] : 0u};
+      },
+      enc.slots, enc.keys, enc.index);
   const size_t nv = enc.keys.size() / 4;
 
   uint32_t origin[3] = {max_q, max_q, max_q}, top[3] = {0, 0, 0};
