@@ -44,4 +44,17 @@ inline std::filesystem::path scratch_dir(const std::string& name) {
   return dir;
 }
 
+// A scratch directory (scratch_dir(name)) removed when it goes out of scope:
+// at the end of the test that made it, pass or fail.
+struct ScratchDir {
+  std::filesystem::path path;
+  explicit ScratchDir(const std::string& name) : path(scratch_dir(name)) {}
+  ~ScratchDir() {
+    std::error_code ec;
+    std::filesystem::remove_all(path, ec);
+  }
+  ScratchDir(const ScratchDir&) = delete;
+  ScratchDir& operator=(const ScratchDir&) = delete;
+};
+
 }  // namespace raylod::test

@@ -19,15 +19,6 @@ namespace {
 
 namespace fs = std::filesystem;
 
-// A scratch directory removed when the test ends, pass or fail.
-struct ScratchDir {
-  fs::path path = test::scratch_dir("cad-noise-floor");
-  ~ScratchDir() {
-    std::error_code ec;
-    fs::remove_all(path, ec);
-  }
-};
-
 // The part's scene at a small size. The store is built beside its mesh, so
 // the mesh is copied into the scratch directory rather than used in data/.
 Scene small_cad_scene(const fs::path& scratch, fs::path& mesh) {
@@ -44,7 +35,7 @@ Scene small_cad_scene(const fs::path& scratch, fs::path& mesh) {
 }
 
 TEST(CadNoiseFloor, NothingCollapsedIsWithinTheNoiseFloor) {
-  ScratchDir scratch;
+  test::ScratchDir scratch("cad-noise-floor");
   fs::path mesh;
   const Scene scene = small_cad_scene(scratch.path, mesh);
 

@@ -567,10 +567,14 @@ TEST(ProbeDeviation, FlatPlaneCollapsesAsCoarselyAsKAllows) {
     // At the rim, a cell collapses only while it is within the tolerance
     // of the footprints measured in it (the bound for cells no ray reached
     // is smaller still).
-    if (k >= 32) EXPECT_GT(dev->cuts[0].counters.at("cells_kept_for_boundary"), 0u) << "K " << k;
-    for (const CollapsedCell& c : dev->cuts[0].cells)
-      if (st.touches_boundary(c.key) && c.hits > 0)
+    if (k >= 32) {
+      EXPECT_GT(dev->cuts[0].counters.at("cells_kept_for_boundary"), 0u) << "K " << k;
+    }
+    for (const CollapsedCell& c : dev->cuts[0].cells) {
+      if (st.touches_boundary(c.key) && c.hits > 0) {
         EXPECT_LE(st.cell_diagonal(int(c.key.level)), tol * c.min_footprint * (1 + 1e-6)) << "K " << k;
+      }
+    }
   }
 }
 

@@ -16,15 +16,23 @@ namespace fs = std::filesystem;
 using test::Bytes;
 using test::write_file;
 
+// One triangle with corners (-3e38, 0, 0), (3e38, 0, 0), (0, 1, 0) as a binary
+// PLY whose coordinates are T ("float" or "double"): each coordinate is a
+// float, the extent is not.
+template <class T>
+fs::path wide_triangle_ply(const char* type) {
+  Bytes b;
+  b.text(std::string("ply\nformat binary_little_endian 1.0\nelement vertex 3\n") + "property " + type + " x\nproperty " +
+         type + " y\nproperty " + type + " z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n");
+  for (T c : {T(-3e38), T(0), T(0), T(3e38), T(0), T(0), T(0), T(1), T(0)}) b.put<T>(c);
+  b.put<uint8_t>(3).put<int32_t>(0).put<int32_t>(1).put<int32_t>(2);
+  return write_file("wide.ply", b.data);
+}
+
 TEST(WideMesh, StoreBuildRejectsAMeshWiderThanTheFloatRange) {
   Progress::set_enabled(false);
   // Float coordinates: each reads fine, the build rejects the extent.
-  Bytes b;
-  b.text("ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
-         "property float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n");
-  for (float c : {-3e38f, 0.0f, 0.0f, 3e38f, 0.0f, 0.0f, 0.0f, 1.0f, 0.0f}) b.put<float>(c);
-  b.put<uint8_t>(3).put<int32_t>(0).put<int32_t>(1).put<int32_t>(2);
-  const fs::path mesh = write_file("wide.ply", b.data);
+  const fs::path mesh = wide_triangle_ply<float>("float");
   ASSERT_TRUE(test::read_all(mesh).status.is_ok());
   const fs::path store = test::scratch_dir() / "wide.raylod";
   auto built = build_store(mesh, store, StoreOptions{});
@@ -39,12 +47,7 @@ TEST(WideMesh, StoreBuildRejectsAMeshWiderThanTheFloatRange) {
 TEST(WideMesh, ReaderRejectsADoubleMeshWiderThanTheFloatRange) {
   // Double coordinates far from zero are read relative to the first vertex
   // (MeshHeader::origin), so the reader itself finds the extent too wide.
-  Bytes b;
-  b.text("ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty double x\nproperty double y\n"
-         "property double z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n");
-  for (double c : {-3e38, 0.0, 0.0, 3e38, 0.0, 0.0, 0.0, 1.0, 0.0}) b.put<double>(c);
-  b.put<uint8_t>(3).put<int32_t>(0).put<int32_t>(1).put<int32_t>(2);
-  const fs::path mesh = write_file("wide.ply", b.data);
+  const fs::path mesh = wide_triangle_ply<double>("double");
   const auto read = test::read_all(mesh);
   ASSERT_FALSE(read.status.is_ok());
   const std::string msg = read.status.message();
