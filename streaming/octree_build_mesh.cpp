@@ -12,6 +12,7 @@
 
 #include "core/system.h"
 #include "streaming/octree_store.h"
+#include "streaming/source_record.h"
 
 namespace raylod {
 namespace {
@@ -92,7 +93,7 @@ StatusOr<SourceFingerprint> fingerprint_file(const std::filesystem::path& mesh, 
 }
 
 bool store_is_current(const std::filesystem::path& mesh, const std::filesystem::path& store,
-                      const StoreOptions& options, std::string* reason) {
+                      const StoreOptions& options, std::string* reason, bool rehash) {
   auto say = [&](std::string r) {
     if (reason) *reason = std::move(r);
     return false;
@@ -101,6 +102,8 @@ bool store_is_current(const std::filesystem::path& mesh, const std::filesystem::
   if (!std::filesystem::exists(store, ec)) return say("no store yet");
   if (auto corrupt = store_corruption(store))
     return say("a reader found it corrupt: " + *corrupt + " (recorded in " + corruption_record_path(store).string() + ")");
+  auto store_status = file_status(store);
+  if (!store_status.is_ok()) return say(store_status.status().message());
   StoreHeader h;
   {  // Full open: header and table checksums; the tables are freed right away.
     auto opened = OctreeStore::open(store);
@@ -123,9 +126,23 @@ bool store_is_current(const std::filesystem::path& mesh, const std::filesystem::
     return say("the store was built under --memory-limit " + describe_memory_limit(h.options.memory_limit) +
                ", and a build under " + describe_memory_limit(options.memory_limit) + " makes a " +
                (limit < h.reuse_limit_lo ? "coarser" : "finer") + " one");
+  const std::filesystem::path file = parse_mesh_ref(mesh).file;
+  auto before = file_status(file);
+  if (!before.is_ok()) return say(before.status().message());
+  if (!rehash && source_record_vouches(store, *before, h.source_hash)) {
+    if (reason)
+      *reason = "up to date (same options; the mesh's size, times and inode are those of its last content check, " +
+                source_record_path(store).filename().string() + ")";
+    return true;
+  }
+  const uint64_t started = realtime_ns();
   auto hashed = fingerprint_file(mesh, true);
   if (!hashed.is_ok()) return say(hashed.status().message());
   if (hashed->hash != h.source_hash) return say("the mesh's content changed (content hash differs)");
+  auto after = file_status(file);
+  auto store_after = file_status(store);
+  if (after.is_ok() && *after == *before && store_after.is_ok() && *store_after == *store_status)
+    note_source_checked(store, *before, h.source_hash, started);
   if (reason) *reason = "up to date (same mesh size, modification time, content hash and options)";
   return true;
 }
@@ -136,10 +153,11 @@ StatusOr<BuildReport> build_store(const std::filesystem::path& mesh, const std::
 }
 
 StatusOr<BuildReport> build_store(const std::filesystem::path& mesh, const std::filesystem::path& store,
-                                  const StoreOptions& options, bool force, bool verify) {
+                                  const StoreOptions& options, bool force, bool verify,
+                                  const std::function<void(const std::string& reason)>& before_building) {
   BuildLock lock(parse_mesh_ref(mesh).file);
   std::string reason = "--force";
-  if (!force && store_is_current(mesh, store, options, &reason)) {
+  if (!force && store_is_current(mesh, store, options, &reason, verify)) {
     BuildReport report;
     report.reused = true;
     report.reason = reason;
@@ -151,7 +169,12 @@ StatusOr<BuildReport> build_store(const std::filesystem::path& mesh, const std::
     }
     reason = "--verify: " + verified.status().message();
   }
+  if (before_building) before_building(reason);
+  const std::filesystem::path file = parse_mesh_ref(mesh).file;
+  RAYLOD_ASSIGN_OR_RETURN(FileStatus status_before, file_status(file));
   RAYLOD_ASSIGN_OR_RETURN(SourceFingerprint fp, fingerprint_file(mesh, false));
+  const uint64_t hash_started = realtime_ns();
+  uint64_t content_hash = 0;
   // Hash the file on another thread while pass 1 parses it (both read the
   // page cache; neither keeps it resident).
   auto hash = std::async(std::launch::async, [&] {
@@ -167,6 +190,7 @@ StatusOr<BuildReport> build_store(const std::filesystem::path& mesh, const std::
     if (!h.is_ok()) return h.status();
     auto now = fingerprint_file(mesh, false);
     if (!same_file_state(*h, fp) || !now.is_ok() || !same_file_state(*now, fp)) return Status::error(changed);
+    content_hash = h->hash;
     return h->hash;
   });
   if (hash.valid()) hash.wait();
@@ -179,6 +203,11 @@ StatusOr<BuildReport> build_store(const std::filesystem::path& mesh, const std::
   // process may be using it, but the caller is told.
   auto after = fingerprint_file(mesh, false);
   if (!after.is_ok() || !same_file_state(*after, fp)) return Status::error(changed);
+  auto status_after = file_status(file);
+  if (status_after.is_ok() && *status_after == status_before)
+    note_source_checked(store, status_before, content_hash, hash_started);
+  else
+    std::filesystem::remove(source_record_path(store), ec);
   built->reason = reason;
   return built;
 }

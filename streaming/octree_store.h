@@ -199,17 +199,21 @@ struct BuildReport {
 StatusOr<BuildReport> build_store(const std::filesystem::path& mesh, const std::filesystem::path& store,
                                   const StoreOptions& options);
 // Same; with force, rebuilds even an up-to-date store (replacing it atomically);
-// with verify, an up-to-date store has every page's checksum checked and is
-// rebuilt if one does not match. Builds from one mesh are serialised by
+// with verify, an up-to-date store has every page's checksum and its mesh's
+// content hash checked and is rebuilt if one does not match. Builds from one mesh are serialised by
 // flock() on the mesh file, so concurrent callers build its store once and
 // the others reuse it. A build never removes a store: if the mesh changes while it is
 // read, the build fails and leaves whatever store was there.
+// before_building, if given, is told why just before a build starts.
 StatusOr<BuildReport> build_store(const std::filesystem::path& mesh, const std::filesystem::path& store,
-                                  const StoreOptions& options, bool force, bool verify = false);
+                                  const StoreOptions& options, bool force, bool verify = false,
+                                  const std::function<void(const std::string& reason)>& before_building = nullptr);
 // True if `store` exists, opens, has no corruption record (store_corruption)
-// and matches the mesh's size, mtime and hash.
+// and matches the mesh's size, mtime and content hash. The hash is not read
+// again while the store's STORE.checked record vouches for the mesh's file
+// status (source_record.h), unless rehash.
 bool store_is_current(const std::filesystem::path& mesh, const std::filesystem::path& store,
-                      const StoreOptions& options, std::string* reason = nullptr);
+                      const StoreOptions& options, std::string* reason = nullptr, bool rehash = false);
 
 // ---- Lower-level entry points (streaming/octree_build.cpp) ----
 

@@ -22,15 +22,18 @@ int run_build(int argc, char** argv) {
             "unchanged mesh (size, modification time, content hash) with the same options\n"
             "does nothing; a changed mesh is rebuilt, and so is a store in which a reader\n"
             "(run, probe, simplify) found a page whose checksum does not match (it records\n"
-            "that in STORE.corrupt). --verify checks every page's checksum of an up-to-date\n"
-            "store and rebuilds it if one does not match. The store is written atomically.",
+            "that in STORE.corrupt). The content hash is not read again while STORE.checked\n"
+            "records the mesh's size, times and inode as they were when it last matched.\n"
+            "--verify reads the mesh's content hash and checks every page's checksum of an\n"
+            "up-to-date store, and rebuilds it if one does not match. The store is written\n"
+            "atomically.",
             {{"--output", "-o", "store to write (default MESH.raylod beside the mesh)", true, "STORE"},
              {"--memory-limit", "", "memory bound for the build, e.g. 1G (default: a quarter of RAM)", true, "SIZE"},
              {"--max-depth", "", "deepest octree level that may keep quadrics, 0..21 (default 12)", true, "N"},
              threads_option("; the store does not depend on it"),
              {"--page-triangles", "", "target triangles per page (default 4096)", true, "N"},
              {"--force", "", "rebuild even if the store is up to date", false, ""},
-             {"--verify", "", "check every page's checksum of an up-to-date store; rebuild it on a mismatch", false, ""},
+             {"--verify", "", "hash the mesh and check every page's checksum of an up-to-date store; rebuild it on a mismatch", false, ""},
              {"--quiet", "-q", "no progress bar", false, ""}});
   if (Status st = args.parse(argc, argv); !st) return fail("build", st);
   if (args.help_requested()) {

@@ -227,10 +227,10 @@ StatusOr<SceneStores> prepare_scene_stores(Scene& scene, const std::optional<fs:
     if (check_stores) {
       // An existing store is reused under this memory limit only if a fresh
       // build under it would make the same store (store_is_current).
-      std::string reason;
-      if (!store_is_current(mesh, store_path, store_options, &reason))
-        say(log, "building store " + store_path.string() + " (" + reason + ")");
-      RAYLOD_ASSIGN_OR_RETURN(report, build_store(mesh, store_path, store_options));
+      // One check, under the build's lock: concurrent runs wait for one build.
+      RAYLOD_ASSIGN_OR_RETURN(report, build_store(mesh, store_path, store_options, false, false, [&](const std::string& reason) {
+                                say(log, "building store " + store_path.string() + " (" + reason + ")");
+                              }));
     }
     struct stat st {};
     if (::stat(store_path.c_str(), &st) != 0) return Status::error(store_path.string() + ": " + std::strerror(errno));

@@ -13,11 +13,13 @@
 #include <cstdio>
 #include <fstream>
 #include <map>
+#include <thread>
 
 #include "core/progress.h"
 #include "octree/octree_test_util.h"
 #include "streaming/octree_format.h"
 #include "streaming/page_codec.h"
+#include "streaming/source_record.h"
 
 namespace raylod {
 namespace {
@@ -242,6 +244,77 @@ void write_ply(const std::filesystem::path& path, const SoupMesh& m) {
     out.write(reinterpret_cast<const char*>(&three), 1);
     out.write(reinterpret_cast<const char*>(idx), 12);
   }
+}
+
+// STORE.checked spares re-reading the mesh while its file status is the one
+// whose content hash matched, and never vouches for a changed mesh.
+TEST(OctreeStore, CheckedRecordSparesTheHashOnlyForAnUnchangedMesh) {
+  Progress::set_enabled(false);
+  auto dir = testing::scratch_dir("checked");
+  const auto mesh = dir / "ball.ply";
+  auto m = testing::sphere(12, 16);
+  write_ply(mesh, m);
+  const auto store = default_store_path(mesh);
+  const auto record = source_record_path(store);
+  StoreOptions opt;
+  std::string why;
+
+  // A mesh changed less than kSettleNs before its hash was read gets no record.
+  ASSERT_TRUE(build_store(mesh, store, opt).is_ok());
+  EXPECT_FALSE(std::filesystem::exists(record));
+  auto st = file_status(mesh);
+  ASSERT_TRUE(st.is_ok());
+  EXPECT_FALSE(note_source_checked(store, *st, 1, st->ctime_ns + kSettleNs - 1));
+  EXPECT_FALSE(std::filesystem::exists(record));
+  EXPECT_TRUE(note_source_checked(store, *st, 1, st->ctime_ns + kSettleNs));
+  EXPECT_TRUE(source_record_vouches(store, *st, 1));
+  EXPECT_FALSE(source_record_vouches(store, *st, 2));  // another content hash
+  auto other = *st;
+  other.ctime_ns += 1;
+  EXPECT_FALSE(source_record_vouches(store, other, 1));
+  std::filesystem::remove(record);
+
+  // Once the mesh has settled, the build records it and checks stop hashing.
+  std::this_thread::sleep_for(std::chrono::milliseconds(1100));
+  auto built = build_store(mesh, store, opt, /*force=*/true);
+  ASSERT_TRUE(built.is_ok()) << built.status().message();
+  EXPECT_TRUE(std::filesystem::exists(record));
+  EXPECT_TRUE(store_is_current(mesh, store, opt, &why)) << why;
+  EXPECT_NE(why.find("last content check"), std::string::npos) << why;
+  EXPECT_TRUE(store_is_current(mesh, store, opt, &why, /*rehash=*/true)) << why;
+  EXPECT_NE(why.find("content hash and options"), std::string::npos) << why;
+
+  // The record names the store file: one about a replaced store is not believed.
+  const auto saved = dir / "saved.checked";
+  std::filesystem::copy_file(record, saved);
+  ASSERT_TRUE(build_store(mesh, store, opt, /*force=*/true).is_ok());
+  std::filesystem::copy_file(saved, record, std::filesystem::copy_options::overwrite_existing);
+  EXPECT_TRUE(store_is_current(mesh, store, opt, &why)) << why;
+  EXPECT_NE(why.find("content hash and options"), std::string::npos) << why;
+  // ... and that hash rewrote it for the new store.
+  EXPECT_TRUE(store_is_current(mesh, store, opt, &why)) << why;
+  EXPECT_NE(why.find("last content check"), std::string::npos) << why;
+
+  // A torn record is ignored.
+  {
+    std::ofstream torn(record, std::ios::trunc);
+    torn << "raylod source check record\nstore 1 2";
+  }
+  EXPECT_TRUE(store_is_current(mesh, store, opt, &why)) << why;
+  EXPECT_NE(why.find("content hash and options"), std::string::npos) << why;
+
+  // Same size and modification time, other content: the write changed the
+  // ctime, so the record no longer vouches and the hash catches it.
+  ASSERT_TRUE(std::filesystem::exists(record));
+  struct stat before {};
+  ASSERT_EQ(::stat(mesh.c_str(), &before), 0);
+  auto moved = m;
+  moved.positions[3].y += 0.25f;
+  write_ply(mesh, moved);
+  struct timespec times[2] = {before.st_atim, before.st_mtim};
+  ASSERT_EQ(::utimensat(AT_FDCWD, mesh.c_str(), times, 0), 0);
+  EXPECT_FALSE(store_is_current(mesh, store, opt, &why));
+  EXPECT_NE(why.find("content"), std::string::npos) << why;
 }
 
 TEST(OctreeStore, RebuildIsANoOpUntilTheMeshChanges) {
