@@ -93,7 +93,7 @@ double draco_error_bound(const Cut& cut, const OctreeStore& store) {
 }
 
 StatusOr<ProbeConfig> make_probe_config(const Scene& scene, uint64_t rays, double footprint_scale,
-                                        const MemoryBudget& budget, bool progress) {
+                                        const MemoryBudget& budget, bool progress, PageCache* pages) {
   ProbeConfig probe;
   probe.rays = rays;
   probe.seed = scene.seed;
@@ -102,7 +102,11 @@ StatusOr<ProbeConfig> make_probe_config(const Scene& scene, uint64_t rays, doubl
   // The page cache's share (memory_budget.h): half of what the limit leaves
   // after what is already resident (the stores' node tables) and a reserve
   // for the test rays' hit records.
-  const uint64_t rss = current_rss_bytes();
+  // A cache kept from earlier views counts as free: it is this cache.
+  const uint64_t held = pages ? pages->resident_bytes() : 0;
+  const uint64_t rss_now = current_rss_bytes();
+  const uint64_t rss = rss_now > held ? rss_now - held : 0;
+  probe.pages = pages;
   const uint64_t reserve = rays * 64 * uint64_t(std::max(1, scene.max_depth + 1)) + (uint64_t(32) << 20);
   probe.cache_bytes = budget.page_cache(rss, reserve);
   if (budget.limited() && probe.cache_bytes == 0)
@@ -422,7 +426,7 @@ StatusOr<RunSession> open_run_session(Scene& scene, const RunOptions& options, c
 
 StatusOr<ProbeConfig> run_probe_config(const RunSession& session, const Scene& scene, const RunOptions& options) {
   RAYLOD_ASSIGN_OR_RETURN(ProbeConfig probe, make_probe_config(scene, options.rays, options.footprint_scale,
-                                                              session.budget, options.progress));
+                                                              session.budget, options.progress, session.pages.get()));
   probe.criterion = options.criterion;
   probe.tolerance_px = options.tolerance_px;
   return probe;
@@ -433,9 +437,22 @@ StatusOr<ProbeTrace> trace_view(RunSession& session, const Scene& scene, const P
   auto traced = trace_probe(scene, stores.probe_stores, stores.objects, probe);
   if (!traced.is_ok()) {
     RAYLOD_ASSIGN_OR_RETURN(bool retry, repair_corrupt_stores(stores, "probe", session.repaired, log));
+    if (retry && session.pages) session.pages->clear();  // the pages of the replaced store
     if (retry) traced = trace_probe(scene, stores.probe_stores, stores.objects, probe);
   }
+  shrink_kept_pages(session);
   return traced;
+}
+
+void shrink_kept_pages(RunSession& session) {
+  if (session.pages) session.pages->set_capacity(session.budget.limited() ? std::max<uint64_t>(session.retained_pages, 1) : 0);
+}
+
+void keep_pages_between_views(RunSession& session) {
+  const uint64_t working = session.budget.working();
+  session.retained_pages = session.budget.limited() ? working / 8 : 0;
+  if (session.budget.limited()) session.memory_limit = std::max<uint64_t>(working - working / 8, 1);
+  session.pages = std::make_unique<PageCache>(0);
 }
 
 namespace {

@@ -131,7 +131,22 @@ struct RunSession {
   // held when the run began, so that no view depends on which views ran
   // before it (or on another rank).
   std::optional<std::set<std::string>> reusable;
+  // A view sequence's page cache (keep_pages_between_views): the pages the
+  // probe loaded for one view stay for the next, up to retained_pages bytes
+  // while simplify and render run (their memory_limit is lowered by as
+  // much). None: every trace has its own.
+  std::unique_ptr<PageCache> pages;
+  uint64_t retained_pages = 0;
 };
+
+// Gives the session a page cache shared by the traces of its views, keeping
+// up to an eighth of the working memory between them (all of it without a
+// memory limit); simplify and render then plan within the rest. The same on
+// every rank, so outputs do not change with the number of ranks.
+void keep_pages_between_views(RunSession& session);
+// Evicts the kept pages down to retained_pages (after a trace, before
+// simplify and render); trace_view does it.
+void shrink_kept_pages(RunSession& session);
 
 // Builds or reuses the stores (stage A) and opens the cache. Under mpirun
 // (core/cluster.h) rank 0 builds, the others wait and then open the stores,
@@ -220,9 +235,11 @@ std::string run_stats_json(const RunResult& result, const RunOptions& options);
 // The probe configuration within a memory budget: the page cache gets its
 // share (MemoryBudget::page_cache: half of what the limit leaves after what is
 // resident and the rays' hit records); an error if nothing is left. Without a
-// limit the cache has none either. Call after the stores are open.
+// limit the cache has none either. Call after the stores are open. With
+// `pages` (a cache kept from earlier traces) the trace uses it, its resident
+// pages counted as free.
 StatusOr<ProbeConfig> make_probe_config(const Scene& scene, uint64_t rays, double footprint_scale,
-                                        const MemoryBudget& budget, bool progress);
+                                        const MemoryBudget& budget, bool progress, PageCache* pages = nullptr);
 
 // Simplifies the cut of a store and writes it Draco-compressed to `out`
 // (position quantisation from draco_error_bound, normal quantisation from

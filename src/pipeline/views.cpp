@@ -44,6 +44,7 @@ Status render_view(RunSession& session, const Scene& scene, const Camera& camera
 }
 
 void free_probe_memory(RunSession& session) {
+  session.pages.reset();
   session.stores.probe_stores.clear();
   session.stores.stores.clear();
 #if defined(__GLIBC__)
@@ -147,6 +148,7 @@ StatusOr<ViewsResult> run_views(Scene scene, std::span<const Camera> cameras, co
   RunOptions inner = options;
   inner.progress = false;
   RAYLOD_ASSIGN_OR_RETURN(RunSession session, open_run_session(scene, inner, log));
+  keep_pages_between_views(session);
   out.build_seconds = session.stores.seconds;
   out.triangles_in = session.stores.triangles;
   std::optional<Progress> progress;
@@ -194,6 +196,7 @@ StatusOr<ViewsResult> run_views(Scene scene, std::span<const Camera> cameras, co
     RAYLOD_RETURN_IF_ERROR(cluster::agree(probe_config.status()));
     const ProbeConfig probe = probe_config.value();
     RAYLOD_ASSIGN_OR_RETURN(std::vector<ProbeTrace> traces, trace_views_across_ranks(session, scene, cameras, probe, log));
+    shrink_kept_pages(session);
     for (size_t i = 0; i < cameras.size(); ++i) out.views[i].probe = traces[i].trace_seconds;
     std::vector<ProbeView> views;
     for (size_t i = 0; i < cameras.size(); ++i) views.push_back(ProbeView{&traces[i], cameras[i]});

@@ -110,6 +110,33 @@ void PageCache::evict_locked() {
   }
 }
 
+uint64_t PageCache::capacity() const {
+  std::lock_guard lock(mutex_);
+  return capacity_;
+}
+
+uint64_t PageCache::resident_bytes() const {
+  std::lock_guard lock(mutex_);
+  return counters_.resident_bytes;
+}
+
+void PageCache::set_capacity(uint64_t capacity_bytes) {
+  std::lock_guard lock(mutex_);
+  capacity_ = capacity_bytes ? capacity_bytes : UINT64_MAX;
+  evict_locked();
+}
+
+void PageCache::clear() {
+  std::lock_guard lock(mutex_);
+  // Pages being loaded stay (their loaders finish them); loaded ones go.
+  for (const Key& key : lru_) {
+    auto it = entries_.find(key);
+    counters_.resident_bytes -= it->second.bytes;
+    entries_.erase(it);
+  }
+  lru_.clear();
+}
+
 PageCacheCounters PageCache::counters() const {
   std::lock_guard lock(mutex_);
   return counters_;

@@ -1,6 +1,7 @@
 // An LRU cache of store pages (the triangles of one page-level cell each),
 // bounded by a memory budget, with a triangle BVH built per page on load.
-// Thread-safe: concurrent requests for the same page load it once. Pages
+// Thread-safe: concurrent requests for the same page load it once. What is
+// cached never changes a trace's result, only how many pages it reads. Pages
 // are handed out as shared_ptr, so an evicted page stays valid for the rays
 // still using it; resident memory is the budget plus the pages in use
 // (at most one per tracing thread).
@@ -65,7 +66,14 @@ class PageCache {
   StatusOr<std::shared_ptr<const Page>> get(const OctreeStore& store, uint32_t page);
 
   PageCacheCounters counters() const;
-  uint64_t capacity() const { return capacity_; }
+  uint64_t capacity() const;
+  uint64_t resident_bytes() const;
+  // A new budget (0 = no limit), evicting least recently used pages down to
+  // it; a cache that outlives one trace (a view sequence's) is resized so
+  // before every trace and shrunk between them.
+  void set_capacity(uint64_t capacity_bytes);
+  // Drops every page (a store was reopened: its pages are another file's).
+  void clear();
 
  private:
   using Key = std::pair<const OctreeStore*, uint32_t>;

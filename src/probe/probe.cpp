@@ -445,7 +445,11 @@ StatusOr<ProbeTrace> trace_probe(const Scene& scene, std::span<const ProbeStore>
                                  std::span<const ProbeObject> objects, const ProbeConfig& config) {
   RAYLOD_RETURN_IF_ERROR(check_probe_inputs(scene, stores, objects, config));
   const auto t_start = std::chrono::steady_clock::now();
-  PageCache cache(config.cache_bytes);
+  std::optional<PageCache> own_cache;
+  if (config.pages) config.pages->set_capacity(config.cache_bytes);
+  else own_cache.emplace(config.cache_bytes);
+  PageCache& cache = config.pages ? *config.pages : *own_cache;
+  const PageCacheCounters before = cache.counters();
   ProbeTracer tracer(scene, stores, objects, config, cache);
 
   // A2/A3: trace the test rays. Each ray has its own seed and its own result
@@ -482,12 +486,12 @@ StatusOr<ProbeTrace> trace_probe(const Scene& scene, std::span<const ProbeStore>
   }
   for (int k = 0; k < 10; ++k) result.counters[kCounterNames[k]] = total.v[k];
   const PageCacheCounters cc = cache.counters();
-  result.counters["pages_read"] = cc.pages_read;
-  result.counters["bytes_read"] = cc.bytes_read;
-  result.counters["cache_hits"] = cc.hits;
-  result.counters["cache_misses"] = cc.misses;
-  result.counters["cache_evictions"] = cc.evictions;
-  result.counters["cache_peak_bytes"] = cc.peak_bytes;
+  result.counters["pages_read"] = cc.pages_read - before.pages_read;
+  result.counters["bytes_read"] = cc.bytes_read - before.bytes_read;
+  result.counters["cache_hits"] = cc.hits - before.hits;
+  result.counters["cache_misses"] = cc.misses - before.misses;
+  result.counters["cache_evictions"] = cc.evictions - before.evictions;
+  result.counters["cache_peak_bytes"] = cc.peak_bytes;  // since the cache was made
   size_t hits = 0;
   for (const RayOutcome& o : outcomes) hits += o.hits.size();
   result.hits.reserve(hits);

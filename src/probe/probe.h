@@ -112,6 +112,11 @@ struct ProbeConfig {
   double footprint_scale = kDefaultFootprintScale;  // K: collapse cells with diagonal < K * footprint
   double tolerance_px = kDefaultTolerancePx;        // deviation criterion: surface deviation, in pixels
   uint64_t cache_bytes = uint64_t(256) << 20;  // page cache budget; 0 = no limit
+  // A page cache that outlives the trace (a view sequence's, so that a view
+  // reuses the pages the views before it loaded), resized to cache_bytes
+  // before tracing; none = a cache of the trace's own. The trace's cache
+  // counters are then this trace's share. It never changes the result.
+  PageCache* pages = nullptr;
   DifferentialLimits limits;
   double calibration_quantile = 0.02;  // of the secondary hits' magnification (policy above)
   double shadow_factor = 4.0;          // unreachable cells in scenes with lights

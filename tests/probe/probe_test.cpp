@@ -740,6 +740,50 @@ TEST(SharedCut, SameForOneAndTwoThreadsAndAnyViewOrder) {
   EXPECT_EQ(cells_of(r->cuts[0]), cells_of(a->cuts[0]));
 }
 
+// A view sequence's page cache (ProbeConfig::pages): a trace through a cache
+// kept from an earlier trace gives the same hits as one with its own cache,
+// and reads only the pages the earlier trace did not leave.
+TEST(ProbeShares, KeptPageCacheGivesTheSameTraceAndReadsLess) {
+  const Built& b = teapot();
+  const Scene scene = make_scene(MaterialType::Glass, kEye, kLook);
+  ProbeStore store{b.store.get(), b.store_path};
+  ProbeObject object{0, glm::dmat4(1.0), 0};
+  const std::span<const ProbeStore> stores(&store, 1);
+  const std::span<const ProbeObject> objects(&object, 1);
+  ProbeConfig c;
+  c.rays = 800;
+  c.seed = 5;
+  c.cache_bytes = 0;
+  auto own = trace_probe(scene, stores, objects, c);
+  ASSERT_TRUE(own) << own.status().message();
+  ASSERT_GT(own->counters.at("pages_read"), 1u);
+
+  PageCache kept(0);
+  ProbeConfig shared = c;
+  shared.pages = &kept;
+  auto first = trace_probe(scene, stores, objects, shared);
+  auto second = trace_probe(scene, stores, objects, shared);
+  ASSERT_TRUE(first && second);
+  EXPECT_EQ(first->counters.at("pages_read"), own->counters.at("pages_read"));
+  EXPECT_EQ(second->counters.at("pages_read"), 0u);  // every page was kept
+  EXPECT_GT(second->counters.at("cache_hits"), 0u);
+  for (const ProbeTrace* t : {&first.value(), &second.value()}) {
+    ASSERT_EQ(t->hits.size(), own->hits.size());
+    for (size_t i = 0; i < t->hits.size(); ++i)
+      ASSERT_TRUE(t->hits[i].corners == own->hits[i].corners && t->hits[i].footprint == own->hits[i].footprint) << i;
+  }
+
+  // Shrunk between traces, the cache keeps at most its capacity (and one
+  // page), and the next trace reads the rest again.
+  kept.set_capacity(1);
+  EXPECT_LE(kept.counters().resident_bytes, kept.counters().peak_bytes);
+  auto third = trace_probe(scene, stores, objects, shared);
+  ASSERT_TRUE(third);
+  EXPECT_GE(third->counters.at("pages_read") + 1, own->counters.at("pages_read"));
+  kept.clear();
+  EXPECT_EQ(kept.resident_bytes(), 0u);
+}
+
 // What `mpirun raylod probe` does: the test rays traced in shares (one per
 // rank, here uneven and with different page caches) and merged give the
 // trace of one process, and a cut file with the same bytes.
