@@ -114,6 +114,15 @@ int cmd_probe(int argc, char** argv) {
       std::printf("probe: %s: %zu cells marked (%llu with hits;%s), smallest footprint %g\n", out.string().c_str(),
                   cut.cells.size(), static_cast<unsigned long long>(cut.counters.at("cells_marked_with_hits")),
                   levels.c_str(), double(cut.min_footprint));
+      // Why finest cells stay whole: their input triangles are kept as they are.
+      auto count = [&](const char* name) {
+        auto it = cut.counters.find(name);
+        return static_cast<unsigned long long>(it == cut.counters.end() ? 0 : it->second);
+      };
+      if (count("finest_cells_kept") > 0)
+        std::printf("probe: %llu finest cells kept whole (for K %llu, deviation %llu, normals %llu, open boundary %llu)\n",
+                    count("finest_cells_kept"), count("finest_cells_kept_for_k"), count("finest_cells_kept_for_deviation"),
+                    count("finest_cells_kept_for_normals"), count("finest_cells_kept_for_boundary"));
     }
     return {};
   };

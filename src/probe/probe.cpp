@@ -728,6 +728,9 @@ StatusOr<ProbeResult> select_shared_cuts(std::span<const ProbeView> views, const
     const QemSolveConfig qem;
     const Vec3d origin = st.header().origin;
     uint64_t rejected_deviation = 0, rejected_normal = 0, rejected_boundary = 0;
+    // The finest cells left uncollapsed (their input triangles are kept as
+    // they are), by the test that kept them: K, deviation, normal, boundary.
+    std::array<uint64_t, 5> finest_kept{};
     std::vector<std::vector<char>> collapsed(size_t(Q) + 1);
     for (int L = 0; L <= Q; ++L) {
       const auto nodes = st.level(L);
@@ -769,6 +772,7 @@ StatusOr<ProbeResult> select_shared_cuts(std::span<const ProbeView> views, const
       });
       for (size_t i = 0; i < nodes.size(); ++i) {
         if (inside[i]) { collapsed[size_t(L)][i] = 1; continue; }
+        if (L == Q && verdict[i] != 1) ++finest_kept[size_t(verdict[i])];
         rejected_deviation += verdict[i] == 2;
         rejected_normal += verdict[i] == 3;
         rejected_boundary += verdict[i] == 4;
@@ -781,6 +785,11 @@ StatusOr<ProbeResult> select_shared_cuts(std::span<const ProbeView> views, const
     cut.counters["cells_kept_for_deviation"] = rejected_deviation;
     cut.counters["cells_kept_for_normals"] = rejected_normal;
     cut.counters["cells_kept_for_boundary"] = rejected_boundary;
+    cut.counters["finest_cells_kept"] = finest_kept[0] + finest_kept[2] + finest_kept[3] + finest_kept[4];
+    cut.counters["finest_cells_kept_for_k"] = finest_kept[0];
+    cut.counters["finest_cells_kept_for_deviation"] = finest_kept[2];
+    cut.counters["finest_cells_kept_for_normals"] = finest_kept[3];
+    cut.counters["finest_cells_kept_for_boundary"] = finest_kept[4];
     std::sort(cut.cells.begin(), cut.cells.end(), [](const CollapsedCell& a, const CollapsedCell& b) { return a.key < b.key; });
     // Footprints and hit counts of the marked cells (each hit counted once per cell).
     std::unordered_map<uint64_t, size_t> cell_index;  // (level << 58 | code) -> index
