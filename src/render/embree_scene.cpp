@@ -14,8 +14,10 @@
 #include <tbb/parallel_for.h>
 #include <glm/gtc/matrix_transform.hpp>
 
+#include "core/system.h"
 #include "geometry/crease_normals.h"
 #include "geometry/optics.h"
+#include "streaming/draco_io.h"
 #include "streaming/mesh_reader.h"
 
 namespace raylod {
@@ -135,13 +137,61 @@ void add_crease_normals(TriangleMesh& mesh, double crease_angle_deg) {
   mesh.indices = std::move(split.indices);
 }
 
+namespace {
+
+// A .drc is indexed already: with normals its points are taken as they are
+// (the welder would only find Draco's points again, at the cost of a soup of
+// corners).
+StatusOr<bool> load_draco_indexed(const std::filesystem::path& path, TriangleMesh& mesh, Vec3d& origin,
+                                  const std::function<void(uint64_t)>& on_triangles) {
+  auto format = mesh_format_from_extension(path);
+  if (!format.is_ok() || *format != MeshFormat::Draco) return false;
+  RAYLOD_RETURN_IF_ERROR(check_regular_file(path));  // as open_mesh: a FIFO or device fails at once
+  RAYLOD_ASSIGN_OR_RETURN(IndexedMesh decoded, read_draco(path));
+  origin = decoded.origin;
+  if (decoded.normals.empty()) {
+    // Crease normals smooth across shared positions: weld Draco's points by
+    // position first (it may keep points that share one apart).
+    std::vector<Vec3> soup(decoded.indices.size());
+    for (size_t i = 0; i < soup.size(); ++i) soup[i] = decoded.positions[decoded.indices[i]];
+    TriangleMesh welded = weld_triangles(soup, {});
+    mesh.positions = std::move(welded.positions);
+    mesh.indices = std::move(welded.indices);
+  } else {
+    mesh.positions = std::move(decoded.positions);
+    mesh.normals = std::move(decoded.normals);
+    mesh.indices = std::move(decoded.indices);
+  }
+  if (on_triangles) on_triangles(mesh.triangle_count());
+  return true;
+}
+
+// Crease normals where the file has none, then into the world: positions are
+// relative to the reader's local origin (a mesh far from zero).
+Status place_mesh(TriangleMesh& mesh, const std::filesystem::path& path, const Vec3d& origin,
+                  const glm::dmat4& object_to_world, double crease_angle_deg) {
+  if (mesh.normals.empty()) add_crease_normals(mesh, crease_angle_deg);
+  transform_mesh(mesh, origin == Vec3d(0) ? object_to_world : object_to_world * glm::translate(glm::dmat4(1.0), origin));
+  for (const Vec3& p : mesh.positions)
+    if (!is_finite(p)) return Status::error(path.string() + ": the object transform maps a vertex to Inf/NaN");
+  return {};
+}
+
+}  // namespace
+
 StatusOr<TriangleMesh> load_triangle_mesh(const std::filesystem::path& path, const glm::dmat4& object_to_world,
                                           int material, double crease_angle_deg,
                                           const std::function<void(uint64_t)>& on_triangles) {
-  RAYLOD_ASSIGN_OR_RETURN(auto reader, open_mesh(path));
   TriangleMesh mesh;
   mesh.material = material;
   mesh.name = path.filename().string();
+  Vec3d draco_origin(0);
+  RAYLOD_ASSIGN_OR_RETURN(bool indexed, load_draco_indexed(path, mesh, draco_origin, on_triangles));
+  if (indexed) {
+    RAYLOD_RETURN_IF_ERROR(place_mesh(mesh, path, draco_origin, object_to_world, crease_angle_deg));
+    return mesh;
+  }
+  RAYLOD_ASSIGN_OR_RETURN(auto reader, open_mesh(path));
   const uint64_t faces = reader->header().face_count;
   mesh.indices.reserve(size_t(faces) * 3);
   std::unique_ptr<Welder> welder;
@@ -165,12 +215,7 @@ StatusOr<TriangleMesh> load_triangle_mesh(const std::filesystem::path& path, con
   }
   if (mesh.indices.empty()) return Status::error(path.string() + ": empty mesh (no triangles)");
   welder.reset();
-  if (!with_normals) add_crease_normals(mesh, crease_angle_deg);
-  // Positions are relative to the reader's local origin (a mesh far from zero).
-  const Vec3d origin = reader->header().origin;
-  transform_mesh(mesh, origin == Vec3d(0) ? object_to_world : object_to_world * glm::translate(glm::dmat4(1.0), origin));
-  for (const Vec3& p : mesh.positions)
-    if (!is_finite(p)) return Status::error(path.string() + ": the object transform maps a vertex to Inf/NaN");
+  RAYLOD_RETURN_IF_ERROR(place_mesh(mesh, path, reader->header().origin, object_to_world, crease_angle_deg));
   return mesh;
 }
 

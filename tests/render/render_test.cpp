@@ -10,6 +10,7 @@
 
 #include <tbb/global_control.h>
 #include <tbb/task_arena.h>
+#include <glm/gtc/matrix_transform.hpp>
 
 #include "render/integrator.h"
 #include "render/renderer.h"
@@ -458,6 +459,45 @@ TEST(SceneFiles, RendersADracoMeshInPlaceOfTheSceneMesh) {
   auto r = render(*scene, o);
   ASSERT_TRUE(r.is_ok()) << r.status().message();
   EXPECT_EQ(r->stats.triangles, sphere.triangle_count());
+}
+
+// A .drc loads indexed as Draco decoded it (no welding); every triangle has
+// the corners, in order, that welding the reader's corner soup gives, with
+// and without normals, and under a transform.
+TEST(SceneFiles, DracoLoadsIndexedWithTheCornersOfTheWeldedSoup) {
+  const auto dir = test_tmp("render-scenes");
+  const TriangleMesh sphere = make_sphere({0.2f, 0.1f, 0}, 1, 9, 17, 0);
+  const glm::dmat4 xf = glm::translate(glm::scale(glm::dmat4(1.0), glm::dvec3(2, 1, 0.5)), glm::dvec3(1, 2, 3));
+  for (bool normals : {true, false}) {
+    IndexedMesh im;
+    im.positions = sphere.positions;
+    if (normals) im.normals = sphere.normals;
+    im.indices = sphere.indices;
+    const auto path = dir / (normals ? "with_normals.drc" : "positions_only.drc");
+    ASSERT_TRUE(write_draco(path, im, DracoOptions{}).is_ok());
+    auto loaded = load_triangle_mesh(path, xf, 0, 30.0);
+    ASSERT_TRUE(loaded.is_ok()) << loaded.status().message();
+    // The reference: the reader's soup welded, crease normals, the same transform.
+    auto reader = open_mesh(path);
+    ASSERT_TRUE(reader.is_ok());
+    TriangleBatch all, batch;
+    while (reader.value()->next(batch).value()) {
+      all.positions.insert(all.positions.end(), batch.positions.begin(), batch.positions.end());
+      all.normals.insert(all.normals.end(), batch.normals.begin(), batch.normals.end());
+    }
+    TriangleMesh ref = weld_triangles(all.positions, all.normals);
+    add_crease_normals(ref, 30.0);
+    ASSERT_EQ(loaded->triangle_count(), ref.triangle_count());
+    ASSERT_EQ(loaded->triangle_count(), sphere.triangle_count());
+    ASSERT_FALSE(loaded->normals.empty());
+    for (size_t c = 0; c < ref.indices.size(); ++c) {
+      const Vec3 want = Vec3(Vec3d(xf * glm::dvec4(Vec3d(ref.positions[ref.indices[c]]), 1.0)));
+      ASSERT_EQ(loaded->positions[loaded->indices[c]], want) << "corner " << c;
+      const glm::dmat3 nm = glm::transpose(glm::inverse(glm::dmat3(xf)));
+      const Vec3 want_n = Vec3(glm::normalize(nm * Vec3d(ref.normals[ref.indices[c]])));
+      ASSERT_EQ(loaded->normals[loaded->indices[c]], want_n) << "corner " << c;
+    }
+  }
 }
 
 TEST(SceneFiles, BadMeshesGiveClearErrors) {
