@@ -93,7 +93,7 @@ StatusOr<SourceFingerprint> fingerprint_file(const std::filesystem::path& mesh, 
 }
 
 bool store_is_current(const std::filesystem::path& mesh, const std::filesystem::path& store,
-                      const StoreOptions& options, std::string* reason, bool rehash) {
+                      const StoreOptions& options, std::string* reason, bool rehash, BuildReport* opened) {
   auto say = [&](std::string r) {
     if (reason) *reason = std::move(r);
     return false;
@@ -104,12 +104,21 @@ bool store_is_current(const std::filesystem::path& mesh, const std::filesystem::
     return say("a reader found it corrupt: " + *corrupt + " (recorded in " + corruption_record_path(store).string() + ")");
   auto store_status = file_status(store);
   if (!store_status.is_ok()) return say(store_status.status().message());
-  StoreHeader h;
-  {  // Full open: header and table checksums; the tables are freed right away.
-    auto opened = OctreeStore::open(store);
-    if (!opened.is_ok()) return say("the existing store is unusable (" + opened.status().message() + ")");
-    h = (*opened)->header();
-  }
+  // Full open: header and table checksums. Kept for the caller if it is current.
+  auto open_store = OctreeStore::open(store);
+  if (!open_store.is_ok()) return say("the existing store is unusable (" + open_store.status().message() + ")");
+  std::shared_ptr<OctreeStore> store_open = std::move(open_store.value());
+  const StoreHeader& h = store_open->header();
+  auto current = [&](std::string r) {
+    if (reason) *reason = std::move(r);
+    if (opened) {
+      opened->opened = store_open;
+      opened->opened_file = std::to_string(store_status->inode) + " " + std::to_string(store_status->bytes) + " " +
+                            std::to_string(store_status->mtime_ns / 1000000000ull) + "." +
+                            std::to_string(store_status->mtime_ns % 1000000000ull);
+    }
+    return true;
+  };
   auto fp = fingerprint_file(mesh, false);
   if (!fp.is_ok()) return say(fp.status().message());
   if (h.source_path != fp->path) return say("the store was built from another mesh (" + h.source_path + ")");
@@ -129,12 +138,9 @@ bool store_is_current(const std::filesystem::path& mesh, const std::filesystem::
   const std::filesystem::path file = parse_mesh_ref(mesh).file;
   auto before = file_status(file);
   if (!before.is_ok()) return say(before.status().message());
-  if (!rehash && source_record_vouches(store, *before, h.source_hash)) {
-    if (reason)
-      *reason = "up to date (same options; the mesh's size, times and inode are those of its last content check, " +
-                source_record_path(store).filename().string() + ")";
-    return true;
-  }
+  if (!rehash && source_record_vouches(store, *before, h.source_hash))
+    return current("up to date (same options; the mesh's size, times and inode are those of its last content check, " +
+                   source_record_path(store).filename().string() + ")");
   const uint64_t started = realtime_ns();
   auto hashed = fingerprint_file(mesh, true);
   if (!hashed.is_ok()) return say(hashed.status().message());
@@ -143,8 +149,7 @@ bool store_is_current(const std::filesystem::path& mesh, const std::filesystem::
   auto store_after = file_status(store);
   if (after.is_ok() && *after == *before && store_after.is_ok() && *store_after == *store_status)
     note_source_checked(store, *before, h.source_hash, started);
-  if (reason) *reason = "up to date (same mesh size, modification time, content hash and options)";
-  return true;
+  return current("up to date (same mesh size, modification time, content hash and options)");
 }
 
 StatusOr<BuildReport> build_store(const std::filesystem::path& mesh, const std::filesystem::path& store,
@@ -157,8 +162,8 @@ StatusOr<BuildReport> build_store(const std::filesystem::path& mesh, const std::
                                   const std::function<void(const std::string& reason)>& before_building) {
   BuildLock lock(parse_mesh_ref(mesh).file);
   std::string reason = "--force";
-  if (!force && store_is_current(mesh, store, options, &reason, verify)) {
-    BuildReport report;
+  BuildReport report;
+  if (!force && store_is_current(mesh, store, options, &reason, verify, &report)) {
     report.reused = true;
     report.reason = reason;
     auto verified = verify ? verify_store_pages(store) : StatusOr<uint64_t>(uint64_t(0));
@@ -168,6 +173,7 @@ StatusOr<BuildReport> build_store(const std::filesystem::path& mesh, const std::
       return report;
     }
     reason = "--verify: " + verified.status().message();
+    report.opened.reset();
   }
   if (before_building) before_building(reason);
   const std::filesystem::path file = parse_mesh_ref(mesh).file;

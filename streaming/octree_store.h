@@ -194,6 +194,11 @@ struct BuildReport {
   // page assembly and writing, fsync + rename.
   double scan_seconds = 0, bin_seconds = 0, write_seconds = 0, commit_seconds = 0;
   std::string warning;            // e.g. a memory limit too small to honour
+  // Reused: the store as the up-to-date check opened it (checksums of the
+  // header and tables verified), so that the caller need not open it again,
+  // and the file's inode, size and mtime ("INO SIZE SEC.NSEC") taken before.
+  std::shared_ptr<OctreeStore> opened;
+  std::string opened_file;
 };
 // Builds (or reuses, if up to date for the same mesh and options) the store.
 StatusOr<BuildReport> build_store(const std::filesystem::path& mesh, const std::filesystem::path& store,
@@ -211,9 +216,11 @@ StatusOr<BuildReport> build_store(const std::filesystem::path& mesh, const std::
 // True if `store` exists, opens, has no corruption record (store_corruption)
 // and matches the mesh's size, mtime and content hash. The hash is not read
 // again while the store's STORE.checked record vouches for the mesh's file
-// status (source_record.h), unless rehash.
+// status (source_record.h), unless rehash. If current and `opened` is given,
+// its `opened` and `opened_file` are set.
 bool store_is_current(const std::filesystem::path& mesh, const std::filesystem::path& store,
-                      const StoreOptions& options, std::string* reason = nullptr, bool rehash = false);
+                      const StoreOptions& options, std::string* reason = nullptr, bool rehash = false,
+                      BuildReport* opened = nullptr);
 
 // ---- Lower-level entry points (streaming/octree_build.cpp) ----
 

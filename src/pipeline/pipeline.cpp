@@ -236,16 +236,20 @@ StatusOr<SceneStores> prepare_scene_stores(Scene& scene, const std::optional<fs:
                                 say(log, "building store " + store_path.string() + " (" + reason + ")");
                               }));
     }
-    struct stat st {};
-    if (::stat(store_path.c_str(), &st) != 0) return Status::error(store_path.string() + ": " + std::strerror(errno));
-    out.store_files.push_back(std::to_string(st.st_ino) + " " + std::to_string(st.st_size) + " " +
-                              std::to_string(st.st_mtim.tv_sec) + "." + std::to_string(st.st_mtim.tv_nsec));
-    auto store = OctreeStore::open(store_path);
-    if (!store.is_ok()) return store.status();
-    out.triangles += (*store)->header().triangle_count;
+    std::shared_ptr<OctreeStore> store = std::move(report.opened);  // the check's, if it found the store current
+    if (store) {
+      out.store_files.push_back(report.opened_file);
+    } else {
+      struct stat st {};
+      if (::stat(store_path.c_str(), &st) != 0) return Status::error(store_path.string() + ": " + std::strerror(errno));
+      out.store_files.push_back(std::to_string(st.st_ino) + " " + std::to_string(st.st_size) + " " +
+                                std::to_string(st.st_mtim.tv_sec) + "." + std::to_string(st.st_mtim.tv_nsec));
+      RAYLOD_ASSIGN_OR_RETURN(store, OctreeStore::open(store_path));
+    }
+    out.triangles += store->header().triangle_count;
     out.store_paths.push_back(store_path);
     out.builds.push_back(report);
-    out.stores.push_back(std::move(store.value()));
+    out.stores.push_back(std::move(store));
   }
   for (size_t i = 0; i < out.stores.size(); ++i) out.probe_stores.push_back(ProbeStore{out.stores[i].get(), out.store_paths[i]});
   out.seconds = seconds_since(t0);

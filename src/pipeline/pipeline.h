@@ -38,7 +38,7 @@ void say(const LogFn& log, const std::string& text);
 struct SceneStores {
   std::vector<std::filesystem::path> meshes;  // one per distinct mesh file
   std::vector<std::filesystem::path> store_paths;
-  std::vector<std::unique_ptr<OctreeStore>> stores;
+  std::vector<std::shared_ptr<OctreeStore>> stores;
   std::vector<ProbeStore> probe_stores;
   std::vector<ProbeObject> objects;           // one per scene object
   std::vector<BuildReport> builds;            // one per store (reused or built)
