@@ -18,9 +18,12 @@ float max_channel(const Vec3& c) { return std::max({c.x, c.y, c.z}); }
 // the corners' positions and normals -- so that their cache misses overlap
 // instead of stalling surface_point() lane after lane (on large meshes these
 // fetches, not the traversal, are most of the cost of a camera ray).
-void prefetch_shading_data(const EmbreeScene& geometry, const Hit* hits, const bool* found, int n) {
+void prefetch_indices(const EmbreeScene& geometry, const Hit* hits, const bool* found, int n) {
   for (int i = 0; i < n; ++i)
     if (found[i]) __builtin_prefetch(&geometry.mesh(hits[i].geom).indices[size_t(hits[i].prim) * 3]);
+}
+
+void prefetch_vertices(const EmbreeScene& geometry, const Hit* hits, const bool* found, int n) {
   for (int i = 0; i < n; ++i) {
     if (!found[i]) continue;
     const TriangleMesh& m = geometry.mesh(hits[i].geom);
@@ -159,7 +162,11 @@ void Integrator::trace_camera_packet(std::span<const glm::dvec2> pixels, CameraP
   for (int i = 0; i < n; ++i) packet.rays[i] = camera_.generate(pixels[size_t(i)].x, pixels[size_t(i)].y);
   counters.camera += uint64_t(n);
   geometry_.intersect_packet({packet.rays, size_t(n)}, kInf, true, packet.hits, packet.found);
-  prefetch_shading_data(geometry_, packet.hits, packet.found, n);
+  prefetch_indices(geometry_, packet.hits, packet.found, n);
+}
+
+void Integrator::prefetch_camera_vertices(const CameraPacket& packet) const {
+  prefetch_vertices(geometry_, packet.hits, packet.found, packet.size);
 }
 
 void Integrator::shade_camera_packet(const CameraPacket& packet, CameraSample* out, RayCounters& counters) const {

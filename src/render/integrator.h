@@ -100,8 +100,8 @@ class Integrator {
   // The camera rays through up to EmbreeScene::kPacketSize pixel positions
   // (a pixel block) traced as one coherent packet, in two steps so that a
   // caller can trace the next packet before shading this one: trace starts
-  // the fetches of the hits' vertex data (prefetch), shade then finds them in
-  // cache. shade_camera_packet traces the shadow rays of the hits as
+  // the fetches of the hits' triangle indices, prefetch_camera_vertices
+  // those of their vertices, and shade then finds them in cache. shade_camera_packet traces the shadow rays of the hits as
   // occlusion packets; reflection and refraction rays go one by one. out[i]
   // is what sample(pixels[i].x, pixels[i].y) returns: the same rays, the same
   // hits and the same floating-point operations in the same order.
@@ -112,6 +112,11 @@ class Integrator {
     bool found[EmbreeScene::kPacketSize];
   };
   void trace_camera_packet(std::span<const glm::dvec2> pixels, CameraPacket& packet, RayCounters& counters) const;
+  // The second fetch step: the hits' vertex positions and normals, whose
+  // indices trace_camera_packet began to fetch. Call it some work after the
+  // trace (the renderer: after shading the previous packet), so that the
+  // indices have arrived and the vertices arrive before this packet is shaded.
+  void prefetch_camera_vertices(const CameraPacket& packet) const;
   void shade_camera_packet(const CameraPacket& packet, CameraSample* out, RayCounters& counters) const;
   // Radiance arriving along ray; depth = bounces so far (0 for camera rays).
   Vec3 radiance(const Ray& ray, int depth, const Vec3& throughput, RayCounters& counters) const;

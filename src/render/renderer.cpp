@@ -337,8 +337,9 @@ RenderResult render_embree_scene(const EmbreeScene& geometry, const Scene& world
       // 4x4 pixel blocks (clipped to the tile): sample s of every pixel of a
       // block is one camera packet. Each pixel keeps its own random stream,
       // so the image does not depend on the blocking (nor on threads).
-      // Packets are pipelined: packet j + 1 is traced (and its shading data
-      // prefetched) before packet j is shaded.
+      // Packets are pipelined: packet j + 1 is traced (and its triangles'
+      // indices prefetched) before packet j is shaded, and its vertices are
+      // prefetched before packet j + 2 is traced.
       constexpr int kBlock = 4, kLanes = EmbreeScene::kPacketSize;
       static_assert(kBlock * kBlock == kLanes);
       struct Block {
@@ -407,6 +408,9 @@ RenderResult render_embree_scene(const EmbreeScene& geometry, const Scene& world
             }
             if (options.camera_packets) integrator.trace_camera_packet({job.pos, size_t(blk.n)}, job.packet, local);
             if (pending >= 0) shade(jobs[pending]);
+            // This packet's indices arrived while the previous one was
+            // shaded; its vertices arrive while the next one is traced.
+            if (options.camera_packets) integrator.prefetch_camera_vertices(job.packet);
             pending = int(&job - jobs);
           }
         }
