@@ -9,7 +9,10 @@
 #include <chrono>
 #include <climits>
 #include <cstdlib>
+#include <mutex>
 #include <string>
+#include <tuple>
+#include <vector>
 #include <thread>
 
 #if RAYLOD_WITH_MPI
@@ -275,20 +278,34 @@ void barrier() {
 struct WorkQueue::State {
   uint64_t count = 0;
   bool dynamic = false;
-  std::atomic<uint64_t> counter{0};
   std::atomic<bool> stopped{false};
   bool done = false;  // this rank was told there is no more
   uint64_t round_robin = 0;
+  // Rank 0's ledger: rank r's block [next[r], end[r]) of what is left.
+  std::mutex mutex;
+  std::vector<uint64_t> next, end;
 #if RAYLOD_WITH_MPI
   MPI_Comm comm = MPI_COMM_NULL;
   std::thread server;
 #endif
 
-  // Rank 0's next index, for itself or for another rank.
-  int64_t take() {
+  void deal(int ranks) {
+    next.resize(size_t(ranks));
+    end.resize(size_t(ranks));
+    for (int r = 0; r < ranks; ++r) std::tie(next[size_t(r)], end[size_t(r)]) = share(count, r, ranks);
+  }
+  // Rank 0's next index for `rank` (itself or another): the next of its own
+  // block; when that is used up, the last of the block with the most left.
+  int64_t take(int rank) {
     if (stopped.load()) return -1;
-    const uint64_t i = counter.fetch_add(1);
-    return i < count ? int64_t(i) : -1;
+    std::lock_guard lock(mutex);
+    const size_t r = size_t(rank);
+    if (next[r] < end[r]) return int64_t(next[r]++);
+    size_t most = r;
+    for (size_t q = 0; q < next.size(); ++q)
+      if (end[q] - next[q] > end[most] - next[most]) most = q;
+    if (next[most] == end[most]) return -1;
+    return int64_t(--end[most]);
   }
 };
 
@@ -297,6 +314,7 @@ WorkQueue::WorkQueue(uint64_t count) : state_(std::make_unique<State>()) {
   State& s = *state_;
   s.count = count;
   s.round_robin = uint64_t(w.rank);
+  s.deal(w.size);
   if (w.size == 1) return;
 #if RAYLOD_WITH_MPI
   s.dynamic = w.multiple;
@@ -325,7 +343,7 @@ WorkQueue::WorkQueue(uint64_t count) : state_(std::make_unique<State>()) {
           ++finished;
           continue;
         }
-        const int64_t i = s.take();
+        const int64_t i = s.take(st.MPI_SOURCE);
         MPI_Send(&i, 1, MPI_INT64_T, st.MPI_SOURCE, 1, s.comm);
         if (i < 0) ++finished;
       }
@@ -352,7 +370,7 @@ std::optional<uint64_t> WorkQueue::next() {
   State& s = *state_;
   if (s.done) return std::nullopt;
   if (w.size == 1 || (w.rank == 0 && s.dynamic)) {
-    const int64_t i = s.take();
+    const int64_t i = s.take(0);
     if (i < 0) s.done = true;
     return i < 0 ? std::nullopt : std::optional<uint64_t>(uint64_t(i));
   }

@@ -117,12 +117,16 @@ void broadcast_value(T& value) {
 // and in rank order, the first count % n ranks one more.
 std::pair<uint64_t, uint64_t> share(uint64_t count, int r, int n);
 
-// Hands out the indices 0..count-1 to the ranks, one per request, in
-// increasing order (a rank asks for the next when it is done with its last).
-// Rank 0 takes its own from the counter and answers the other ranks from a
-// thread; without MPI_THREAD_MULTIPLE the indices are dealt round robin
-// instead (rank r takes r, r + n, ...). Construction and destruction are
-// collective.
+// Hands out the indices 0..count-1 to the ranks, one per request (a rank
+// asks for the next when it is done with its last). Each rank starts with a
+// contiguous block (share()) and takes it in increasing order, so that
+// neighbouring items (an orbit's neighbouring views, which need mostly the
+// same pages) run on one rank one after the other; a rank whose block is
+// used up takes the last item of the block with the most left. Rank 0 keeps
+// the ledger and answers the other ranks from a thread; without
+// MPI_THREAD_MULTIPLE the indices are dealt round robin instead (rank r
+// takes r, r + n, ...). One process takes them in order. Construction and
+// destruction are collective.
 class WorkQueue {
  public:
   explicit WorkQueue(uint64_t count);
