@@ -364,16 +364,56 @@ class FileStore final : public OctreeStore {
 
   Status read_page(size_t i, TriangleBatch& batch) const override {
     batch.clear();
+    thread_local std::vector<uint8_t> bytes;
+    RAYLOD_RETURN_IF_ERROR(read_checked_page(i, bytes));
+    // A page whose checksum matches but does not decode was written wrong
+    // (or deliberately altered): an error, but not a record of corruption.
+    // The page's own counts first: decoding sizes its output from them.
+    const PageInfo& page = pages_[i];
+    Status decoded = page_counts(bytes).triangles == page.triangle_count
+                         ? decode_page(bytes, grid_, batch)
+                         : Status::error("its triangle count is not the page table's");
+    if (decoded.is_ok() && (batch.size() != page.triangle_count || batch.normals.empty() == header_.has_normals))
+      decoded = Status::error("its counts do not match the page table");
+    if (!decoded.is_ok()) {
+      batch.clear();
+      return malformed(i, decoded);
+    }
+    return {};
+  }
+
+  Status read_page(size_t i, PageCorners& corners) const override {
+    corners.clear();
+    thread_local std::vector<uint8_t> bytes;
+    RAYLOD_RETURN_IF_ERROR(read_checked_page(i, bytes));
+    const PageInfo& page = pages_[i];
+    Status decoded = page_counts(bytes).triangles == page.triangle_count
+                         ? decode_page_corners(bytes, grid_, corners)
+                         : Status::error("its triangle count is not the page table's");
+    if (decoded.is_ok() &&
+        (corners.size() != page.triangle_count || corners.normal_codes.empty() == header_.has_normals))
+      decoded = Status::error("its counts do not match the page table");
+    if (!decoded.is_ok()) {
+      corners.clear();
+      return malformed(i, decoded);
+    }
+    return {};
+  }
+
+  bool found_corruption() const override { return found_corruption_; }
+
+ private:
+  // Page i's bytes, read and checked against the page table's checksum (a
+  // mismatch is recorded beside the store).
+  Status read_checked_page(size_t i, std::vector<uint8_t>& bytes) const {
     if (i >= pages_.size())
       return Status::error(path_.string() + ": page " + std::to_string(i) + " out of range (" +
                            std::to_string(pages_.size()) + " pages)");
     const PageInfo& page = pages_[i];
-    thread_local std::vector<uint8_t> bytes;
     bytes.resize(size_t(page.bytes));
     RAYLOD_RETURN_IF_ERROR(pread_all(fd_, bytes.data(), bytes.size(), page.offset, path_));
     const uint32_t crc = crc32c(bytes.data(), bytes.size());
     if (crc != page.checksum) {
-      batch.clear();
       char code[32];
       std::snprintf(code, sizeof code, "%" PRIx64, page.code);
       const std::string what = "page " + std::to_string(i) + " (cell " + code + ") checksum mismatch";
@@ -387,24 +427,13 @@ class FileStore final : public OctreeStore {
       }
       return Status::error(path_.string() + ": " + what + " (the store is corrupt; " + note + ")");
     }
-    // A page whose checksum matches but does not decode was written wrong
-    // (or deliberately altered): an error, but not a record of corruption.
-    // The page's own counts first: decoding sizes its output from them.
-    Status decoded = page_counts(bytes).triangles == page.triangle_count
-                         ? decode_page(bytes, grid_, batch)
-                         : Status::error("its triangle count is not the page table's");
-    if (decoded.is_ok() && (batch.size() != page.triangle_count || batch.normals.empty() == header_.has_normals))
-      decoded = Status::error("its counts do not match the page table");
-    if (!decoded.is_ok()) {
-      batch.clear();
-      return Status::error(path_.string() + ": page " + std::to_string(i) + " is malformed: " + decoded.message());
-    }
     return {};
   }
 
-  bool found_corruption() const override { return found_corruption_; }
+  Status malformed(size_t i, const Status& why) const {
+    return Status::error(path_.string() + ": page " + std::to_string(i) + " is malformed: " + why.message());
+  }
 
- private:
   Status load_tables() {
     const std::string name = path_.string();
     uint64_t total = 0;

@@ -53,6 +53,8 @@
 
 namespace raylod {
 
+struct PageCorners;  // page_codec.h
+
 // Symmetric 4x4 plane quadric Q = [[A, -b], [-b^T, c]] (eq. 4), A symmetric 3x3.
 struct Quadric {
   double a00 = 0, a01 = 0, a02 = 0, a11 = 0, a12 = 0, a22 = 0;
@@ -151,6 +153,8 @@ class OctreeStore {
   // its checksum does not match, and then records the mismatch beside the
   // store (record_store_corruption) so that the next build rebuilds it.
   virtual Status read_page(size_t i, TriangleBatch& batch) const = 0;
+  // The same into PageCorners (normals as their octahedral codes).
+  virtual Status read_page(size_t i, PageCorners& corners) const = 0;
   // True once read_page has found a page whose checksum does not match.
   virtual bool found_corruption() const = 0;
 

@@ -294,6 +294,23 @@ Status decode_page(std::span<const uint8_t> bytes, const PageGrid& grid, Triangl
   return {};
 }
 
+Status decode_page_corners(std::span<const uint8_t> bytes, const PageGrid& grid, PageCorners& corners) {
+  corners.clear();
+  thread_local GridPage page;
+  thread_local std::vector<Vec3> vpos;
+  RAYLOD_RETURN_IF_ERROR(parse_page(bytes, grid, page));
+  const size_t nv = page.vertices();
+  vpos.resize(nv);
+  for (size_t v = 0; v < nv; ++v) vpos[v] = grid_position(&page.q[3 * v], grid);
+  corners.positions.resize(page.index.size());
+  if (page.has_normals) corners.normal_codes.resize(page.index.size());
+  for (size_t c = 0; c < page.index.size(); ++c) {
+    corners.positions[c] = vpos[page.index[c]];
+    if (page.has_normals) corners.normal_codes[c] = page.codes[page.index[c]];
+  }
+  return {};
+}
+
 Status decode_page_grid(std::span<const uint8_t> bytes, const PageGrid& grid, std::vector<uint32_t>& positions,
                         std::vector<uint32_t>& normals) {
   thread_local GridPage page;

@@ -92,6 +92,18 @@ Bbox encode_page(std::span<const uint32_t> positions, std::span<const uint32_t> 
 // error (a message without the file name), never a read outside them.
 Status decode_page(std::span<const uint8_t> bytes, const PageGrid& grid, TriangleBatch& batch);
 
+// A page's corners as the probe keeps them: positions, and the normals'
+// octahedral codes (a third of the bytes of float normals);
+// decode_octahedral(code) is the normal decode_page gives.
+struct PageCorners {
+  std::vector<Vec3> positions;         // 3 per triangle
+  std::vector<uint32_t> normal_codes;  // one per corner, or empty without normals
+  size_t size() const { return positions.size() / 3; }
+  void clear() { positions.clear(); normal_codes.clear(); }
+};
+// decode_page into PageCorners (cleared first).
+Status decode_page_corners(std::span<const uint8_t> bytes, const PageGrid& grid, PageCorners& corners);
+
 // Decodes page bytes back to the corners encode_page was given: appends 3
 // grid coordinates per corner to `positions` and, if the page has normals,
 // one normal code per corner to `normals` (for the build's sorted runs).

@@ -6,13 +6,13 @@
 namespace raylod {
 
 size_t Page::bytes() const {
-  return sizeof(Page) + positions.capacity() * sizeof(Vec3) + normals.capacity() * sizeof(Vec3) +
+  return sizeof(Page) + positions.capacity() * sizeof(Vec3) + normal_codes.capacity() * sizeof(uint32_t) +
          nodes.capacity() * sizeof(PageNode);
 }
 
-Page make_page(TriangleBatch&& batch) {
+Page make_page(PageCorners&& batch) {
   Page page;
-  const bool normals = batch.normals.size() == batch.positions.size();
+  const bool normals = batch.normal_codes.size() == batch.positions.size();
   const size_t n = batch.size();
   std::vector<Bbox> boxes(n);
   for (size_t i = 0; i < n; ++i)
@@ -20,12 +20,12 @@ Page make_page(TriangleBatch&& batch) {
   const Bvh bvh = build_bvh(boxes, 8);
   // Triangles in leaf order, so that leaves index them directly.
   page.positions.resize(3 * n);
-  if (normals) page.normals.resize(3 * n);
+  if (normals) page.normal_codes.resize(3 * n);
   for (size_t i = 0; i < n; ++i) {
     const size_t src = bvh.order[i];
     for (int k = 0; k < 3; ++k) {
       page.positions[3 * i + k] = batch.positions[3 * src + k];
-      if (normals) page.normals[3 * i + k] = batch.normals[3 * src + k];
+      if (normals) page.normal_codes[3 * i + k] = batch.normal_codes[3 * src + k];
     }
   }
   page.nodes.resize(bvh.nodes.size());
@@ -68,7 +68,7 @@ StatusOr<std::shared_ptr<const Page>> PageCache::get(const OctreeStore& store, u
   if (index >= store.pages().size()) {
     result = Status::error("page " + std::to_string(index) + " does not exist");
   } else {
-    TriangleBatch batch;
+    PageCorners batch;
     Status s = store.read_page(index, batch);
     if (!s) {
       result = s;  // names the store file and the page

@@ -18,6 +18,7 @@
 #include "core/status.h"
 #include "probe/bvh.h"
 #include "streaming/octree_store.h"
+#include "streaming/page_codec.h"
 
 namespace raylod {
 
@@ -32,17 +33,19 @@ struct PageNode {
 };
 
 // One loaded page: triangle corners (3 per triangle, object space), optional
-// vertex normals, both in BVH leaf order, and the BVH over the triangles.
+// vertex normals as their octahedral codes (decode_octahedral gives exactly
+// the store's normals; 4 bytes a corner instead of 12, so more pages fit the
+// cache), both in BVH leaf order, and the BVH over the triangles.
 struct Page {
   std::vector<Vec3> positions;
-  std::vector<Vec3> normals;  // empty if the store has no normals
+  std::vector<uint32_t> normal_codes;  // empty if the store has no normals
   std::vector<PageNode> nodes;
   size_t triangle_count() const { return positions.size() / 3; }
   size_t bytes() const;
 };
 
-// Builds a Page (with its BVH) from a batch of triangles.
-Page make_page(TriangleBatch&& batch);
+// Builds a Page (with its BVH) from a page's corners.
+Page make_page(PageCorners&& corners);
 
 struct PageCacheCounters {
   uint64_t pages_read = 0;      // pages read from disk (misses that loaded)

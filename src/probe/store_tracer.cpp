@@ -2,6 +2,8 @@
 // store_tracer.h.
 #include "probe/store_tracer.h"
 
+#include "streaming/page_codec.h"
+
 #include <algorithm>
 #include <cmath>
 #include <queue>
@@ -167,10 +169,10 @@ Status StoreTracer::intersect(const Vec3d& origin, const Vec3d& direction, doubl
   hit.b2 = best_b2;
   const Vec3* v = &best_page->positions[3 * size_t(best_tri)];
   for (int k = 0; k < 3; ++k) hit.p[k] = Vec3d(v[k]);
-  hit.has_normals = !best_page->normals.empty();
+  hit.has_normals = !best_page->normal_codes.empty();
   if (hit.has_normals) {
-    const Vec3* n = &best_page->normals[3 * size_t(best_tri)];
-    for (int k = 0; k < 3; ++k) hit.n[k] = Vec3d(n[k]);
+    const uint32_t* n = &best_page->normal_codes[3 * size_t(best_tri)];
+    for (int k = 0; k < 3; ++k) hit.n[k] = Vec3d(decode_octahedral(n[k]));
   }
   return {};
 }
