@@ -662,6 +662,7 @@ StatusOr<StagedMeshes> simplify_or_reuse(RunSession& session, const Scene& scene
       }
       if (!simplified.is_ok()) {
         RAYLOD_ASSIGN_OR_RETURN(bool retry, repair_corrupt_stores(stores, "simplify", session.repaired, log));
+        if (retry && session.pages) session.pages->clear();  // the pages of the replaced store
         if (retry) simplified = simplify_store();
       }
       RAYLOD_ASSIGN_OR_RETURN(sm, std::move(simplified));

@@ -193,8 +193,15 @@ TEST_P(FaultInjection, NextRunUsesNothingPartialAndLeavesNoOrphans) {
     EXPECT_EQ(f.find(".tmp-"), std::string::npos) << "temporary left behind: " << f;
     EXPECT_EQ(f.find(".runs-"), std::string::npos) << "build runs file left behind: " << f;
   }
-  EXPECT_EQ(files, files_under(ref.dir)) << "after the kill and rerun:\n" << join(files) << "clean run:\n"
-                                         << join(files_under(ref.dir));
+  // A store's .checked record (source_record.h) is written only for a mesh
+  // unchanged for a second before its hash was read, so whether a run leaves
+  // one depends on how fast the runs came: it is not compared.
+  auto comparable = [](std::vector<std::string> v) {
+    std::erase_if(v, [](const std::string& f) { return f.ends_with(".raylod.checked"); });
+    return v;
+  };
+  EXPECT_EQ(comparable(files), comparable(files_under(ref.dir)))
+      << "after the kill and rerun:\n" << join(files) << "clean run:\n" << join(files_under(ref.dir));
 
   // The store is whole: every page's checksum matches, and it is not rebuilt.
   const Outcome verify = raylod("build --verify -q " + quote(ws.dir / kMesh));
