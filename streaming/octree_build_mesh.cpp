@@ -84,8 +84,9 @@ StatusOr<SourceFingerprint> fingerprint_file(const std::filesystem::path& mesh, 
   auto abs = std::filesystem::weakly_canonical(std::filesystem::absolute(path), ec);
   fp.path = (ec ? std::filesystem::absolute(path) : abs).string();
   if (ref.gltf_mesh >= 0) fp.path = gltf_mesh_path(fp.path, ref.gltf_mesh).string();
-  fp.bytes = uint64_t(st.st_size);
-  fp.mtime_ns = uint64_t(st.st_mtim.tv_sec) * 1000000000ull + uint64_t(st.st_mtim.tv_nsec);
+  fp.status = file_status_of(st);
+  fp.bytes = fp.status.bytes;
+  fp.mtime_ns = fp.status.mtime_ns;
   if (with_hash) {
     RAYLOD_ASSIGN_OR_RETURN(fp.hash, hash_file(path));
   }
@@ -113,9 +114,7 @@ bool store_is_current(const std::filesystem::path& mesh, const std::filesystem::
     if (reason) *reason = std::move(r);
     if (opened) {
       opened->opened = store_open;
-      opened->opened_file = std::to_string(store_status->inode) + " " + std::to_string(store_status->bytes) + " " +
-                            std::to_string(store_status->mtime_ns / 1000000000ull) + "." +
-                            std::to_string(store_status->mtime_ns % 1000000000ull);
+      opened->opened_status = *store_status;
     }
     return true;
   };
@@ -135,20 +134,18 @@ bool store_is_current(const std::filesystem::path& mesh, const std::filesystem::
     return say("the store was built under --memory-limit " + describe_memory_limit(h.options.memory_limit) +
                ", and a build under " + describe_memory_limit(options.memory_limit) + " makes a " +
                (limit < h.reuse_limit_lo ? "coarser" : "finer") + " one");
-  const std::filesystem::path file = parse_mesh_ref(mesh).file;
-  auto before = file_status(file);
-  if (!before.is_ok()) return say(before.status().message());
-  if (!rehash && source_record_vouches(store, *before, h.source_hash))
+  const FileStatus& before = fp->status;
+  if (!rehash && source_record_vouches(store, before, h.source_hash))
     return current("up to date (same options; the mesh's size, times and inode are those of its last content check, " +
                    source_record_path(store).filename().string() + ")");
   const uint64_t started = realtime_ns();
   auto hashed = fingerprint_file(mesh, true);
   if (!hashed.is_ok()) return say(hashed.status().message());
   if (hashed->hash != h.source_hash) return say("the mesh's content changed (content hash differs)");
-  auto after = file_status(file);
+  auto after = fingerprint_file(mesh, false);
   auto store_after = file_status(store);
-  if (after.is_ok() && *after == *before && store_after.is_ok() && *store_after == *store_status)
-    note_source_checked(store, *before, h.source_hash, started);
+  if (after.is_ok() && after->status == before && store_after.is_ok() && *store_after == *store_status)
+    note_source_checked(store, before, h.source_hash, started);
   return current("up to date (same mesh size, modification time, content hash and options)");
 }
 
@@ -176,8 +173,6 @@ StatusOr<BuildReport> build_store(const std::filesystem::path& mesh, const std::
     report.opened.reset();
   }
   if (before_building) before_building(reason);
-  const std::filesystem::path file = parse_mesh_ref(mesh).file;
-  RAYLOD_ASSIGN_OR_RETURN(FileStatus status_before, file_status(file));
   RAYLOD_ASSIGN_OR_RETURN(SourceFingerprint fp, fingerprint_file(mesh, false));
   const uint64_t hash_started = realtime_ns();
   uint64_t content_hash = 0;
@@ -209,9 +204,8 @@ StatusOr<BuildReport> build_store(const std::filesystem::path& mesh, const std::
   // process may be using it, but the caller is told.
   auto after = fingerprint_file(mesh, false);
   if (!after.is_ok() || !same_file_state(*after, fp)) return Status::error(changed);
-  auto status_after = file_status(file);
-  if (status_after.is_ok() && *status_after == status_before)
-    note_source_checked(store, status_before, content_hash, hash_started);
+  if (after->status == fp.status)
+    note_source_checked(store, fp.status, content_hash, hash_started);
   else
     std::filesystem::remove(source_record_path(store), ec);
   built->reason = reason;

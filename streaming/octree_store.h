@@ -50,6 +50,7 @@
 #include "core/math.h"
 #include "core/status.h"
 #include "streaming/mesh_reader.h"
+#include "streaming/source_record.h"
 
 namespace raylod {
 
@@ -200,9 +201,9 @@ struct BuildReport {
   std::string warning;            // e.g. a memory limit too small to honour
   // Reused: the store as the up-to-date check opened it (checksums of the
   // header and tables verified), so that the caller need not open it again,
-  // and the file's inode, size and mtime ("INO SIZE SEC.NSEC") taken before.
+  // and the store file's status taken before it was opened.
   std::shared_ptr<OctreeStore> opened;
-  std::string opened_file;
+  FileStatus opened_status;
 };
 // Builds (or reuses, if up to date for the same mesh and options) the store.
 StatusOr<BuildReport> build_store(const std::filesystem::path& mesh, const std::filesystem::path& store,
@@ -221,7 +222,7 @@ StatusOr<BuildReport> build_store(const std::filesystem::path& mesh, const std::
 // and matches the mesh's size, mtime and content hash. The hash is not read
 // again while the store's STORE.checked record vouches for the mesh's file
 // status (source_record.h), unless rehash. If current and `opened` is given,
-// its `opened` and `opened_file` are set.
+// its `opened` and `opened_status` are set.
 bool store_is_current(const std::filesystem::path& mesh, const std::filesystem::path& store,
                       const StoreOptions& options, std::string* reason = nullptr, bool rehash = false,
                       BuildReport* opened = nullptr);
@@ -237,6 +238,7 @@ using MeshStreamOpener = std::function<StatusOr<std::unique_ptr<MeshReader>>()>;
 struct SourceFingerprint {
   std::string path;             // absolute path
   uint64_t bytes = 0, mtime_ns = 0, hash = 0;
+  FileStatus status;            // the whole status of the file (device, inode, ctime too; source_record.h)
 };
 // Size, mtime and (if with_hash) content hash (content_hash64 of all bytes).
 StatusOr<SourceFingerprint> fingerprint_file(const std::filesystem::path& path, bool with_hash = true);

@@ -49,6 +49,10 @@ bool same_store_file(const FileStatus& a, const FileStatus& b) {
 StatusOr<FileStatus> file_status(const std::filesystem::path& path) {
   struct stat st {};
   if (::stat(path.c_str(), &st) != 0) return Status::error(path.string() + ": " + std::strerror(errno));
+  return file_status_of(st);
+}
+
+FileStatus file_status_of(const struct stat& st) {
   FileStatus s;
   s.device = uint64_t(st.st_dev);
   s.inode = uint64_t(st.st_ino);

@@ -20,6 +20,8 @@
 // `raylod build --verify` always hashes.
 #pragma once
 
+#include <sys/stat.h>
+
 #include <cstdint>
 #include <filesystem>
 #include <optional>
@@ -36,6 +38,7 @@ struct FileStatus {
   bool operator==(const FileStatus&) const = default;
 };
 StatusOr<FileStatus> file_status(const std::filesystem::path& path);
+FileStatus file_status_of(const struct stat& st);
 
 // CLOCK_REALTIME in nanoseconds, the clock file timestamps come from.
 uint64_t realtime_ns();

@@ -236,16 +236,16 @@ StatusOr<SceneStores> prepare_scene_stores(Scene& scene, const std::optional<fs:
                                 say(log, "building store " + store_path.string() + " (" + reason + ")");
                               }));
     }
-    std::shared_ptr<OctreeStore> store = std::move(report.opened);  // the check's, if it found the store current
-    if (store) {
-      out.store_files.push_back(report.opened_file);
-    } else {
-      struct stat st {};
-      if (::stat(store_path.c_str(), &st) != 0) return Status::error(store_path.string() + ": " + std::strerror(errno));
-      out.store_files.push_back(std::to_string(st.st_ino) + " " + std::to_string(st.st_size) + " " +
-                                std::to_string(st.st_mtim.tv_sec) + "." + std::to_string(st.st_mtim.tv_nsec));
+    // The store file's status before it was opened: the check's, if it
+    // found the store current and hands its open store on.
+    std::shared_ptr<OctreeStore> store = std::move(report.opened);
+    FileStatus status = report.opened_status;
+    if (!store) {
+      RAYLOD_ASSIGN_OR_RETURN(status, file_status(store_path));
       RAYLOD_ASSIGN_OR_RETURN(store, OctreeStore::open(store_path));
     }
+    out.store_files.push_back(std::to_string(status.inode) + " " + std::to_string(status.bytes) + " " +
+                              std::to_string(status.mtime_ns));
     out.triangles += store->header().triangle_count;
     out.store_paths.push_back(store_path);
     out.builds.push_back(report);
