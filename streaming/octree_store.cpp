@@ -363,7 +363,22 @@ class FileStore final : public OctreeStore {
   uint64_t boundary_leaves() const override { return boundary_.size(); }
 
   Status read_page(size_t i, TriangleBatch& batch) const override {
-    batch.clear();
+    return read_decoded(i, batch, decode_page, [](const TriangleBatch& b) { return !b.normals.empty(); });
+  }
+
+  Status read_page(size_t i, PageCorners& corners) const override {
+    return read_decoded(i, corners, decode_page_corners,
+                        [](const PageCorners& c) { return !c.normal_codes.empty(); });
+  }
+
+  bool found_corruption() const override { return found_corruption_; }
+
+ private:
+  // Page i read, checked and decoded into `out` (cleared first) by `decode`
+  // (decode_page or decode_page_corners).
+  template <class Out, class Decode, class HasNormals>
+  Status read_decoded(size_t i, Out& out, Decode decode, HasNormals has_normals) const {
+    out.clear();
     thread_local std::vector<uint8_t> bytes;
     RAYLOD_RETURN_IF_ERROR(read_checked_page(i, bytes));
     // A page whose checksum matches but does not decode was written wrong
@@ -371,38 +386,17 @@ class FileStore final : public OctreeStore {
     // The page's own counts first: decoding sizes its output from them.
     const PageInfo& page = pages_[i];
     Status decoded = page_counts(bytes).triangles == page.triangle_count
-                         ? decode_page(bytes, grid_, batch)
+                         ? decode(bytes, grid_, out)
                          : Status::error("its triangle count is not the page table's");
-    if (decoded.is_ok() && (batch.size() != page.triangle_count || batch.normals.empty() == header_.has_normals))
+    if (decoded.is_ok() && (out.size() != page.triangle_count || has_normals(out) != header_.has_normals))
       decoded = Status::error("its counts do not match the page table");
     if (!decoded.is_ok()) {
-      batch.clear();
-      return malformed(i, decoded);
+      out.clear();
+      return Status::error(path_.string() + ": page " + std::to_string(i) + " is malformed: " + decoded.message());
     }
     return {};
   }
 
-  Status read_page(size_t i, PageCorners& corners) const override {
-    corners.clear();
-    thread_local std::vector<uint8_t> bytes;
-    RAYLOD_RETURN_IF_ERROR(read_checked_page(i, bytes));
-    const PageInfo& page = pages_[i];
-    Status decoded = page_counts(bytes).triangles == page.triangle_count
-                         ? decode_page_corners(bytes, grid_, corners)
-                         : Status::error("its triangle count is not the page table's");
-    if (decoded.is_ok() &&
-        (corners.size() != page.triangle_count || corners.normal_codes.empty() == header_.has_normals))
-      decoded = Status::error("its counts do not match the page table");
-    if (!decoded.is_ok()) {
-      corners.clear();
-      return malformed(i, decoded);
-    }
-    return {};
-  }
-
-  bool found_corruption() const override { return found_corruption_; }
-
- private:
   // Page i's bytes, read and checked against the page table's checksum (a
   // mismatch is recorded beside the store).
   Status read_checked_page(size_t i, std::vector<uint8_t>& bytes) const {
@@ -428,10 +422,6 @@ class FileStore final : public OctreeStore {
       return Status::error(path_.string() + ": " + what + " (the store is corrupt; " + note + ")");
     }
     return {};
-  }
-
-  Status malformed(size_t i, const Status& why) const {
-    return Status::error(path_.string() + ": page " + std::to_string(i) + " is malformed: " + why.message());
   }
 
   Status load_tables() {
