@@ -273,14 +273,25 @@ Status parse_page(std::span<const uint8_t> bytes, const PageGrid& grid, GridPage
 
 }  // namespace
 
+namespace {
+
+// parse_page, then every vertex's position once (the corners index them).
+Status parse_page_positions(std::span<const uint8_t> bytes, const PageGrid& grid, GridPage& page,
+                            std::vector<Vec3>& vpos) {
+  RAYLOD_RETURN_IF_ERROR(parse_page(bytes, grid, page));
+  vpos.resize(page.vertices());
+  for (size_t v = 0; v < vpos.size(); ++v) vpos[v] = grid_position(&page.q[3 * v], grid);
+  return {};
+}
+
+}  // namespace
+
 Status decode_page(std::span<const uint8_t> bytes, const PageGrid& grid, TriangleBatch& batch) {
   batch.clear();
   thread_local GridPage page;
   thread_local std::vector<Vec3> vpos, vnrm;
-  RAYLOD_RETURN_IF_ERROR(parse_page(bytes, grid, page));
+  RAYLOD_RETURN_IF_ERROR(parse_page_positions(bytes, grid, page, vpos));
   const size_t nv = page.vertices();
-  vpos.resize(nv);
-  for (size_t v = 0; v < nv; ++v) vpos[v] = grid_position(&page.q[3 * v], grid);
   if (page.has_normals) {
     vnrm.resize(nv);
     for (size_t v = 0; v < nv; ++v) vnrm[v] = decode_octahedral(page.codes[v]);
@@ -298,10 +309,7 @@ Status decode_page_corners(std::span<const uint8_t> bytes, const PageGrid& grid,
   corners.clear();
   thread_local GridPage page;
   thread_local std::vector<Vec3> vpos;
-  RAYLOD_RETURN_IF_ERROR(parse_page(bytes, grid, page));
-  const size_t nv = page.vertices();
-  vpos.resize(nv);
-  for (size_t v = 0; v < nv; ++v) vpos[v] = grid_position(&page.q[3 * v], grid);
+  RAYLOD_RETURN_IF_ERROR(parse_page_positions(bytes, grid, page, vpos));
   corners.positions.resize(page.index.size());
   if (page.has_normals) corners.normal_codes.resize(page.index.size());
   for (size_t c = 0; c < page.index.size(); ++c) {
