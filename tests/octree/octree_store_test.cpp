@@ -246,6 +246,20 @@ void write_ply(const std::filesystem::path& path, const SoupMesh& m) {
   }
 }
 
+// Writes `moved` over `mesh` (the same size: the same vertex count) and sets
+// the old access and modification times back: only the content and the
+// ctime change.
+void rewrite_keeping_size_and_mtime(const std::filesystem::path& mesh, const SoupMesh& moved) {
+  struct stat before {};
+  ASSERT_EQ(::stat(mesh.c_str(), &before), 0);
+  write_ply(mesh, moved);
+  struct timespec times[2] = {before.st_atim, before.st_mtim};
+  ASSERT_EQ(::utimensat(AT_FDCWD, mesh.c_str(), times, 0), 0);
+  struct stat after {};
+  ASSERT_EQ(::stat(mesh.c_str(), &after), 0);
+  ASSERT_EQ(after.st_size, before.st_size);
+}
+
 // STORE.checked spares re-reading the mesh while its file status is the one
 // whose content hash matched, and never vouches for a changed mesh.
 TEST(OctreeStore, CheckedRecordSparesTheHashOnlyForAnUnchangedMesh) {
@@ -306,13 +320,9 @@ TEST(OctreeStore, CheckedRecordSparesTheHashOnlyForAnUnchangedMesh) {
   // Same size and modification time, other content: the write changed the
   // ctime, so the record no longer vouches and the hash catches it.
   ASSERT_TRUE(std::filesystem::exists(record));
-  struct stat before {};
-  ASSERT_EQ(::stat(mesh.c_str(), &before), 0);
   auto moved = m;
   moved.positions[3].y += 0.25f;
-  write_ply(mesh, moved);
-  struct timespec times[2] = {before.st_atim, before.st_mtim};
-  ASSERT_EQ(::utimensat(AT_FDCWD, mesh.c_str(), times, 0), 0);
+  rewrite_keeping_size_and_mtime(mesh, moved);
   EXPECT_FALSE(store_is_current(mesh, store, opt, &why));
   EXPECT_NE(why.find("content"), std::string::npos) << why;
 }
@@ -351,13 +361,9 @@ TEST(OctreeStore, RebuildIsANoOpUntilTheMeshChanges) {
   EXPECT_NE(why.find("options"), std::string::npos) << why;
 
   // Same size and modification time, different content: caught by the hash.
-  struct stat st {};
-  ASSERT_EQ(::stat(mesh.c_str(), &st), 0);
   auto moved = m;
   moved.positions[5].x += 0.5f;
-  write_ply(mesh, moved);
-  struct timespec times[2] = {st.st_atim, st.st_mtim};
-  ASSERT_EQ(::utimensat(AT_FDCWD, mesh.c_str(), times, 0), 0);
+  rewrite_keeping_size_and_mtime(mesh, moved);
   EXPECT_FALSE(store_is_current(mesh, store, opt, &why));
   EXPECT_NE(why.find("content"), std::string::npos) << why;
 

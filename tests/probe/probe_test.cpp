@@ -114,12 +114,22 @@ Scene make_scene(MaterialType type, const Vec3d& eye, const Vec3d& look_at, bool
   return s;
 }
 
+// The one store of a test as one object (material 0; the identity transform
+// unless given), as the spans the probe takes.
+struct OneObject {
+  ProbeStore store;
+  ProbeObject object;
+  explicit OneObject(const Built& b, const glm::dmat4& xf = glm::dmat4(1.0))
+      : store{b.store.get(), b.store_path}, object{0, xf, 0} {}
+  std::span<const ProbeStore> stores() const { return {&store, 1}; }
+  std::span<const ProbeObject> objects() const { return {&object, 1}; }
+};
+
 // The probe in a task arena of `threads`: the probe uses the parallelism of
 // the arena it is called in (core/parallelism.h).
 StatusOr<ProbeResult> probe(const Scene& scene, const Built& b, uint64_t rays, int threads = 2, double k = 1.0,
                             uint64_t cache = uint64_t(64) << 20) {
-  ProbeStore store{b.store.get(), b.store_path};
-  ProbeObject object{0, glm::dmat4(1.0), 0};
+  const OneObject one(b);
   ProbeConfig c;
   c.rays = rays;
   c.seed = 7;
@@ -127,7 +137,7 @@ StatusOr<ProbeResult> probe(const Scene& scene, const Built& b, uint64_t rays, i
   c.cache_bytes = cache;
   StatusOr<ProbeResult> result = Status::error("not run");
   tbb::task_arena(threads).execute([&] {
-    result = run_probe(scene, std::span<const ProbeStore>(&store, 1), std::span<const ProbeObject>(&object, 1), c);
+    result = run_probe(scene, one.stores(), one.objects(), c);
   });
   return result;
 }
@@ -318,13 +328,12 @@ TEST(Probe, GlassSceneRefractsAndHandlesTir) {
 // of each hit its rays lead to, and the path links point backwards.
 TEST(Probe, AngularNeedIsTheMinimumAlongTheRestOfThePath) {
   const Built& b = teapot();
-  ProbeStore store{b.store.get(), b.store_path};
-  ProbeObject object{0, glm::dmat4(1.0), 0};
+  const OneObject one(b);
   ProbeConfig c;
   c.rays = 1000;
   c.seed = 7;
-  auto t = trace_probe(make_scene(MaterialType::Glass, kEye, kLook), std::span<const ProbeStore>(&store, 1),
-                       std::span<const ProbeObject>(&object, 1), c);
+  auto t = trace_probe(make_scene(MaterialType::Glass, kEye, kLook), one.stores(),
+                       one.objects(), c);
   ASSERT_TRUE(t) << t.status().message();
   size_t linked = 0, lowered = 0;
   for (size_t i = 0; i < t->hits.size(); ++i) {
@@ -491,13 +500,12 @@ TEST(Probe, ObjectTransformScalesFootprints) {
   // are halved, so fewer cells collapse than with a camera twice as far.
   const Built& b = teapot();
   Scene scene = make_scene(MaterialType::Diffuse, kEye * 2.0, kLook * 2.0, false);
-  ProbeStore store{b.store.get(), b.store_path};
-  ProbeObject object{0, glm::scale(glm::dmat4(1.0), Vec3d(2.0)), 0};
+  const OneObject one(b, glm::scale(glm::dmat4(1.0), Vec3d(2.0)));
   ProbeConfig c;
   c.rays = 1000;
   c.seed = 7;
   c.footprint_scale = 1.0;  // as probe() below
-  auto scaled = run_probe(scene, std::span<const ProbeStore>(&store, 1), std::span<const ProbeObject>(&object, 1), c);
+  auto scaled = run_probe(scene, one.stores(), one.objects(), c);
   auto plain = probe(make_scene(MaterialType::Diffuse, kEye, kLook, false), b, 1000);
   ASSERT_TRUE(scaled && plain);
   // Twice the size seen from twice the distance is the same picture.
@@ -509,15 +517,14 @@ TEST(Probe, ObjectTransformScalesFootprints) {
 // The deviation criterion (probe.h): flat regions are bounded by K alone,
 // curved ones also by the deviation their collapse causes.
 StatusOr<ProbeResult> probe_with(const Scene& scene, const Built& b, CutCriterion criterion, double k, double tol) {
-  ProbeStore store{b.store.get(), b.store_path};
-  ProbeObject object{0, glm::dmat4(1.0), 0};
+  const OneObject one(b);
   ProbeConfig c;
   c.rays = 2000;
   c.seed = 7;
   c.criterion = criterion;
   c.footprint_scale = k;
   c.tolerance_px = tol;
-  return run_probe(scene, std::span<const ProbeStore>(&store, 1), std::span<const ProbeObject>(&object, 1), c);
+  return run_probe(scene, one.stores(), one.objects(), c);
 }
 
 const Built& plane() {
@@ -637,13 +644,12 @@ SharedViews trace_views(const Scene& scene, const Built& b, int threads) {
   out.cameras = {scene.camera, scene.camera, scene.camera};
   out.cameras[1].eye = Vec3d(-8.5, 4.8, 6.5);
   out.cameras[2].eye = kLook + (kEye - kLook) * 0.35;
-  ProbeStore store{b.store.get(), b.store_path};
-  ProbeObject object{0, glm::dmat4(1.0), 0};
+  const OneObject one(b);
   tbb::task_arena(threads).execute([&] {
     for (const Camera& c : out.cameras) {
       Scene s = scene;
       s.camera = c;
-      auto t = trace_probe(s, std::span<const ProbeStore>(&store, 1), std::span<const ProbeObject>(&object, 1),
+      auto t = trace_probe(s, one.stores(), one.objects(),
                            shared_config());
       EXPECT_TRUE(t.is_ok()) << t.status().message();
       out.traces.push_back(t.is_ok() ? std::move(t.value()) : ProbeTrace{});
@@ -653,11 +659,10 @@ SharedViews trace_views(const Scene& scene, const Built& b, int threads) {
 }
 
 StatusOr<ProbeResult> select(std::span<const ProbeView> views, const Scene& scene, const Built& b, int threads = 2) {
-  ProbeStore store{b.store.get(), b.store_path};
-  ProbeObject object{0, glm::dmat4(1.0), 0};
+  const OneObject one(b);
   StatusOr<ProbeResult> r = Status::error("not run");
   tbb::task_arena(threads).execute([&] {
-    r = select_shared_cuts(views, scene, std::span<const ProbeStore>(&store, 1), std::span<const ProbeObject>(&object, 1),
+    r = select_shared_cuts(views, scene, one.stores(), one.objects(),
                            shared_config());
   });
   return r;
@@ -686,10 +691,9 @@ TEST(SharedCut, OneViewIsSelectCutsExactly) {
   const SharedViews v = trace_views(scene, b, 2);
   const std::vector<ProbeView> views = v.views();
   auto shared = select(std::span<const ProbeView>(views.data(), 1), scene, b);
-  ProbeStore store{b.store.get(), b.store_path};
-  ProbeObject object{0, glm::dmat4(1.0), 0};
-  auto single = select_cuts(v.traces[0], scene, std::span<const ProbeStore>(&store, 1),
-                            std::span<const ProbeObject>(&object, 1), shared_config());
+  const OneObject one(b);
+  auto single = select_cuts(v.traces[0], scene, one.stores(),
+                            one.objects(), shared_config());
   ASSERT_TRUE(shared.is_ok() && single.is_ok());
   EXPECT_EQ(shared->cuts[0].key, single->cuts[0].key);
   EXPECT_EQ(cells_of(shared->cuts[0]), cells_of(single->cuts[0]));
@@ -746,10 +750,9 @@ TEST(SharedCut, SameForOneAndTwoThreadsAndAnyViewOrder) {
 TEST(ProbeShares, KeptPageCacheGivesTheSameTraceAndReadsLess) {
   const Built& b = teapot();
   const Scene scene = make_scene(MaterialType::Glass, kEye, kLook);
-  ProbeStore store{b.store.get(), b.store_path};
-  ProbeObject object{0, glm::dmat4(1.0), 0};
-  const std::span<const ProbeStore> stores(&store, 1);
-  const std::span<const ProbeObject> objects(&object, 1);
+  const OneObject one(b);
+  const std::span<const ProbeStore> stores = one.stores();
+  const std::span<const ProbeObject> objects = one.objects();
   ProbeConfig c;
   c.rays = 800;
   c.seed = 5;
@@ -790,10 +793,9 @@ TEST(ProbeShares, KeptPageCacheGivesTheSameTraceAndReadsLess) {
 TEST(ProbeShares, MergedSharesGiveTheSameTraceAndCutFile) {
   const Built& b = teapot();
   const Scene scene = make_scene(MaterialType::Glass, kEye, kLook);
-  ProbeStore store{b.store.get(), b.store_path};
-  ProbeObject object{0, glm::dmat4(1.0), 0};
-  const std::span<const ProbeStore> stores(&store, 1);
-  const std::span<const ProbeObject> objects(&object, 1);
+  const OneObject one(b);
+  const std::span<const ProbeStore> stores = one.stores();
+  const std::span<const ProbeObject> objects = one.objects();
   ProbeConfig c;
   c.rays = 1500;
   c.seed = 11;
