@@ -11,13 +11,19 @@
 #include "simplify/collapse.h"
 
 #include <algorithm>
+#include <atomic>
 #include <cassert>
 #include <chrono>
 #include <cmath>
 #include <cstring>
 #include <limits>
 #include <numeric>
+#include <mutex>
 #include <optional>
+
+#include <tbb/blocked_range.h>
+#include <tbb/enumerable_thread_specific.h>
+#include <tbb/parallel_for.h>
 
 
 #include "core/ordered_pipeline.h"
@@ -66,6 +72,29 @@ Vec3 canonical(const Vec3& v) { return Vec3(v.x + 0.0f, v.y + 0.0f, v.z + 0.0f);
 bool zero_area(const Vec3& a, const Vec3& b, const Vec3& c) {
   const Vec3d cross = glm::cross(Vec3d(b) - Vec3d(a), Vec3d(c) - Vec3d(a));
   return cross.x == 0 && cross.y == 0 && cross.z == 0;
+}
+
+// The input triangle's unit normal (zero if it has no area or its area is
+// not finite) and twice its area: the crease key and the weight of its
+// corners, and what a collapsed triangle is compared with for a fold.
+struct InputFace {
+  Vec3d unit{0};
+  double area2 = 0;
+};
+
+InputFace input_face(const Vec3* p) {
+  const Vec3d cross = glm::cross(Vec3d(p[1]) - Vec3d(p[0]), Vec3d(p[2]) - Vec3d(p[0]));
+  InputFace f;
+  f.area2 = glm::length(cross);
+  if (f.area2 > 0 && std::isfinite(f.area2)) f.unit = cross / f.area2;
+  return f;
+}
+
+// A kept triangle with a representative corner (`collapsed`) is turned over
+// when it faces against its input triangle.
+bool turned_over(const Vec3& a, const Vec3& b, const Vec3& c, const InputFace& f, bool collapsed) {
+  if (!collapsed || !(f.area2 > 0)) return false;
+  return glm::dot(glm::cross(Vec3d(b) - Vec3d(a), Vec3d(c) - Vec3d(a)), f.unit) <= 0;
 }
 
 std::array<uint32_t, 3> rotate_min_first(const std::array<uint32_t, 3>& t) {
@@ -218,9 +247,9 @@ void CollapseBuilder::add(const TriangleBatch& batch, std::span<const uint32_t> 
     const Vec3 n_none(0);
     const Vec3* n = batch_normals ? &batch.normals[3 * t] : nullptr;
     // Normals and weights come from the input triangle, before collapse.
-    const Vec3d cross = glm::cross(Vec3d(p[1]) - Vec3d(p[0]), Vec3d(p[2]) - Vec3d(p[0]));
-    const double area2 = glm::length(cross);
-    const Vec3d face = area2 > 0 && std::isfinite(area2) ? cross / area2 : Vec3d(0);
+    const InputFace input = input_face(p);
+    const double area2 = input.area2;
+    const Vec3d& face = input.unit;
     std::array<uint32_t, 3> id;
     for (int k = 0; k < 3; ++k) {
       const uint32_t c = cell[3 * t + k];
@@ -240,13 +269,10 @@ void CollapseBuilder::add(const TriangleBatch& batch, std::span<const uint32_t> 
     if (id[0] == id[1] || id[1] == id[2] || id[0] == id[2]) { ++stats_.dropped_collapsed; continue; }
     auto pos = [&](uint32_t i) -> const Vec3& { return i < nreps ? rep_pos_[i] : kept_pos_[i - nreps]; };
     if (zero_area(pos(id[0]), pos(id[1]), pos(id[2]))) { ++stats_.dropped_zero_area; continue; }
-    if ((id[0] < nreps || id[1] < nreps || id[2] < nreps) && area2 > 0) {
-      const Vec3d out = glm::cross(Vec3d(pos(id[1])) - Vec3d(pos(id[0])), Vec3d(pos(id[2])) - Vec3d(pos(id[0])));
-      if (glm::dot(out, face) <= 0) {
-        ++stats_.folded;
-        for (uint32_t v : id)
-          if (v < nreps) folding_[v] = 1;
-      }
+    if (turned_over(pos(id[0]), pos(id[1]), pos(id[2]), input, id[0] < nreps || id[1] < nreps || id[2] < nreps)) {
+      ++stats_.folded;
+      for (uint32_t v : id)
+        if (v < nreps) folding_[v] = 1;
     }
     tris_.push_back(id);
     keys_.push_back(Vec3(face));
@@ -371,7 +397,104 @@ struct PageWork {
   static constexpr size_t kCache = 1 << 12;
   std::vector<uint64_t> cache_code = std::vector<uint64_t>(kCache, ~uint64_t(0));
   std::vector<uint32_t> cache_cell = std::vector<uint32_t>(kCache, kKeepVertex);
+
+  void look_up_cells(const CutLookup& lookup) {
+    cells.resize(batch.positions.size());
+    for (size_t k = 0; k < batch.positions.size(); ++k) {
+      const uint64_t code = lookup.code_of(Vec3d(batch.positions[k]));
+      const size_t slot = (code ^ (code >> 17)) & (kCache - 1);
+      if (cache_code[slot] != code) {
+        cache_code[slot] = code;
+        cache_cell[slot] = lookup.find_code(code);
+      }
+      cells[k] = cache_cell[slot];
+    }
+  }
 };
+
+// Two kept corners are one output vertex when CollapseBuilder::kept_vertex
+// would give them one id: bit-identical position and, with input normals,
+// bit-identical normal.
+bool same_kept_corner(const TriangleBatch& b, size_t i, size_t j, bool with_normals) {
+  if (!same_bits(canonical(b.positions[i]), canonical(b.positions[j]))) return false;
+  return !with_normals || same_bits(canonical(b.normals[i]), canonical(b.normals[j]));
+}
+
+// Marks folding[c] = 1 for every cut cell c that a triangle of the pages
+// `page_list` turns over once collapsed, deciding each triangle exactly as
+// CollapseBuilder::add does but without building anything: the fold passes
+// need only which cells fold, and each triangle decides alone, so pages are
+// scanned in parallel (the marks are the same for any thread count).
+Status mark_folding_cells(const OctreeStore& store, std::span<const CellKey> keys,
+                          std::span<const Representative> reps, std::span<const uint32_t> page_list,
+                          std::vector<uint8_t>& folding) {
+  const StoreHeader& h = store.header();
+  const CutLookup lookup(h.root_lo, h.root_size, keys);
+  std::vector<Vec3> rep_pos;
+  rep_pos.reserve(reps.size());
+  for (const auto& r : reps) rep_pos.push_back(Vec3(r.position));
+  folding.assign(reps.size(), 0);
+  tbb::enumerable_thread_specific<PageWork> work;
+  std::mutex error_mutex;
+  size_t error_page = page_list.size();
+  Status error;
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, page_list.size(), 1), [&](const tbb::blocked_range<size_t>& r) {
+    PageWork& w = work.local();
+    for (size_t j = r.begin(); j != r.end(); ++j) {
+      if (Status st = store.read_page(page_list[j], w.batch); !st.ok()) {
+        std::lock_guard lock(error_mutex);
+        if (j < error_page) { error_page = j; error = st; }  // the first failing page, whatever the threads
+        return;
+      }
+      w.look_up_cells(lookup);
+      const TriangleBatch& b = w.batch;
+      const bool with_normals = h.has_normals && b.normals.size() == b.positions.size();
+      for (size_t t = 0; t < b.size(); ++t) {
+        const uint32_t* c = &w.cells[3 * t];
+        if (c[0] == kKeepVertex && c[1] == kKeepVertex && c[2] == kKeepVertex) continue;  // cannot fold
+        bool repeated = false;
+        for (int k = 0; k < 3 && !repeated; ++k) {
+          const int l = (k + 1) % 3;
+          if (c[k] != c[l]) continue;
+          repeated = c[k] != kKeepVertex || same_kept_corner(b, 3 * t + k, 3 * t + l, with_normals);
+        }
+        if (repeated) continue;
+        Vec3 out[3];
+        for (int k = 0; k < 3; ++k) out[k] = c[k] != kKeepVertex ? rep_pos[c[k]] : canonical(b.positions[3 * t + k]);
+        if (zero_area(out[0], out[1], out[2])) continue;
+        if (!turned_over(out[0], out[1], out[2], input_face(&b.positions[3 * t]), true)) continue;
+        for (int k = 0; k < 3; ++k)
+          if (c[k] != kKeepVertex) std::atomic_ref<uint8_t>(folding[c[k]]).store(1, std::memory_order_relaxed);
+      }
+    }
+  });
+  return error_page < page_list.size() ? error : Status::ok();
+}
+
+// Pages whose triangles may have a corner in one of the cells `changed`
+// (world boxes): their bounds meet a cell's box, grown by a hair for the
+// rounding of the corner binning.
+std::vector<uint32_t> pages_touching(const OctreeStore& store, std::span<const Bbox> changed) {
+  const auto pages = store.pages();
+  const double hair = 1e-9 * store.header().root_size;
+  std::vector<uint8_t> touch(pages.size(), 0);
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, pages.size(), 64), [&](const tbb::blocked_range<size_t>& r) {
+    for (size_t i = r.begin(); i != r.end(); ++i) {
+      const Bbox& p = pages[i].bounds;
+      for (const Bbox& c : changed) {
+        if (p.lo.x <= c.hi.x + hair && c.lo.x - hair <= p.hi.x && p.lo.y <= c.hi.y + hair &&
+            c.lo.y - hair <= p.hi.y && p.lo.z <= c.hi.z + hair && c.lo.z - hair <= p.hi.z) {
+          touch[i] = 1;
+          break;
+        }
+      }
+    }
+  });
+  std::vector<uint32_t> out;
+  for (size_t i = 0; i < pages.size(); ++i)
+    if (touch[i]) out.push_back(uint32_t(i));
+  return out;
+}
 
 // One pass over the store's pages collapsing `keys` (cells the store has
 // nodes for) to the builder's representatives. Pages are read, decoded and looked up in parallel
@@ -391,16 +514,7 @@ Status collapse_pass(const OctreeStore& store, std::span<const CellKey> keys, co
       pages.size(), ntokens,
       [&](PageWork& w, size_t i) -> Status {
         RAYLOD_RETURN_IF_ERROR(store.read_page(i, w.batch));
-        w.cells.resize(w.batch.positions.size());
-        for (size_t k = 0; k < w.batch.positions.size(); ++k) {
-          const uint64_t code = lookup.code_of(Vec3d(w.batch.positions[k]));
-          const size_t slot = (code ^ (code >> 17)) & (PageWork::kCache - 1);
-          if (w.cache_code[slot] != code) {
-            w.cache_code[slot] = code;
-            w.cache_cell[slot] = lookup.find_code(code);
-          }
-          w.cells[k] = w.cache_cell[slot];
-        }
+        w.look_up_cells(lookup);
         return {};
       },
       [&](PageWork& w, size_t i) -> Status {
@@ -447,19 +561,23 @@ StatusOr<SimplifyResult> simplify(const OctreeStore& store, const Cut& cut, cons
     if (!node) { ++result.cut_cells_missing; continue; }
     add_cell(c.key, *node);
   }
-  for (int pass = 0;; ++pass) {
-    CollapseBuilder builder(reps, h.has_normals, config.crease_angle_deg);
-    RAYLOD_RETURN_IF_ERROR(collapse_pass(store, keys, config, estimate, builder, result.pages_read));
-    const std::vector<uint8_t>& folding = builder.folding();
-    const bool folds = std::find(folding.begin(), folding.end(), uint8_t(1)) != folding.end();
-    if (!folds || pass >= config.fold_passes) {
-      result.mesh = builder.finish(&result.stats);
-      break;
-    }
+  // Fold passes: which cells turn a triangle over is decided by a scan that
+  // builds nothing, and only the pages near the cells the last pass changed
+  // are scanned again (a triangle with no corner there decides as before,
+  // and it did not fold then, or its cells would have changed). Then one
+  // pass builds the mesh.
+  std::vector<uint32_t> page_list(store.pages().size());
+  std::iota(page_list.begin(), page_list.end(), 0u);
+  for (int pass = 0; pass < config.fold_passes && !page_list.empty(); ++pass) {
+    std::vector<uint8_t> folding;
+    RAYLOD_RETURN_IF_ERROR(mark_folding_cells(store, keys, reps, page_list, folding));
+    result.pages_read += page_list.size();
+    if (std::find(folding.begin(), folding.end(), uint8_t(1)) == folding.end()) break;
     // Each folding cell gives way to its children (the cut stays an
     // antichain: children of a cut cell are in no other cut cell).
     std::vector<CellKey> next_keys;
     std::vector<Representative> next_reps;
+    std::vector<Bbox> changed;
     for (size_t i = 0; i < keys.size(); ++i) {
       if (!folding[i]) {
         next_keys.push_back(keys[i]);
@@ -467,6 +585,7 @@ StatusOr<SimplifyResult> simplify(const OctreeStore& store, const Cut& cut, cons
         continue;
       }
       ++result.fold_cells_refined;
+      changed.push_back(store.cell_bounds(keys[i]));
       if (keys[i].level >= uint32_t(h.quadric_depth)) continue;
       for (uint64_t c = 0; c < 8; ++c) {
         const CellKey child{keys[i].level + 1, (keys[i].code << 3) | c};
@@ -479,6 +598,12 @@ StatusOr<SimplifyResult> simplify(const OctreeStore& store, const Cut& cut, cons
     keys.swap(next_keys);
     reps.swap(next_reps);
     ++result.fold_passes;
+    page_list = pages_touching(store, changed);
+  }
+  {
+    CollapseBuilder builder(reps, h.has_normals, config.crease_angle_deg);
+    RAYLOD_RETURN_IF_ERROR(collapse_pass(store, keys, config, estimate, builder, result.pages_read));
+    result.mesh = builder.finish(&result.stats);
   }
   for (const Representative& r : reps) result.clamped_representatives += r.clamped;
   result.mesh.origin = h.mesh_origin;  // the store's coordinates are the mesh's, relative to it
