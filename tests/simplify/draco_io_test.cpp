@@ -6,6 +6,9 @@
 #include <fstream>
 #include <random>
 
+#include <draco/compression/encode.h>
+#include <draco/mesh/mesh.h>
+
 #include "simplify/collapse.h"
 #include "streaming/draco_io.h"
 #include "test_meshes.h"
@@ -83,6 +86,77 @@ TEST(DracoIo, RoundTripSphereWithinTheStatedErrors) {
     ASSERT_TRUE(back.is_ok()) << back.status().message();
     ASSERT_EQ(back->normals.size(), back->positions.size());
     expect_same_triangles(mesh, *back, rep->max_position_error, rep->max_normal_error);
+  }
+}
+
+// The reference encoding: the mesh handed to Draco one point per vertex,
+// deduplicated by Draco's own DeduplicateAttributeValues and
+// DeduplicatePointIds, encoded with the settings encode_draco chose.
+std::vector<char> encode_with_dracos_deduplication(const IndexedMesh& mesh, const DracoWriteReport& report) {
+  draco::Mesh dm;
+  const uint32_t n = uint32_t(mesh.positions.size());
+  dm.set_num_points(n);
+  auto add = [&](draco::GeometryAttribute::Type type, const std::vector<Vec3>& values) {
+    draco::GeometryAttribute att;
+    att.Init(type, nullptr, 3, draco::DT_FLOAT32, false, sizeof(float) * 3, 0);
+    const int id = dm.AddAttribute(att, true, n);
+    for (uint32_t i = 0; i < n; ++i) dm.attribute(id)->SetAttributeValue(draco::AttributeValueIndex(i), &values[i].x);
+  };
+  add(draco::GeometryAttribute::POSITION, mesh.positions);
+  if (!mesh.normals.empty()) add(draco::GeometryAttribute::NORMAL, mesh.normals);
+  dm.SetNumFaces(mesh.triangle_count());
+  for (size_t t = 0; t < mesh.triangle_count(); ++t) {
+    draco::Mesh::Face f;
+    for (int k = 0; k < 3; ++k) f[k] = draco::PointIndex(mesh.indices[3 * t + k]);
+    dm.SetFace(draco::FaceIndex(uint32_t(t)), f);
+  }
+  dm.DeduplicateAttributeValues();
+  dm.DeduplicatePointIds();
+  draco::Encoder encoder;
+  encoder.SetAttributeQuantization(draco::GeometryAttribute::POSITION, report.position_bits);
+  if (!mesh.normals.empty()) encoder.SetAttributeQuantization(draco::GeometryAttribute::NORMAL, report.normal_bits);
+  encoder.SetSpeedOptions(5, 5);
+  draco::EncoderBuffer buffer;
+  EXPECT_TRUE(encoder.EncodeMeshToBuffer(dm, &buffer).ok());
+  return std::vector<char>(buffer.data(), buffer.data() + buffer.size());
+}
+
+TEST(DracoIo, DeduplicatesAsDracoDoes) {
+  // Split normals at the box's edges (positions repeat with other normals),
+  // exact repeats of whole vertices, a -0 beside a +0, and a mesh without
+  // normals: the bytes match Draco's own deduplication.
+  IndexedMesh box = indexed(test::closed_box({-1, 0, -0.5f}, {1, 0.5f, 0.5f}, 5));
+  ASSERT_GT(box.positions.size(), 0u);
+  std::mt19937 rng(7);
+  const size_t triangles = box.triangle_count();
+  for (int r = 0; r < 40; ++r) {  // reverse twins of random triangles, on copies of their vertices
+    const uint32_t* f = &box.indices[3 * (rng() % triangles)];
+    const uint32_t a = f[0], b = f[2], c = f[1];
+    for (uint32_t v : {a, b, c}) {
+      box.indices.push_back(uint32_t(box.positions.size()));
+      box.positions.push_back(box.positions[v]);
+      box.normals.push_back(box.normals[v]);
+    }
+  }
+  box.positions.push_back(Vec3(-0.0f, 0.25f, 0.5f));
+  box.normals.push_back(Vec3(0, 0, 1));
+  box.positions.push_back(Vec3(0.0f, 0.25f, 0.5f));
+  box.normals.push_back(Vec3(0, 0, 1));
+  box.positions.push_back(Vec3(0.5f, 0.5f, 0.5f));
+  box.normals.push_back(Vec3(0, 0, 1));
+  box.positions.push_back(Vec3(0.5f, 0.25f, 0.5f));
+  box.normals.push_back(Vec3(0, 0, 1));
+  const uint32_t p = uint32_t(box.positions.size()) - 4;  // -0, +0, then two more corners
+  for (uint32_t v : {p, p + 3, p + 2, p + 1, p + 2, p + 3}) box.indices.push_back(v);
+  IndexedMesh bare = box;
+  bare.normals.clear();
+  for (const IndexedMesh* m : {&box, &bare}) {
+    DracoOptions opt;
+    opt.max_position_error = 1e-4;
+    auto got = encode_draco("dedup.drc", *m, opt);
+    ASSERT_TRUE(got.is_ok()) << got.status().message();
+    EXPECT_EQ(got->bytes, encode_with_dracos_deduplication(*m, got->report)) << (m == &box ? "with" : "without")
+                                                                             << " normals";
   }
 }
 
