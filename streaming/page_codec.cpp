@@ -286,9 +286,11 @@ Status parse_page_positions(std::span<const uint8_t> bytes, const PageGrid& grid
 
 }  // namespace
 
-Status decode_page(std::span<const uint8_t> bytes, const PageGrid& grid, TriangleBatch& batch) {
+namespace {
+
+// decode_page, keeping the parsed page (its corner indices) in `page`.
+Status decode_page_into(std::span<const uint8_t> bytes, const PageGrid& grid, TriangleBatch& batch, GridPage& page) {
   batch.clear();
-  thread_local GridPage page;
   thread_local std::vector<Vec3> vpos, vnrm;
   RAYLOD_RETURN_IF_ERROR(parse_page_positions(bytes, grid, page, vpos));
   const size_t nv = page.vertices();
@@ -302,6 +304,22 @@ Status decode_page(std::span<const uint8_t> bytes, const PageGrid& grid, Triangl
     batch.positions[c] = vpos[page.index[c]];
     if (page.has_normals) batch.normals[c] = vnrm[page.index[c]];
   }
+  return {};
+}
+
+}  // namespace
+
+Status decode_page(std::span<const uint8_t> bytes, const PageGrid& grid, TriangleBatch& batch) {
+  thread_local GridPage page;
+  return decode_page_into(bytes, grid, batch, page);
+}
+
+Status decode_page_batch(std::span<const uint8_t> bytes, const PageGrid& grid, PageBatch& out) {
+  out.clear();
+  thread_local GridPage page;
+  RAYLOD_RETURN_IF_ERROR(decode_page_into(bytes, grid, out.batch, page));
+  out.corner_vertex = page.index;
+  out.vertices = uint32_t(page.vertices());
   return {};
 }
 

@@ -104,6 +104,23 @@ struct PageCorners {
 // decode_page into PageCorners (cleared first).
 Status decode_page_corners(std::span<const uint8_t> bytes, const PageGrid& grid, PageCorners& corners);
 
+// A page's triangles as decode_page gives them, with each corner's vertex
+// in the page: corners of one page vertex are bit-identical, so per-vertex
+// work (a cell lookup, a hash) is done once per vertex.
+struct PageBatch {
+  TriangleBatch batch;
+  std::vector<uint32_t> corner_vertex;  // 3 per triangle, each < vertices
+  uint32_t vertices = 0;
+  size_t size() const { return batch.size(); }
+  void clear() {
+    batch.clear();
+    corner_vertex.clear();
+    vertices = 0;
+  }
+};
+// decode_page into PageBatch (cleared first).
+Status decode_page_batch(std::span<const uint8_t> bytes, const PageGrid& grid, PageBatch& page);
+
 // Decodes page bytes back to the corners encode_page was given: appends 3
 // grid coordinates per corner to `positions` and, if the page has normals,
 // one normal code per corner to `normals` (for the build's sorted runs).

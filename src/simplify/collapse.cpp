@@ -219,10 +219,10 @@ void CollapseBuilder::grow_table() {
   table_.swap(t);
 }
 
-uint32_t CollapseBuilder::kept_vertex(const Vec3& p_in, const Vec3& n_in) {
+uint32_t CollapseBuilder::kept_vertex(const Vec3& p_in, const Vec3& n_in, uint64_t hash) {
   const Vec3 p = canonical(p_in), n = has_normals_ ? canonical(n_in) : Vec3(0);
   const size_t mask = table_.size() - 1;
-  size_t i = hash_vertex(p, n, has_normals_) & mask;
+  size_t i = hash & mask;
   while (table_[i] != kKeepVertex) {
     const uint32_t id = table_[i];
     if (same_bits(kept_pos_[id], p) && (!has_normals_ || same_bits(kept_normal_[id], n))) return id;
@@ -238,41 +238,126 @@ uint32_t CollapseBuilder::kept_vertex(const Vec3& p_in, const Vec3& n_in) {
   return id;
 }
 
+void prepare_collapse(const TriangleBatch& batch, std::span<const uint32_t> cell, std::span<const Vec3> rep_pos,
+                      bool input_has_normals, PreparedBatch& out, std::span<const uint32_t> corner_vertex) {
+  assert(cell.size() == batch.positions.size());
+  const bool batch_normals = input_has_normals && batch.normals.size() == batch.positions.size();
+  const size_t nt = batch.size();
+  out.face.resize(nt);
+  out.area2.resize(nt);
+  out.fate.resize(nt);
+  out.hash.resize(3 * nt);
+  out.angle.resize(input_has_normals ? 0 : 3 * nt);
+  const bool by_vertex = !corner_vertex.empty();
+  if (by_vertex) {
+    const uint32_t vertices = *std::max_element(corner_vertex.begin(), corner_vertex.end()) + 1;
+    out.vertex_hashed.assign(vertices, 0);
+    out.vertex_hash.resize(vertices);
+    out.vertex_normal.assign(vertices, kKeepVertex);
+  }
+  out.rep_normals.clear();
+  const Vec3 n_none(0);
+  for (size_t t = 0; t < nt; ++t) {
+    const Vec3* p = &batch.positions[3 * t];
+    const Vec3* n = batch_normals ? &batch.normals[3 * t] : nullptr;
+    const uint32_t* c = &cell[3 * t];
+    const InputFace input = input_face(p);
+    out.face[t] = input.unit;
+    out.area2[t] = input.area2;
+    Vec3 pos[3];
+    bool collapsed = false;
+    for (int k = 0; k < 3; ++k) {
+      if (c[k] != kKeepVertex) {
+        pos[k] = rep_pos[c[k]];
+        collapsed = true;
+        if (!(input.area2 > 0)) continue;  // no weight
+        if (n) {
+          uint32_t* entry = by_vertex ? &out.vertex_normal[corner_vertex[3 * t + k]] : nullptr;
+          if (entry && *entry != kKeepVertex) {
+            out.rep_normals[*entry].weight += input.area2;
+          } else {
+            if (entry) *entry = uint32_t(out.rep_normals.size());
+            out.rep_normals.push_back({c[k], input.area2, glm::normalize(Vec3d(n[k]))});
+          }
+        } else if (k == 0 || (c[k] != c[0] && (k == 1 || c[k] != c[1]))) {
+          // The corners of one cell share the face normal: one entry, weighted by their count.
+          const int same = (c[0] == c[k]) + (c[1] == c[k]) + (c[2] == c[k]);
+          out.rep_normals.push_back({c[k], same * input.area2, input.unit});
+        }
+        continue;
+      }
+      pos[k] = canonical(p[k]);
+      auto hash = [&] {
+        return hash_vertex(pos[k], input_has_normals ? canonical(n ? n[k] : n_none) : Vec3(0), input_has_normals);
+      };
+      if (by_vertex) {
+        const uint32_t v = corner_vertex[3 * t + k];
+        if (!out.vertex_hashed[v]) {
+          out.vertex_hash[v] = hash();
+          out.vertex_hashed[v] = 1;
+        }
+        out.hash[3 * t + k] = out.vertex_hash[v];
+      } else {
+        out.hash[3 * t + k] = hash();
+      }
+      if (!input_has_normals) out.angle[3 * t + k] = corner_angle(p[0], p[1], p[2], k);
+    }
+    // Two corners are one output vertex when they are in one cell, or both
+    // kept with bit-identical positions (and normals, with input normals).
+    bool repeated = false;
+    for (int k = 0; k < 3 && !repeated; ++k) {
+      const int l = (k + 1) % 3;
+      if (c[k] != c[l]) continue;
+      repeated = c[k] != kKeepVertex ||
+                 (same_bits(pos[k], pos[l]) && (!batch_normals || same_bits(canonical(n[k]), canonical(n[l]))));
+    }
+    if (repeated) out.fate[t] = TriangleFate::kCollapsed;
+    else if (zero_area(pos[0], pos[1], pos[2])) out.fate[t] = TriangleFate::kZeroArea;
+    else if (turned_over(pos[0], pos[1], pos[2], input, collapsed)) out.fate[t] = TriangleFate::kKeptFolded;
+    else out.fate[t] = TriangleFate::kKept;
+  }
+}
+
 void CollapseBuilder::add(const TriangleBatch& batch, std::span<const uint32_t> cell) {
+  prepare_collapse(batch, cell, rep_pos_, has_normals_, prepared_);
+  add(batch, cell, prepared_);
+}
+
+void CollapseBuilder::add(const TriangleBatch& batch, std::span<const uint32_t> cell, const PreparedBatch& prepared) {
   assert(cell.size() == batch.positions.size());
   const bool batch_normals = has_normals_ && batch.normals.size() == batch.positions.size();
   const uint32_t nreps = uint32_t(reps_.size());
+  for (const auto& r : prepared.rep_normals) clusters_.add(r.rep, r.normal, r.weight, kRepresentativeClusters);
   for (size_t t = 0; t < batch.size(); ++t) {
     const Vec3* p = &batch.positions[3 * t];
     const Vec3 n_none(0);
     const Vec3* n = batch_normals ? &batch.normals[3 * t] : nullptr;
+    const uint32_t* c = &cell[3 * t];
     // Normals and weights come from the input triangle, before collapse.
-    const InputFace input = input_face(p);
-    const double area2 = input.area2;
-    const Vec3d& face = input.unit;
+    const double area2 = prepared.area2[t];
+    const Vec3d& face = prepared.face[t];
     std::array<uint32_t, 3> id;
     for (int k = 0; k < 3; ++k) {
-      const uint32_t c = cell[3 * t + k];
-      if (c != kKeepVertex) {
-        assert(c < nreps);
-        id[k] = c;
-        const Vec3d nk = n ? glm::normalize(Vec3d(n[k])) : face;
-        clusters_.add(c, nk, area2, kRepresentativeClusters);
+      if (c[k] != kKeepVertex) {
+        assert(c[k] < nreps);
+        id[k] = c[k];
       } else {
-        const uint32_t kv = kept_vertex(p[k], n ? n[k] : n_none);
+        const uint32_t kv = kept_vertex(p[k], n ? n[k] : n_none, prepared.hash[3 * t + k]);
         id[k] = nreps + kv;
-        if (!has_normals_ && area2 > 0) clusters_.add(nreps + kv, face, corner_angle(p[0], p[1], p[2], k), kNoCluster);
+        if (!has_normals_ && area2 > 0) clusters_.add(nreps + kv, face, prepared.angle[3 * t + k], kNoCluster);
       }
     }
     ++stats_.input_triangles;
     stats_.input_degenerate += !(area2 > 0);
-    if (id[0] == id[1] || id[1] == id[2] || id[0] == id[2]) { ++stats_.dropped_collapsed; continue; }
-    auto pos = [&](uint32_t i) -> const Vec3& { return i < nreps ? rep_pos_[i] : kept_pos_[i - nreps]; };
-    if (zero_area(pos(id[0]), pos(id[1]), pos(id[2]))) { ++stats_.dropped_zero_area; continue; }
-    if (turned_over(pos(id[0]), pos(id[1]), pos(id[2]), input, id[0] < nreps || id[1] < nreps || id[2] < nreps)) {
-      ++stats_.folded;
-      for (uint32_t v : id)
-        if (v < nreps) folding_[v] = 1;
+    switch (prepared.fate[t]) {
+      case TriangleFate::kCollapsed: ++stats_.dropped_collapsed; continue;
+      case TriangleFate::kZeroArea: ++stats_.dropped_zero_area; continue;
+      case TriangleFate::kKeptFolded:
+        ++stats_.folded;
+        for (uint32_t v : id)
+          if (v < nreps) folding_[v] = 1;
+        break;
+      case TriangleFate::kKept: break;
     }
     tris_.push_back(id);
     keys_.push_back(Vec3(face));
@@ -389,42 +474,44 @@ namespace {
 // A page in flight through collapse_pass: its triangles and the cut cell of
 // each corner.
 struct PageWork {
-  TriangleBatch batch;
+  PageBatch page;
   std::vector<uint32_t> cells;
-  // Consecutive corners in a page are close, and each vertex is shared by
-  // about six triangles: a small direct-mapped cache of code -> cut cell
-  // saves most of the hash lookups (one per level of the cut).
+  std::vector<uint32_t> vertex_cell;  // per page vertex, kUnknown until looked up
+  // Neighbouring vertices mostly share a cell: a small direct-mapped cache
+  // of code -> cut cell saves most of the hash lookups (one per level of the
+  // cut).
   static constexpr size_t kCache = 1 << 12;
+  static constexpr uint32_t kUnknown = kKeepVertex - 1;
   std::vector<uint64_t> cache_code = std::vector<uint64_t>(kCache, ~uint64_t(0));
   std::vector<uint32_t> cache_cell = std::vector<uint32_t>(kCache, kKeepVertex);
+  PreparedBatch prepared;
 
+  // Each page vertex is looked up once, at its first corner.
   void look_up_cells(const CutLookup& lookup) {
+    const TriangleBatch& batch = page.batch;
     cells.resize(batch.positions.size());
+    vertex_cell.assign(page.vertices, kUnknown);
     for (size_t k = 0; k < batch.positions.size(); ++k) {
-      const uint64_t code = lookup.code_of(Vec3d(batch.positions[k]));
-      const size_t slot = (code ^ (code >> 17)) & (kCache - 1);
-      if (cache_code[slot] != code) {
-        cache_code[slot] = code;
-        cache_cell[slot] = lookup.find_code(code);
+      uint32_t& cell = vertex_cell[page.corner_vertex[k]];
+      if (cell == kUnknown) {
+        const uint64_t code = lookup.code_of(Vec3d(batch.positions[k]));
+        const size_t slot = (code ^ (code >> 17)) & (kCache - 1);
+        if (cache_code[slot] != code) {
+          cache_code[slot] = code;
+          cache_cell[slot] = lookup.find_code(code);
+        }
+        cell = cache_cell[slot];
       }
-      cells[k] = cache_cell[slot];
+      cells[k] = cell;
     }
   }
 };
 
-// Two kept corners are one output vertex when CollapseBuilder::kept_vertex
-// would give them one id: bit-identical position and, with input normals,
-// bit-identical normal.
-bool same_kept_corner(const TriangleBatch& b, size_t i, size_t j, bool with_normals) {
-  if (!same_bits(canonical(b.positions[i]), canonical(b.positions[j]))) return false;
-  return !with_normals || same_bits(canonical(b.normals[i]), canonical(b.normals[j]));
-}
-
 // Marks folding[c] = 1 for every cut cell c that a triangle of the pages
-// `page_list` turns over once collapsed, deciding each triangle exactly as
-// CollapseBuilder::add does but without building anything: the fold passes
-// need only which cells fold, and each triangle decides alone, so pages are
-// scanned in parallel (the marks are the same for any thread count).
+// `page_list` turns over once collapsed, deciding each triangle as
+// CollapseBuilder::add does (prepare_collapse) but building nothing: the
+// fold passes need only which cells fold, and each triangle decides alone,
+// so pages are scanned in parallel (the same marks for any thread count).
 Status mark_folding_cells(const OctreeStore& store, std::span<const CellKey> keys,
                           std::span<const Representative> reps, std::span<const uint32_t> page_list,
                           std::vector<uint8_t>& folding) {
@@ -441,30 +528,18 @@ Status mark_folding_cells(const OctreeStore& store, std::span<const CellKey> key
   tbb::parallel_for(tbb::blocked_range<size_t>(0, page_list.size(), 1), [&](const tbb::blocked_range<size_t>& r) {
     PageWork& w = work.local();
     for (size_t j = r.begin(); j != r.end(); ++j) {
-      if (Status st = store.read_page(page_list[j], w.batch); !st.ok()) {
+      if (Status st = store.read_page(page_list[j], w.page); !st.ok()) {
         std::lock_guard lock(error_mutex);
         if (j < error_page) { error_page = j; error = st; }  // the first failing page, whatever the threads
         return;
       }
       w.look_up_cells(lookup);
-      const TriangleBatch& b = w.batch;
-      const bool with_normals = h.has_normals && b.normals.size() == b.positions.size();
-      for (size_t t = 0; t < b.size(); ++t) {
-        const uint32_t* c = &w.cells[3 * t];
-        if (c[0] == kKeepVertex && c[1] == kKeepVertex && c[2] == kKeepVertex) continue;  // cannot fold
-        bool repeated = false;
-        for (int k = 0; k < 3 && !repeated; ++k) {
-          const int l = (k + 1) % 3;
-          if (c[k] != c[l]) continue;
-          repeated = c[k] != kKeepVertex || same_kept_corner(b, 3 * t + k, 3 * t + l, with_normals);
-        }
-        if (repeated) continue;
-        Vec3 out[3];
-        for (int k = 0; k < 3; ++k) out[k] = c[k] != kKeepVertex ? rep_pos[c[k]] : canonical(b.positions[3 * t + k]);
-        if (zero_area(out[0], out[1], out[2])) continue;
-        if (!turned_over(out[0], out[1], out[2], input_face(&b.positions[3 * t]), true)) continue;
+      prepare_collapse(w.page.batch, w.cells, rep_pos, h.has_normals, w.prepared, w.page.corner_vertex);
+      for (size_t t = 0; t < w.page.size(); ++t) {
+        if (w.prepared.fate[t] != TriangleFate::kKeptFolded) continue;
         for (int k = 0; k < 3; ++k)
-          if (c[k] != kKeepVertex) std::atomic_ref<uint8_t>(folding[c[k]]).store(1, std::memory_order_relaxed);
+          if (const uint32_t c = w.cells[3 * t + k]; c != kKeepVertex)
+            std::atomic_ref<uint8_t>(folding[c]).store(1, std::memory_order_relaxed);
       }
     }
   });
@@ -513,13 +588,15 @@ Status collapse_pass(const OctreeStore& store, std::span<const CellKey> keys, co
   Status done = ordered_pipeline<PageWork>(
       pages.size(), ntokens,
       [&](PageWork& w, size_t i) -> Status {
-        RAYLOD_RETURN_IF_ERROR(store.read_page(i, w.batch));
+        RAYLOD_RETURN_IF_ERROR(store.read_page(i, w.page));
         w.look_up_cells(lookup);
+        prepare_collapse(w.page.batch, w.cells, builder.representative_positions(), store.header().has_normals,
+                         w.prepared, w.page.corner_vertex);
         return {};
       },
       [&](PageWork& w, size_t i) -> Status {
         ++pages_read;
-        builder.add(w.batch, w.cells);
+        builder.add(w.page.batch, w.cells, w.prepared);
         if (config.memory_limit && builder.memory_bytes() > config.memory_limit)
           return Status::error("the simplified mesh outgrew the memory limit of " + format_bytes(config.memory_limit) +
                                " after " + std::to_string(builder.triangles()) + " triangles (page " +

@@ -46,6 +46,7 @@
 #include "streaming/cut_file.h"
 #include "streaming/draco_io.h"
 #include "streaming/octree_store.h"
+#include "streaming/page_codec.h"
 
 namespace raylod {
 
@@ -105,6 +106,42 @@ struct CollapseStats {
   uint64_t peak_bytes = 0;          // largest memory_bytes() seen
 };
 
+// What collapsing does to each triangle and corner of a batch, worked out
+// from the batch, its corners' cells and the representatives' positions
+// alone (prepare_collapse): pages are prepared in parallel, then added to
+// the builder one at a time in order.
+enum class TriangleFate : uint8_t {
+  kCollapsed,  // two corners became the same output vertex
+  kZeroArea,   // distinct output vertices, exactly zero area
+  kKept,
+  kKeptFolded,  // kept, with a representative corner, facing against its input triangle
+};
+struct PreparedBatch {
+  std::vector<Vec3d> face;        // per triangle: its input triangle's unit normal (zero without area)
+  std::vector<double> area2;      // per triangle: twice its input area (the weight of its corners' normals)
+  std::vector<TriangleFate> fate;
+  std::vector<uint64_t> hash;     // per corner: the kept-vertex table's hash (kept corners)
+  std::vector<double> angle;      // per corner: interior angle (kept corners of inputs without normals)
+  // The normals the batch adds to representatives' clusters, in order of
+  // first use: with input normals one per page vertex (its corners' weights
+  // summed) or per corner without corner_vertex; else one per triangle and
+  // cell (the face normal, weighted by the corners there).
+  struct RepresentativeNormal {
+    uint32_t rep;
+    double weight;
+    Vec3d normal;
+  };
+  std::vector<RepresentativeNormal> rep_normals;
+  std::vector<uint64_t> vertex_hash;    // scratch: per page vertex
+  std::vector<uint8_t> vertex_hashed;
+  std::vector<uint32_t> vertex_normal;  // scratch: per page vertex, its entry in rep_normals
+};
+// rep_pos[i] is representative i's float position; input_has_normals as for
+// CollapseBuilder. corner_vertex, if given, names each corner's vertex in
+// its page (PageBatch): a vertex's hash is then computed once.
+void prepare_collapse(const TriangleBatch& batch, std::span<const uint32_t> cell, std::span<const Vec3> rep_pos,
+                      bool input_has_normals, PreparedBatch& out, std::span<const uint32_t> corner_vertex = {});
+
 // Builds the collapsed, indexed mesh from a stream of triangle batches.
 class CollapseBuilder {
  public:
@@ -115,6 +152,10 @@ class CollapseBuilder {
   // cell[k] is the representative index of batch vertex k (3 per triangle),
   // or kKeepVertex. Batch positions must be finite.
   void add(const TriangleBatch& batch, std::span<const uint32_t> cell);
+  // The same, with the batch prepared by prepare_collapse(batch, cell,
+  // representative_positions(), ...).
+  void add(const TriangleBatch& batch, std::span<const uint32_t> cell, const PreparedBatch& prepared);
+  std::span<const Vec3> representative_positions() const { return rep_pos_; }
   // Pre-sizes the buffers (avoids rehashing the vertex table while streaming).
   void reserve(uint64_t vertices, uint64_t triangles);
   // Drops duplicates, compacts, resolves the normals and returns the mesh
@@ -127,7 +168,7 @@ class CollapseBuilder {
   const std::vector<uint8_t>& folding() const { return folding_; }
 
  private:
-  uint32_t kept_vertex(const Vec3& p, const Vec3& n);
+  uint32_t kept_vertex(const Vec3& p, const Vec3& n, uint64_t hash);
   void grow_table();
 
   std::span<const Representative> reps_;
@@ -136,6 +177,7 @@ class CollapseBuilder {
   std::vector<Vec3> rep_pos_;            // float positions of the representatives
   std::vector<Vec3> kept_pos_, kept_normal_;  // kept_normal_ only with input normals
   NormalClusterPool clusters_;           // per provisional vertex (reps first, then kept)
+  PreparedBatch prepared_;               // scratch of add() without a prepared batch
   std::vector<uint32_t> table_;          // open addressing into kept_*, kKeepVertex = empty
   std::vector<std::array<uint32_t, 3>> tris_;  // provisional ids: reps first, then kept
   std::vector<Vec3> keys_;               // per triangle: its input triangle's unit normal (crease key)
