@@ -7,7 +7,8 @@
 //   CutLookup        vertex position -> the cut cell containing it (or none)
 //   make_representative  a NodeRecord -> its representative vertex
 //   CollapseBuilder  triangle batches + per-vertex cell ids -> indexed mesh
-//   simplify()       the thin driver: one pass over the store's pages.
+//   prepare_collapse what a batch's triangles become (parallel, no state)
+//   simplify()       the thin driver: fold checks, then one building pass.
 //
 // Decisions (see collapse.cpp for the reasons):
 //   * A triangle is dropped if two of its output vertices are the same vertex,
@@ -241,10 +242,12 @@ struct SimplifyResult {
 // representative lands on the far side of a thin triangle's other corners.
 // A turned-over triangle faces against its input and shows as a sparkle
 // through glass or a dark seam on a mirror, so each such cell is replaced by
-// its children in the store (a finest cell is not collapsed) and the pages
-// are streamed again, at most config.fold_passes times. Fails before reading
-// any page if the estimate exceeds config.memory_limit, and during the pass if
-// the mesh under construction does.
+// its children in the store (a finest cell is not collapsed), at most
+// config.fold_passes times: the first check scans every page, later checks
+// only the pages near the cells refined last, and none builds the mesh; one
+// pass over the pages then builds it. Fails before reading any page if the
+// estimate exceeds config.memory_limit, and during the building pass if the
+// mesh under construction does.
 StatusOr<SimplifyResult> simplify(const OctreeStore& store, const Cut& cut, const SimplifyConfig& config = {});
 
 // Why a simplified mesh came out empty, for messages that name the input:
