@@ -12,8 +12,6 @@
 // sqrt(3) when the octahedron is projected onto the sphere, bounds the angle.
 #include "streaming/draco_io.h"
 
-#include "streaming/distinct_keys.h"
-
 #include <cerrno>
 #include <cmath>
 #include <cstdio>

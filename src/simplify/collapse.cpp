@@ -17,8 +17,8 @@
 #include <cmath>
 #include <cstring>
 #include <limits>
-#include <numeric>
 #include <mutex>
+#include <numeric>
 #include <optional>
 
 #include <tbb/blocked_range.h>
@@ -675,7 +675,7 @@ StatusOr<SimplifyResult> simplify(const OctreeStore& store, const Cut& cut, cons
     keys.swap(next_keys);
     reps.swap(next_reps);
     ++result.fold_passes;
-    page_list = pages_touching(store, changed);
+    if (pass + 1 < config.fold_passes) page_list = pages_touching(store, changed);
   }
   {
     CollapseBuilder builder(reps, h.has_normals, config.crease_angle_deg);
