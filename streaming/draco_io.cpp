@@ -17,11 +17,12 @@
 #include <cstdio>
 #include <cstring>
 #include <fstream>
-#include <iterator>
 #include <limits>
 
 #include <draco/compression/decode.h>
 #include <draco/compression/encode.h>
+#include <draco/compression/point_cloud/point_cloud_decoder.h>
+#include <draco/metadata/metadata_decoder.h>
 #include <draco/mesh/mesh.h>
 
 #include "core/fault_point.h"
@@ -98,6 +99,9 @@ int choose_position_bits(double extent, double max_abs, double max_error) {
 
 // The geometry metadata entry holding IndexedMesh::origin.
 constexpr const char* kOriginEntry = "raylod_origin";
+// The entry holding the triangle count, so that a reader can size its memory
+// from the header alone (draco_triangle_count) instead of decoding twice.
+constexpr const char* kTrianglesEntry = "raylod_triangles";
 
 // Bit-identical values become one attribute value, and vertices with the
 // same values one point, so that edgebreaker sees the connectivity across
@@ -155,8 +159,12 @@ static void fill_draco_mesh(const IndexedMesh& mesh, draco::Mesh& dm, int& posit
   }
 }
 
-StatusOr<DracoEncoded> encode_draco(const std::filesystem::path& path, const IndexedMesh& mesh,
-                                     const DracoOptions& options) {
+namespace {
+
+// `release`, if given, is `mesh` itself: its arrays are freed once Draco's
+// mesh holds a copy, before the encoder's own tables are allocated.
+StatusOr<DracoEncoded> encode_draco_mesh(const std::filesystem::path& path, const IndexedMesh& mesh,
+                                          const DracoOptions& options, IndexedMesh* release) {
   RAYLOD_RETURN_IF_ERROR(check_mesh(path, mesh));
   const bool normals = !mesh.normals.empty();
   Bbox box;
@@ -204,11 +212,14 @@ StatusOr<DracoEncoded> encode_draco(const std::filesystem::path& path, const Ind
   draco::Mesh dm;
   fill_draco_mesh(mesh, dm, encoded.position_id, encoded.normal_id);  // its tables are freed before encoding
 
-  if (mesh.origin != Vec3d(0)) {
+  {
     auto metadata = std::make_unique<draco::GeometryMetadata>();
-    metadata->AddEntryDoubleArray(kOriginEntry, {mesh.origin.x, mesh.origin.y, mesh.origin.z});
+    if (mesh.origin != Vec3d(0))
+      metadata->AddEntryDoubleArray(kOriginEntry, {mesh.origin.x, mesh.origin.y, mesh.origin.z});
+    metadata->AddEntryDouble(kTrianglesEntry, double(dm.num_faces()));  // exact below 2^53
     dm.AddMetadata(std::move(metadata));
   }
+  if (release) *release = IndexedMesh{};
 
   draco::Encoder encoder;
   encoder.SetAttributeQuantization(draco::GeometryAttribute::POSITION, report.position_bits);
@@ -223,10 +234,21 @@ StatusOr<DracoEncoded> encode_draco(const std::filesystem::path& path, const Ind
   return encoded;
 }
 
-StatusOr<DracoWriteReport> write_draco(const std::filesystem::path& path, const IndexedMesh& mesh,
-                                       const DracoOptions& options) {
-  RAYLOD_ASSIGN_OR_RETURN(DracoEncoded encoded, encode_draco(path, mesh, options));
-  const std::vector<char>& buffer = encoded.bytes;
+}  // namespace
+
+StatusOr<DracoEncoded> encode_draco(const std::filesystem::path& path, const IndexedMesh& mesh,
+                                     const DracoOptions& options) {
+  return encode_draco_mesh(path, mesh, options, nullptr);
+}
+
+StatusOr<DracoEncoded> encode_draco(const std::filesystem::path& path, IndexedMesh&& mesh,
+                                     const DracoOptions& options) {
+  return encode_draco_mesh(path, mesh, options, &mesh);
+}
+
+namespace {
+
+Status write_encoded(const std::filesystem::path& path, const std::vector<char>& buffer) {
   AtomicOutput out(path);
   {
     std::ofstream f(out.temp_path(), std::ios::binary);
@@ -240,18 +262,63 @@ StatusOr<DracoWriteReport> write_draco(const std::filesystem::path& path, const 
     f.flush();
     if (!f) return Status::write_failed(path.string(), path.string() + ": write failed (disk full?)", errno);
   }
-  RAYLOD_RETURN_IF_ERROR(out.commit());
+  return out.commit();
+}
+
+}  // namespace
+
+StatusOr<DracoWriteReport> write_draco(const std::filesystem::path& path, const IndexedMesh& mesh,
+                                       const DracoOptions& options) {
+  RAYLOD_ASSIGN_OR_RETURN(DracoEncoded encoded, encode_draco(path, mesh, options));
+  RAYLOD_RETURN_IF_ERROR(write_encoded(path, encoded.bytes));
+  return encoded.report;
+}
+
+StatusOr<DracoWriteReport> write_draco(const std::filesystem::path& path, IndexedMesh&& mesh,
+                                       const DracoOptions& options) {
+  RAYLOD_ASSIGN_OR_RETURN(DracoEncoded encoded, encode_draco(path, std::move(mesh), options));
+  RAYLOD_RETURN_IF_ERROR(write_encoded(path, encoded.bytes));
   return encoded.report;
 }
 
 StatusOr<IndexedMesh> read_draco(const std::filesystem::path& path) {
   const std::string where = path.string() + ": ";
-  std::ifstream f(path, std::ios::binary);
+  std::ifstream f(path, std::ios::binary | std::ios::ate);
   if (!f) return Status::error(where + "cannot open file");
-  std::vector<char> data((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+  std::vector<char> data(size_t(std::max<std::streamoff>(0, f.tellg())));
+  f.seekg(0);
+  if (!f.read(data.data(), std::streamsize(data.size()))) return Status::error(where + "read failed");
   if (data.size() < 5 || std::memcmp(data.data(), "DRACO", 5) != 0)
     return Status::error(where + "not a Draco file (no DRACO header)");
   return decode_draco(data.data(), data.size(), path.string());
+}
+
+StatusOr<uint64_t> draco_triangle_count(const std::filesystem::path& path) {
+  {
+    // The header and the metadata come first; raylod's own files fit in far
+    // less than this.
+    RAYLOD_RETURN_IF_ERROR(check_regular_file(path));  // a FIFO or device fails at once
+    std::ifstream f(path, std::ios::binary);
+    if (!f) return Status::error(path.string() + ": cannot open file");
+    std::vector<char> head(64 << 10);
+    f.read(head.data(), std::streamsize(head.size()));
+    head.resize(size_t(f.gcount()));
+    draco::DecoderBuffer buffer;
+    buffer.Init(head.data(), head.size());
+    draco::DracoHeader header;
+    if (draco::PointCloudDecoder::DecodeHeader(&buffer, &header).ok() && (header.flags & METADATA_FLAG_MASK) &&
+        DRACO_BITSTREAM_VERSION(header.version_major, header.version_minor) >= DRACO_BITSTREAM_VERSION(1, 3)) {
+      buffer.set_bitstream_version(DRACO_BITSTREAM_VERSION(header.version_major, header.version_minor));
+      draco::GeometryMetadata metadata;
+      draco::MetadataDecoder decoder;
+      double n = -1;
+      if (decoder.DecodeGeometryMetadata(&buffer, &metadata) && metadata.GetEntryDouble(kTrianglesEntry, &n) &&
+          n >= 0 && n <= 9007199254740992.0 && n == std::floor(n))
+        return uint64_t(n);
+    }
+  }
+  RAYLOD_ASSIGN_OR_RETURN(IndexedMesh mesh, read_draco(path));  // a file from elsewhere: count by decoding
+  return mesh.triangle_count();
 }
 
 StatusOr<IndexedMesh> decode_draco(const char* data, size_t size, const std::string& name) {

@@ -54,7 +54,15 @@ double normal_error_bound(int bits);
 // writes it atomically.
 StatusOr<DracoWriteReport> write_draco(const std::filesystem::path& path, const IndexedMesh& mesh,
                                        const DracoOptions& options);
+// The same, freeing the mesh's arrays as soon as Draco holds a copy (the
+// encoder's peak then does not stack on the mesh; a large simplified mesh).
+StatusOr<DracoWriteReport> write_draco(const std::filesystem::path& path, IndexedMesh&& mesh,
+                                       const DracoOptions& options);
 StatusOr<IndexedMesh> read_draco(const std::filesystem::path& path);
+// The triangle count of a .drc without decoding it: from the header's
+// "raylod_triangles" metadata entry, which write_draco adds; a file without
+// one is decoded to count.
+StatusOr<uint64_t> draco_triangle_count(const std::filesystem::path& path);
 // Decodes a Draco mesh held in memory (name says whose, in errors).
 StatusOr<IndexedMesh> decode_draco(const char* data, size_t size, const std::string& name);
 
@@ -65,6 +73,8 @@ struct DracoEncoded {
   int position_id = -1, normal_id = -1;  // the attributes' unique ids (-1: no normals)
 };
 StatusOr<DracoEncoded> encode_draco(const std::filesystem::path& path, const IndexedMesh& mesh,
+                                    const DracoOptions& options);
+StatusOr<DracoEncoded> encode_draco(const std::filesystem::path& path, IndexedMesh&& mesh,
                                     const DracoOptions& options);
 // A MeshReader over a decoded Draco file (used by open_mesh for .drc).
 StatusOr<std::unique_ptr<MeshReader>> open_draco_reader(const std::filesystem::path& path, ReaderOptions options);

@@ -30,14 +30,15 @@ std::string lower_extension(const std::filesystem::path& p) {
   return e;
 }
 
-StatusOr<DracoWriteReport> write_simplified_glb(const std::filesystem::path& out, const IndexedMesh& mesh,
+StatusOr<DracoWriteReport> write_simplified_glb(const std::filesystem::path& out, IndexedMesh&& mesh,
                                                 const DracoOptions& options) {
-  RAYLOD_ASSIGN_OR_RETURN(DracoEncoded encoded, encode_draco(out, mesh, options));
+  const Vec3d origin = mesh.origin;
+  RAYLOD_ASSIGN_OR_RETURN(DracoEncoded encoded, encode_draco(out, std::move(mesh), options));
   DracoWriteReport report = encoded.report;
   std::vector<GlbMesh> meshes(1);
   meshes[0].name = out.stem().string();
   meshes[0].draco = std::move(encoded.bytes);
-  RAYLOD_ASSIGN_OR_RETURN(report.bytes, write_glb(out, meshes, {GlbNode{meshes[0].name, 0, glm::translate(glm::dmat4(1.0), mesh.origin)}}));
+  RAYLOD_ASSIGN_OR_RETURN(report.bytes, write_glb(out, meshes, {GlbNode{meshes[0].name, 0, glm::translate(glm::dmat4(1.0), origin)}}));
   return report;
 }
 
@@ -120,7 +121,7 @@ int run_simplify(int argc, char** argv) {
   config.progress = !args.has("--quiet");
   auto result = simplify(**store, *cut, config);
   if (!result) return fail("simplify", result.status().with_context(store_path.string()));
-  const SimplifyResult& r = *result;
+  SimplifyResult& r = *result;  // its mesh is handed to the writer
   if (r.mesh.triangle_count() == 0)
     return fail("simplify", Status::error((*store)->header().source_path + ": " + why_simplified_mesh_is_empty(r, *cut) +
                                           "; nothing was written"));
@@ -144,7 +145,8 @@ int run_simplify(int argc, char** argv) {
       bound = bound > 0 ? std::min(bound, geometric) : geometric;
     opt.max_position_error = *position_error > 0 ? *position_error : bound;
     // .glb: the same Draco bytes as the .drc, as one primitive of one node.
-    auto report = ext == ".drc" ? write_draco(out_path, r.mesh, opt) : write_simplified_glb(out_path, r.mesh, opt);
+    auto report = ext == ".drc" ? write_draco(out_path, std::move(r.mesh), opt)
+                                  : write_simplified_glb(out_path, std::move(r.mesh), opt);
     if (!report) return fail("simplify", report.status());
     bytes = report->bytes;
     char line[256];

@@ -157,10 +157,11 @@ StatusOr<SimplifiedMesh> simplify_cut_to_draco(const OctreeStore& store, const C
   dopt.max_position_error = draco_error_bound(cut, store);
   dopt.normal_bits = 0;
   dopt.max_normal_error = max_normal_error;
-  RAYLOD_ASSIGN_OR_RETURN(DracoWriteReport written, write_draco(out, simplified.mesh, dopt));
+  const uint64_t triangles = simplified.mesh.triangle_count();
+  RAYLOD_ASSIGN_OR_RETURN(DracoWriteReport written, write_draco(out, std::move(simplified.mesh), dopt));
   SimplifiedMesh sm;
   sm.drc = out;
-  sm.triangles = simplified.mesh.triangle_count();
+  sm.triangles = triangles;
   sm.drc_bytes = written.bytes;
   sm.position_bits = written.position_bits;
   sm.max_position_error = written.max_position_error;

@@ -122,6 +122,9 @@ TriangleMesh weld_triangles(std::span<const Vec3> positions, std::span<const Vec
 }
 
 StatusOr<uint64_t> declared_triangle_count(const std::filesystem::path& path) {
+  // open_mesh decodes a whole .drc; its header carries the count.
+  if (auto format = mesh_format_from_extension(path); format.is_ok() && *format == MeshFormat::Draco)
+    return draco_triangle_count(path);
   RAYLOD_ASSIGN_OR_RETURN(auto reader, open_mesh(path));
   return reader->header().face_count;
 }

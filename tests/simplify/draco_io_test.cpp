@@ -112,6 +112,9 @@ std::vector<char> encode_with_dracos_deduplication(const IndexedMesh& mesh, cons
   }
   dm.DeduplicateAttributeValues();
   dm.DeduplicatePointIds();
+  auto metadata = std::make_unique<draco::GeometryMetadata>();  // as write_draco adds
+  metadata->AddEntryDouble("raylod_triangles", double(dm.num_faces()));
+  dm.AddMetadata(std::move(metadata));
   draco::Encoder encoder;
   encoder.SetAttributeQuantization(draco::GeometryAttribute::POSITION, report.position_bits);
   if (!mesh.normals.empty()) encoder.SetAttributeQuantization(draco::GeometryAttribute::NORMAL, report.normal_bits);
@@ -157,7 +160,65 @@ TEST(DracoIo, DeduplicatesAsDracoDoes) {
     ASSERT_TRUE(got.is_ok()) << got.status().message();
     EXPECT_EQ(got->bytes, encode_with_dracos_deduplication(*m, got->report)) << (m == &box ? "with" : "without")
                                                                              << " normals";
+    IndexedMesh handed = *m;  // handed over: the same bytes, and its arrays freed
+    auto moved = encode_draco("dedup.drc", std::move(handed), opt);
+    ASSERT_TRUE(moved.is_ok()) << moved.status().message();
+    EXPECT_EQ(moved->bytes, got->bytes);
+    EXPECT_EQ(handed.positions.capacity() + handed.normals.capacity() + handed.indices.capacity(), 0u);
   }
+}
+
+TEST(DracoIo, TriangleCountFromTheHeader) {
+  // raylod's files carry the count in their metadata; a file Draco wrote
+  // without it is decoded to count; a damaged one is an error naming it.
+  const IndexedMesh mesh = indexed(test::uv_sphere({1e6, 0, 0}, 2.0f, 12, 16));
+  const auto ours = tmp_dir() / "counted.drc";
+  DracoOptions opt;
+  opt.max_position_error = 1e-3;
+  auto rep = write_draco(ours, mesh, opt);
+  ASSERT_TRUE(rep.is_ok()) << rep.status().message();
+  auto n = draco_triangle_count(ours);
+  ASSERT_TRUE(n.is_ok()) << n.status().message();
+  EXPECT_EQ(*n, read_draco(ours)->triangle_count());
+  EXPECT_EQ(*n, mesh.triangle_count());
+  {  // from the header alone: the first 160 bytes hold it, and cannot be decoded
+    std::ifstream in(ours, std::ios::binary);
+    std::vector<char> head(160);
+    in.read(head.data(), std::streamsize(head.size()));
+    const auto cut = tmp_dir() / "head.drc";
+    std::ofstream(cut, std::ios::binary).write(head.data(), std::streamsize(head.size()));
+    EXPECT_FALSE(read_draco(cut).is_ok());
+    auto h = draco_triangle_count(cut);
+    ASSERT_TRUE(h.is_ok()) << h.status().message();
+    EXPECT_EQ(*h, mesh.triangle_count());
+  }
+
+  // The reference encoder adds the entry too; strip it by encoding plainly.
+  draco::Mesh dm;
+  dm.set_num_points(uint32_t(mesh.positions.size()));
+  draco::GeometryAttribute att;
+  att.Init(draco::GeometryAttribute::POSITION, nullptr, 3, draco::DT_FLOAT32, false, sizeof(float) * 3, 0);
+  const int id = dm.AddAttribute(att, true, uint32_t(mesh.positions.size()));
+  for (uint32_t i = 0; i < mesh.positions.size(); ++i)
+    dm.attribute(id)->SetAttributeValue(draco::AttributeValueIndex(i), &mesh.positions[i].x);
+  for (size_t t = 0; t < mesh.triangle_count(); ++t)
+    dm.AddFace({draco::PointIndex(mesh.indices[3 * t]), draco::PointIndex(mesh.indices[3 * t + 1]),
+                draco::PointIndex(mesh.indices[3 * t + 2])});
+  draco::Encoder encoder;
+  encoder.SetAttributeQuantization(draco::GeometryAttribute::POSITION, 14);
+  draco::EncoderBuffer buffer;
+  ASSERT_TRUE(encoder.EncodeMeshToBuffer(dm, &buffer).ok());
+  const auto foreign = tmp_dir() / "foreign.drc";
+  std::ofstream(foreign, std::ios::binary).write(buffer.data(), std::streamsize(buffer.size()));
+  auto m = draco_triangle_count(foreign);
+  ASSERT_TRUE(m.is_ok()) << m.status().message();
+  EXPECT_EQ(*m, mesh.triangle_count());
+
+  const auto damaged = tmp_dir() / "damaged.drc";
+  std::ofstream(damaged, std::ios::binary).write(buffer.data(), 12);
+  auto bad = draco_triangle_count(damaged);
+  ASSERT_FALSE(bad.is_ok());
+  EXPECT_NE(bad.status().message().find("damaged.drc"), std::string::npos) << bad.status().message();
 }
 
 TEST(DracoIo, RoundTripKeepsReverseTwinsAndSeams) {
