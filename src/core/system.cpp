@@ -3,6 +3,9 @@
 
 #include <fcntl.h>
 #include <sys/stat.h>
+#if defined(__linux__)
+#include <sys/prctl.h>
+#endif
 #include <unistd.h>
 
 #include <atomic>
@@ -36,6 +39,18 @@ uint64_t read_status_kib(const char* key) {
 
 uint64_t peak_rss_bytes() { return read_status_kib("VmHWM:"); }
 uint64_t current_rss_bytes() { return read_status_kib("VmRSS:"); }
+
+ScopedSmallPages::ScopedSmallPages() {
+#if defined(__linux__) && defined(PR_SET_THP_DISABLE)
+  changed_ = prctl(PR_GET_THP_DISABLE, 0, 0, 0, 0) == 0 && prctl(PR_SET_THP_DISABLE, 1, 0, 0, 0) == 0;
+#endif
+}
+
+ScopedSmallPages::~ScopedSmallPages() {
+#if defined(__linux__) && defined(PR_SET_THP_DISABLE)
+  if (changed_) prctl(PR_SET_THP_DISABLE, 0, 0, 0, 0);
+#endif
+}
 
 uint64_t physical_memory_bytes() {
   long pages = sysconf(_SC_PHYS_PAGES), page = sysconf(_SC_PAGESIZE);

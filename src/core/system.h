@@ -16,6 +16,23 @@ uint64_t current_rss_bytes();
 // Physical memory of the machine in bytes.
 uint64_t physical_memory_bytes();
 
+// While one lives, memory this process touches for the first time is not
+// backed by transparent huge pages (Linux: prctl PR_SET_THP_DISABLE; nothing
+// elsewhere). Embree advises huge pages for its BVH build blocks, and the
+// kernel then zeroes every 2 MiB page on its first touch, most of which the
+// build never uses: on a 9.4M-triangle mesh the build took 2.0 s instead of
+// 2.8 to 3.4 s without them, and tracing the finished BVH was no slower.
+class ScopedSmallPages {
+ public:
+  ScopedSmallPages();
+  ~ScopedSmallPages();
+  ScopedSmallPages(const ScopedSmallPages&) = delete;
+  ScopedSmallPages& operator=(const ScopedSmallPages&) = delete;
+
+ private:
+  bool changed_ = false;  // the process allowed huge pages before
+};
+
 // Parses a size in bytes: a positive whole number with an optional unit,
 // "1000000", "512M", "2G", "1GiB" (B, K, M, G, T and their KB/KiB spellings,
 // any case; powers of 1024). Fractions ("1.5G", "0.5"), signs, exponents, 0

@@ -310,7 +310,10 @@ StatusOr<std::unique_ptr<EmbreeScene>> EmbreeScene::build(std::vector<TriangleMe
     rtcAttachGeometryByID(s->scene_, geom, unsigned(g));
     rtcReleaseGeometry(geom);
   }
-  rtcCommitScene(s->scene_);
+  {
+    const ScopedSmallPages small_pages;  // core/system.h: the build's blocks are touched sparsely
+    rtcCommitScene(s->scene_);
+  }
   info.build_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   if (rtcGetDeviceError(s->device_) != RTC_ERROR_NONE || !s->monitor_->error.empty()) {
     std::string msg = s->monitor_->error.empty() ? "Embree failed to build the BVH" : s->monitor_->error;

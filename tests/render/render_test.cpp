@@ -8,10 +8,14 @@
 #include <cstring>
 #include <fstream>
 
+#if defined(__linux__)
+#include <sys/prctl.h>
+#endif
 #include <tbb/global_control.h>
 #include <tbb/task_arena.h>
 #include <glm/gtc/matrix_transform.hpp>
 
+#include "core/system.h"
 #include "render/integrator.h"
 #include "render/renderer.h"
 #include "render_test_util.h"
@@ -53,6 +57,23 @@ TEST(EmbreeSceneTest, HitDistanceBarycentricsAndTriangleIds) {
   EXPECT_GE((*scene)->triangle_id(hit.geom, hit.prim), 12u);
   EXPECT_TRUE((*scene)->occluded(Ray{{0, 0, 5}, {0, 0, -1}}, 0, 10));
   EXPECT_FALSE((*scene)->occluded(Ray{{0, 0, 5}, {0, 0, -1}}, 0, 3.9));
+}
+
+TEST(EmbreeSceneTest, SmallPagesOnlyWhileTheGuardLives) {
+#if defined(__linux__) && defined(PR_SET_THP_DISABLE)
+  ASSERT_EQ(prctl(PR_GET_THP_DISABLE, 0, 0, 0, 0), 0);
+  {
+    const ScopedSmallPages outer;
+    EXPECT_EQ(prctl(PR_GET_THP_DISABLE, 0, 0, 0, 0), 1);
+    {
+      const ScopedSmallPages inner;  // nested: leaves the outer one's setting alone
+    }
+    EXPECT_EQ(prctl(PR_GET_THP_DISABLE, 0, 0, 0, 0), 1);
+  }
+  EXPECT_EQ(prctl(PR_GET_THP_DISABLE, 0, 0, 0, 0), 0);
+#else
+  GTEST_SKIP() << "no PR_SET_THP_DISABLE here";
+#endif
 }
 
 TEST(EmbreeSceneTest, RejectsBadInMemoryMeshes) {
