@@ -21,9 +21,9 @@ uint32_t spread_bits(uint32_t v) {
 // Indices 0..n-1 ordered by 30-bit key, ties by index: a stable LSD radix
 // sort, 3 passes of 10 bits (the same order as sorting (key, index) pairs,
 // at a fraction of the cost for the few thousand items of a page).
-void sort_by_key(const std::vector<uint32_t>& keys, std::vector<uint32_t>& order) {
+void sort_by_key(const std::vector<uint32_t>& keys, std::vector<uint32_t>& order, std::vector<uint32_t>& tmp) {
   const size_t n = keys.size();
-  std::vector<uint32_t> tmp(n);
+  tmp.resize(n);
   order.resize(n);
   std::iota(order.begin(), order.end(), 0u);
   for (int shift = 0; shift < 30; shift += 10) {
@@ -43,23 +43,34 @@ void sort_by_key(const std::vector<uint32_t>& keys, std::vector<uint32_t>& order
 // reading the page. Boxes are then computed bottom-up.
 Bvh build_bvh(std::span<const Bbox> boxes, uint32_t leaf_size) {
   Bvh bvh;
-  if (boxes.empty()) return bvh;
+  build_bvh(boxes, leaf_size, bvh);
+  return bvh;
+}
+
+void build_bvh(std::span<const Bbox> boxes, uint32_t leaf_size, Bvh& bvh) {
+  bvh.nodes.clear();
+  bvh.order.clear();
+  if (boxes.empty()) return;
   leaf_size = std::max<uint32_t>(1, leaf_size);
   const size_t n = boxes.size();
   Bbox centres;
   for (const Bbox& b : boxes) centres.expand(b.center());
   const Vec3d lo = centres.lo, ext = centres.extent();
   const double scale = 1023.0 / std::max({ext.x, ext.y, ext.z, 1e-300});
-  std::vector<uint32_t> keys(n);  // Morton codes; ties keep index order
+  // Scratch kept by the thread: a probe builds one of these per page it
+  // reads, and fresh arrays each time cost a page fault per 4 KiB.
+  thread_local std::vector<uint32_t> keys, sort_tmp;
+  keys.resize(n);  // Morton codes; ties keep index order
   for (size_t i = 0; i < n; ++i) {
     const Vec3d q = (boxes[i].center() - lo) * scale;
     keys[i] = spread_bits(uint32_t(q.x)) | (spread_bits(uint32_t(q.y)) << 1) | (spread_bits(uint32_t(q.z)) << 2);
   }
-  sort_by_key(keys, bvh.order);
+  sort_by_key(keys, bvh.order, sort_tmp);
 
   // Top-down: split ranges in halves; children are created after parents.
   struct Range { uint32_t begin, end; };
-  std::vector<Range> ranges;
+  thread_local std::vector<Range> ranges;
+  ranges.clear();
   bvh.nodes.reserve(2 * n / leaf_size + 1);
   bvh.nodes.push_back({});
   ranges.push_back({0, uint32_t(n)});
@@ -91,7 +102,6 @@ Bvh build_bvh(std::span<const Bbox> boxes, uint32_t leaf_size) {
     }
     node.box = box;
   }
-  return bvh;
 }
 
 RayBoxPrecomp ray_box_precomp(const Vec3d& origin, const Vec3d& direction) {

@@ -28,6 +28,8 @@ struct Bvh {
 // A linear BVH: items sorted along a Morton curve of their centres, ranges
 // halved down to leaf_size items per leaf. Deterministic for a given input.
 Bvh build_bvh(std::span<const Bbox> boxes, uint32_t leaf_size = 4);
+// The same into `out`, reusing its arrays' capacity.
+void build_bvh(std::span<const Bbox> boxes, uint32_t leaf_size, Bvh& out);
 
 // Per-ray constants for the slab test.
 struct RayBoxPrecomp {

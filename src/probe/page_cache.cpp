@@ -10,14 +10,18 @@ size_t Page::bytes() const {
          nodes.capacity() * sizeof(PageNode);
 }
 
-Page make_page(PageCorners&& batch) {
+Page make_page(const PageCorners& batch) {
   Page page;
   const bool normals = batch.normal_codes.size() == batch.positions.size();
   const size_t n = batch.size();
-  std::vector<Bbox> boxes(n);
+  // Scratch kept by the thread (see build_bvh): only the page's own arrays
+  // are new memory.
+  thread_local std::vector<Bbox> boxes;
+  thread_local Bvh bvh;
+  boxes.assign(n, Bbox{});
   for (size_t i = 0; i < n; ++i)
     for (int k = 0; k < 3; ++k) boxes[i].expand(batch.positions[3 * i + k]);
-  const Bvh bvh = build_bvh(boxes, 8);
+  build_bvh(boxes, 8, bvh);
   // Triangles in leaf order, so that leaves index them directly.
   page.positions.resize(3 * n);
   if (normals) page.normal_codes.resize(3 * n);
@@ -68,13 +72,13 @@ StatusOr<std::shared_ptr<const Page>> PageCache::get(const OctreeStore& store, u
   if (index >= store.pages().size()) {
     result = Status::error("page " + std::to_string(index) + " does not exist");
   } else {
-    PageCorners batch;
+    thread_local PageCorners batch;  // decoded corners, copied into the page in BVH order
     Status s = store.read_page(index, batch);
     if (!s) {
       result = s;  // names the store file and the page
     } else {
       bytes_read = store.pages()[index].bytes;  // as stored (compact), not as decoded
-      result = std::shared_ptr<const Page>(std::make_shared<Page>(make_page(std::move(batch))));
+      result = std::shared_ptr<const Page>(std::make_shared<Page>(make_page(batch)));
     }
   }
 

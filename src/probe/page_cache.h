@@ -45,7 +45,7 @@ struct Page {
 };
 
 // Builds a Page (with its BVH) from a page's corners.
-Page make_page(PageCorners&& corners);
+Page make_page(const PageCorners& corners);
 
 struct PageCacheCounters {
   uint64_t pages_read = 0;      // pages read from disk (misses that loaded)
