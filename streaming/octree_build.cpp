@@ -49,6 +49,7 @@
 #include <mutex>
 
 #include <tbb/concurrent_queue.h>
+#include <tbb/enumerable_thread_specific.h>
 #include <tbb/info.h>
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
@@ -607,19 +608,29 @@ class RunFile {
   Status flush(size_t num_pages) {
     const size_t n = page_of_.size();
     if (n == 0) return {};
-    std::vector<uint32_t> start(num_pages + 1, 0);
+    // The arrays below are members kept from flush to flush (and the
+    // encoders' per thread): fresh ones every run were new memory each time,
+    // zeroed by the kernel page by page.
+    std::vector<uint32_t>& start = flush_start_;
+    std::vector<uint32_t>& order = flush_order_;
+    std::vector<uint32_t>& fill = flush_fill_;
+    std::vector<uint32_t>& present = flush_present_;
+    start.assign(num_pages + 1, 0);
     for (uint32_t p : page_of_) ++start[p + 1];
     for (size_t p = 0; p < num_pages; ++p) start[p + 1] += start[p];
-    std::vector<uint32_t> order(n), fill(start.begin(), start.end() - 1);
+    order.resize(n);
+    fill.assign(start.begin(), start.end() - 1);
     for (size_t i = 0; i < n; ++i) order[fill[page_of_[i]]++] = uint32_t(i);
     if (segments_.size() < num_pages) segments_.resize(num_pages);
-    std::vector<uint32_t> present;
+    present.clear();
     for (size_t p = 0; p < num_pages; ++p)
       if (start[p] != start[p + 1]) present.push_back(uint32_t(p));
-    std::vector<std::vector<uint8_t>> encoded(present.size());
+    std::vector<std::vector<uint8_t>> encoded(present.size());  // freed as copied: held runs take the room
     tbb::parallel_for(tbb::blocked_range<size_t>(0, present.size(), 16), [&](const tbb::blocked_range<size_t>& r) {
-      PageEncoder encoder;
-      std::vector<uint32_t> q, codes;
+      FlushScratch& scratch = flush_scratch_.local();
+      PageEncoder& encoder = scratch.encoder;
+      std::vector<uint32_t>& q = scratch.positions;
+      std::vector<uint32_t>& codes = scratch.codes;
       for (size_t i = r.begin(); i != r.end(); ++i) {
         const uint32_t p = present[i];
         q.clear();
@@ -686,6 +697,11 @@ class RunFile {
     std::vector<uint32_t>().swap(normals_data_);
     std::vector<uint32_t>().swap(page_of_);
     std::vector<uint8_t>().swap(staging_);
+    std::vector<uint32_t>().swap(flush_start_);
+    std::vector<uint32_t>().swap(flush_order_);
+    std::vector<uint32_t>().swap(flush_fill_);
+    std::vector<uint32_t>().swap(flush_present_);
+    flush_scratch_.clear();
   }
 
  private:
@@ -745,6 +761,13 @@ class RunFile {
   std::vector<uint8_t> staging_;
   uint32_t staging_segments_ = 0;
   std::vector<uint32_t> page_of_;
+  // flush's arrays, kept between runs (release_buffers frees them).
+  struct FlushScratch {
+    PageEncoder encoder;
+    std::vector<uint32_t> positions, codes;
+  };
+  std::vector<uint32_t> flush_start_, flush_order_, flush_fill_, flush_present_;
+  tbb::enumerable_thread_specific<FlushScratch> flush_scratch_;
   std::deque<Block> blocks_;
   std::vector<std::vector<Segment>> segments_;
 };
