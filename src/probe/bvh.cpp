@@ -35,6 +35,9 @@ void sort_by_key(const std::vector<uint32_t>& keys, std::vector<uint32_t>& order
   }
 }
 
+// Scratch arrays for more items than this are freed after use.
+constexpr size_t kKeepScratchItems = size_t(1) << 20;
+
 }  // namespace
 
 // Items are sorted once along a Morton curve of their centres and the tree
@@ -101,6 +104,11 @@ void build_bvh(std::span<const Bbox> boxes, uint32_t leaf_size, Bvh& bvh) {
       box.expand(bvh.nodes[node.first + 1].box);
     }
     node.box = box;
+  }
+  if (n > kKeepScratchItems) {  // an outsized input: do not keep its scratch for the thread's life
+    std::vector<uint32_t>().swap(keys);
+    std::vector<uint32_t>().swap(sort_tmp);
+    std::vector<Range>().swap(ranges);
   }
 }
 

@@ -10,6 +10,12 @@ size_t Page::bytes() const {
          nodes.capacity() * sizeof(PageNode);
 }
 
+namespace {
+// Scratch kept by a thread for pages up to this size (store pages hold a few
+// thousand triangles); larger ones are freed after use.
+constexpr size_t kKeepScratchTriangles = size_t(1) << 20;
+}  // namespace
+
 Page make_page(const PageCorners& batch) {
   Page page;
   const bool normals = batch.normal_codes.size() == batch.positions.size();
@@ -43,6 +49,10 @@ Page make_page(const PageCorners& batch) {
     }
     p.first = b.first;
     p.count = b.count;
+  }
+  if (n > kKeepScratchTriangles) {  // an outsized page: do not keep its scratch for the thread's life
+    std::vector<Bbox>().swap(boxes);
+    bvh = Bvh{};
   }
   return page;
 }
@@ -80,6 +90,7 @@ StatusOr<std::shared_ptr<const Page>> PageCache::get(const OctreeStore& store, u
       bytes_read = store.pages()[index].bytes;  // as stored (compact), not as decoded
       result = std::shared_ptr<const Page>(std::make_shared<Page>(make_page(batch)));
     }
+    if (batch.size() > kKeepScratchTriangles) batch = PageCorners{};
   }
 
   lock.lock();

@@ -21,6 +21,7 @@
 #include "core/system.h"
 #include "gen/generate.h"
 #include "geometry/collapse_deviation.h"
+#include "probe/bvh.h"
 #include "probe/probe.h"
 #include "probe/store_tracer.h"
 #include "scene/scene_camera.h"
@@ -171,6 +172,38 @@ TEST(StoreTracer, MatchesBruteForce) {
     EXPECT_LT(tc.page_visits, b.store->pages().size());  // front to back: not every page
   }
   EXPECT_GT(hits, 100);
+}
+
+TEST(Bvh, ReusedArraysGiveTheFreshBuild) {
+  // build_bvh into a Bvh (and the thread's scratch) that held a larger and
+  // then a smaller tree gives exactly the tree a fresh build gives.
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> u(-5, 5);
+  auto boxes_of = [&](size_t n) {
+    std::vector<Bbox> boxes(n);
+    for (Bbox& b : boxes) {
+      const Vec3d c(u(rng), u(rng), u(rng));
+      b.expand(c);
+      b.expand(c + Vec3d(0.1 + 0.01 * u(rng), 0.2, 0.05));
+    }
+    return boxes;
+  };
+  Bvh reused;
+  for (size_t n : {3000u, 17u, 700u, 1u, 0u, 250u}) {
+    const std::vector<Bbox> boxes = boxes_of(n);
+    const Bvh fresh = build_bvh(boxes, 8);
+    build_bvh(boxes, 8, reused);
+    ASSERT_EQ(reused.order, fresh.order) << n;
+    ASSERT_EQ(reused.nodes.size(), fresh.nodes.size()) << n;
+    for (size_t i = 0; i < fresh.nodes.size(); ++i) {
+      EXPECT_EQ(reused.nodes[i].first, fresh.nodes[i].first);
+      EXPECT_EQ(reused.nodes[i].count, fresh.nodes[i].count);
+      EXPECT_EQ(reused.nodes[i].box.lo, fresh.nodes[i].box.lo);
+      EXPECT_EQ(reused.nodes[i].box.hi, fresh.nodes[i].box.hi);
+    }
+    for (uint32_t i = 0; i < n; ++i)  // every item once
+      EXPECT_EQ(std::count(fresh.order.begin(), fresh.order.end(), i), 1);
+  }
 }
 
 TEST(PageCache, BoundedCacheGivesSameHits) {
