@@ -176,6 +176,8 @@ int run_simplify(int argc, char** argv) {
   if (r.fold_passes || s.folded)
     std::printf("  folds      %llu cells refined in %llu more passes for triangles turned over; %llu turned over left\n",
                 ull(r.fold_cells_refined), ull(r.fold_passes), ull(s.folded));
+  if (r.folds_stopped_by_memory)
+    std::printf("  folds      refining stopped: the next pass's cells would not fit the memory limit (raise --memory-limit)\n");
   if (s.normal_fallbacks) std::printf("  normals    %llu fell back (merged normals cancelled; the quadric's normal used)\n", ull(s.normal_fallbacks));
   std::printf("%s", quantisation.c_str());
   std::printf("  bytes      %llu (%s)\n", ull(bytes), format_bytes(bytes).c_str());

@@ -162,6 +162,7 @@ StatusOr<SimplifiedMesh> simplify_cut_to_draco(const OctreeStore& store, const C
   SimplifiedMesh sm;
   sm.drc = out;
   sm.triangles = triangles;
+  if (simplified.folds_stopped_by_memory) sm.folds_left_for_memory = simplified.stats.folded;
   sm.drc_bytes = written.bytes;
   sm.position_bits = written.position_bits;
   sm.max_position_error = written.max_position_error;
@@ -667,6 +668,10 @@ StatusOr<StagedMeshes> simplify_or_reuse(RunSession& session, const Scene& scene
         if (retry) simplified = simplify_store();
       }
       RAYLOD_ASSIGN_OR_RETURN(sm, std::move(simplified));
+      if (sm.folds_left_for_memory)
+        session.warnings.push_back(stores.meshes[i].string() + ": " + std::to_string(sm.folds_left_for_memory) +
+                                   " triangles stay turned over (they may sparkle through glass or on mirrors): "
+                                   "refining their cells would not fit the memory limit; raise --memory-limit");
       if (sm.triangles == 0) {
         // Nothing to cache or render: the object is left out, and the user told why.
         sm.cache_note = "not cached (no triangles)";

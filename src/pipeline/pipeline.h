@@ -89,6 +89,7 @@ struct SimplifiedMesh {
   double max_position_error = 0;
   bool cache_hit = false;
   std::string cache_note;             // which entry was reused and why, or why rebuilt
+  uint64_t folds_left_for_memory = 0; // triangles left turned over: refining their cells would pass the memory limit
 };
 
 struct RunResult {

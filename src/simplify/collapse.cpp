@@ -453,12 +453,11 @@ IndexedMesh CollapseBuilder::finish(CollapseStats* stats_out) {
 
 // ---------------------------------------------------------------- simplify
 
-SimplifyEstimate estimate_simplify(const OctreeStore& store, const Cut& cut) {
+namespace {
+
+SimplifyEstimate estimate_from_counts(const OctreeStore& store, uint64_t collapsed_corners, uint64_t found) {
   SimplifyEstimate e;
-  uint64_t found = 0;
-  for (const auto& c : cut.cells) {
-    if (const NodeRecord* n = store.find(c.key)) { e.collapsed_corners += n->corner_count; ++found; }
-  }
+  e.collapsed_corners = collapsed_corners;
   const uint64_t t = store.header().triangle_count;
   const uint64_t removed = std::min<uint64_t>(t, e.collapsed_corners / 3);
   e.triangles = std::min<uint64_t>(t, t - removed + 2 * found);
@@ -467,6 +466,23 @@ SimplifyEstimate estimate_simplify(const OctreeStore& store, const Cut& cut) {
             found * (sizeof(Representative) + 48);
   e.write_bytes = e.triangles * (12 + kDracoEncodeBytesPerTriangle) + e.vertices * 2 * sizeof(Vec3);
   return e;
+}
+
+// The estimate for collapsing exactly `keys` (cells the store has nodes for).
+SimplifyEstimate estimate_collapse(const OctreeStore& store, std::span<const CellKey> keys) {
+  uint64_t corners = 0, found = 0;
+  for (const CellKey& key : keys)
+    if (const NodeRecord* n = store.find(key)) { corners += n->corner_count; ++found; }
+  return estimate_from_counts(store, corners, found);
+}
+
+}  // namespace
+
+SimplifyEstimate estimate_simplify(const OctreeStore& store, const Cut& cut) {
+  uint64_t corners = 0, found = 0;
+  for (const auto& c : cut.cells)
+    if (const NodeRecord* n = store.find(c.key)) { corners += n->corner_count; ++found; }
+  return estimate_from_counts(store, corners, found);
 }
 
 namespace {
@@ -618,7 +634,7 @@ StatusOr<SimplifyResult> simplify(const OctreeStore& store, const Cut& cut, cons
   SimplifyResult result;
   result.cut_cells = cut.cells.size();
 
-  const SimplifyEstimate estimate = estimate_simplify(store, cut);
+  SimplifyEstimate estimate = estimate_simplify(store, cut);
   if (config.memory_limit && estimate.bytes > config.memory_limit)
     return Status::error("the simplified mesh (about " + std::to_string(estimate.triangles) + " triangles) needs about " +
                          format_bytes(estimate.bytes) + ", over the memory limit of " +
@@ -672,6 +688,17 @@ StatusOr<SimplifyResult> simplify(const OctreeStore& store, const Cut& cut, cons
         }
       }
     }
+    // Refined cells keep more triangles (at 100M, 6.6M -> 9.4M over three
+    // passes): the refinement stops where it would outgrow the memory limit,
+    // leaving those folds, rather than fail in the building pass.
+    const SimplifyEstimate refined = estimate_collapse(store, next_keys);
+    const uint64_t fold_limit = config.fold_memory_limit ? config.fold_memory_limit : config.memory_limit;
+    if (fold_limit && refined.bytes > fold_limit) {
+      result.fold_cells_refined -= changed.size();
+      result.folds_stopped_by_memory = true;
+      break;
+    }
+    estimate = refined;  // the building pass reserves for what comes
     keys.swap(next_keys);
     reps.swap(next_reps);
     ++result.fold_passes;

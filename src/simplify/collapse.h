@@ -211,6 +211,10 @@ struct SimplifyConfig {
   // or glass material: a turned-over triangle shows there as a sparkle, while
   // opaque shading is two-sided and hides it.
   int fold_passes = 0;
+  // Estimated memory (SimplifyEstimate::bytes) the fold passes may let the
+  // mesh grow to: a pass whose refined cells would need more is left out,
+  // its folds stay and folds_stopped_by_memory says so. 0 = memory_limit.
+  uint64_t fold_memory_limit = 0;
 };
 
 struct SimplifyEstimate {
@@ -222,7 +226,9 @@ struct SimplifyEstimate {
 };
 // Estimate from the store's counts and the cut alone: triangles with no corner
 // in a collapsed cell survive, plus about two triangles per representative
-// vertex (Euler: T ~ 2V on a closed manifold).
+// vertex (Euler: T ~ 2V on a closed manifold). Fold passes (glass, mirrors)
+// refine cells and so keep more than this: simplify estimates again after
+// each and stops refining where the limit would be passed.
 SimplifyEstimate estimate_simplify(const OctreeStore& store, const Cut& cut);
 
 struct SimplifyResult {
@@ -233,6 +239,7 @@ struct SimplifyResult {
   uint64_t clamped_representatives = 0;
   uint64_t fold_passes = 0;           // extra passes over the pages to undo folds
   uint64_t fold_cells_refined = 0;    // cut cells replaced by their children (or kept) for a fold
+  bool folds_stopped_by_memory = false;  // a fold pass's refinement was left out: it would not fit memory_limit
   uint64_t pages_read = 0;
   double seconds = 0;
 };
