@@ -455,9 +455,14 @@ IndexedMesh CollapseBuilder::finish(CollapseStats* stats_out) {
 
 namespace {
 
-SimplifyEstimate estimate_from_counts(const OctreeStore& store, uint64_t collapsed_corners, uint64_t found) {
+// The estimate for collapsing the cells key_of(c) of `cells` (those the store
+// has no node for are ignored).
+template <class Cells, class KeyOf>
+SimplifyEstimate estimate_cells(const OctreeStore& store, const Cells& cells, KeyOf key_of) {
   SimplifyEstimate e;
-  e.collapsed_corners = collapsed_corners;
+  uint64_t found = 0;
+  for (const auto& c : cells)
+    if (const NodeRecord* n = store.find(key_of(c))) { e.collapsed_corners += n->corner_count; ++found; }
   const uint64_t t = store.header().triangle_count;
   const uint64_t removed = std::min<uint64_t>(t, e.collapsed_corners / 3);
   e.triangles = std::min<uint64_t>(t, t - removed + 2 * found);
@@ -468,21 +473,10 @@ SimplifyEstimate estimate_from_counts(const OctreeStore& store, uint64_t collaps
   return e;
 }
 
-// The estimate for collapsing exactly `keys` (cells the store has nodes for).
-SimplifyEstimate estimate_collapse(const OctreeStore& store, std::span<const CellKey> keys) {
-  uint64_t corners = 0, found = 0;
-  for (const CellKey& key : keys)
-    if (const NodeRecord* n = store.find(key)) { corners += n->corner_count; ++found; }
-  return estimate_from_counts(store, corners, found);
-}
-
 }  // namespace
 
 SimplifyEstimate estimate_simplify(const OctreeStore& store, const Cut& cut) {
-  uint64_t corners = 0, found = 0;
-  for (const auto& c : cut.cells)
-    if (const NodeRecord* n = store.find(c.key)) { corners += n->corner_count; ++found; }
-  return estimate_from_counts(store, corners, found);
+  return estimate_cells(store, cut.cells, [](const auto& c) { return c.key; });
 }
 
 namespace {
@@ -677,7 +671,6 @@ StatusOr<SimplifyResult> simplify(const OctreeStore& store, const Cut& cut, cons
         next_reps.push_back(reps[i]);
         continue;
       }
-      ++result.fold_cells_refined;
       changed.push_back(store.cell_bounds(keys[i]));
       if (keys[i].level >= uint32_t(h.quadric_depth)) continue;
       for (uint64_t c = 0; c < 8; ++c) {
@@ -691,14 +684,14 @@ StatusOr<SimplifyResult> simplify(const OctreeStore& store, const Cut& cut, cons
     // Refined cells keep more triangles (at 100M, 6.6M -> 9.4M over three
     // passes): the refinement stops where it would outgrow the memory limit,
     // leaving those folds, rather than fail in the building pass.
-    const SimplifyEstimate refined = estimate_collapse(store, next_keys);
+    const SimplifyEstimate refined = estimate_cells(store, next_keys, [](const CellKey& k) { return k; });
     const uint64_t fold_limit = config.fold_memory_limit ? config.fold_memory_limit : config.memory_limit;
     if (fold_limit && refined.bytes > fold_limit) {
-      result.fold_cells_refined -= changed.size();
       result.folds_stopped_by_memory = true;
       break;
     }
     estimate = refined;  // the building pass reserves for what comes
+    result.fold_cells_refined += changed.size();  // one box per folding cell
     keys.swap(next_keys);
     reps.swap(next_reps);
     ++result.fold_passes;
