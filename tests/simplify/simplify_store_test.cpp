@@ -147,23 +147,36 @@ IndexedMesh fold_passes_by_full_rebuilds(const OctreeStore& store, const Cut& cu
   }
 }
 
+// Two concentric spheres 0.06 apart, the inner one facing inwards, positions
+// only (as an STL gives them): a thin glass wall.
+TriangleBatch thin_glass_wall() {
+  TriangleBatch shell = test::uv_sphere({0, 0, 0}, 1.0f, 96, 160);
+  const TriangleBatch inner = test::uv_sphere({0, 0, 0}, 0.94f, 96, 160);
+  for (size_t t = 0; t < inner.size(); ++t)
+    add_tri(shell, inner.positions[3 * t], inner.positions[3 * t + 2], inner.positions[3 * t + 1]);
+  shell.normals.clear();
+  return shell;
+}
+
+// Its level-5 cells above y = 0.3: about as large as the wall is thick.
+Cut thin_wall_cut(const OctreeStore& store) {
+  const int level = 5;
+  Cut cut;
+  for (const NodeRecord& n : store.level(level))
+    if (store.cell_bounds({uint32_t(level), n.code}).lo.y >= 0.3) cut.cells.push_back({{uint32_t(level), n.code}, 0.05f, 1});
+  return cut;
+}
+
 // A collapsed cell whose representative lands beyond a thin triangle's other
 // corners turns that triangle over; a thin glass wall (two concentric spheres
 // 0.06 apart, the inner one facing inwards) collapsed at cells about as large
 // as the wall is thick does so. simplify() replaces such cells by their
 // children until no triangle faces against its input triangle.
 TEST(SimplifyStore, CellsThatTurnTrianglesOverAreRefined) {
-  TriangleBatch shell = test::uv_sphere({0, 0, 0}, 1.0f, 96, 160);
-  const TriangleBatch inner = test::uv_sphere({0, 0, 0}, 0.94f, 96, 160);
-  for (size_t t = 0; t < inner.size(); ++t)
-    add_tri(shell, inner.positions[3 * t], inner.positions[3 * t + 2], inner.positions[3 * t + 1]);
-  shell.normals.clear();  // positions only, as an STL gives them
+  const TriangleBatch shell = thin_glass_wall();
   BuiltStore b = build(shell, "folds");
   ASSERT_TRUE(b.store);
-  const int level = 5;
-  Cut cut;
-  for (const NodeRecord& n : b.store->level(level))
-    if (b.store->cell_bounds({uint32_t(level), n.code}).lo.y >= 0.3) cut.cells.push_back({{uint32_t(level), n.code}, 0.05f, 1});
+  const Cut cut = thin_wall_cut(*b.store);
   ASSERT_GT(cut.cells.size(), 100u);
   SimplifyConfig as_given;
   as_given.fold_passes = 0;
@@ -204,17 +217,9 @@ TEST(SimplifyStore, FoldRefinementStopsAtTheMemoryLimit) {
   // Refining keeps more triangles than the cut's estimate: with a limit the
   // cut just fits, the refinement is left out (folds stay, reported) rather
   // than the building pass failing at the limit part way.
-  TriangleBatch shell = test::uv_sphere({0, 0, 0}, 1.0f, 96, 160);
-  const TriangleBatch inner = test::uv_sphere({0, 0, 0}, 0.94f, 96, 160);
-  for (size_t t = 0; t < inner.size(); ++t)
-    add_tri(shell, inner.positions[3 * t], inner.positions[3 * t + 2], inner.positions[3 * t + 1]);
-  shell.normals.clear();
-  BuiltStore b = build(shell, "fold-limit");
+  BuiltStore b = build(thin_glass_wall(), "fold-limit");
   ASSERT_TRUE(b.store);
-  const int level = 5;
-  Cut cut;
-  for (const NodeRecord& n : b.store->level(level))
-    if (b.store->cell_bounds({uint32_t(level), n.code}).lo.y >= 0.3) cut.cells.push_back({{uint32_t(level), n.code}, 0.05f, 1});
+  const Cut cut = thin_wall_cut(*b.store);
   SimplifyConfig as_given;
   auto raw = simplify(*b.store, cut, as_given);
   ASSERT_TRUE(raw.is_ok()) << raw.status().message();
