@@ -103,13 +103,15 @@ constexpr const char* kOriginEntry = "raylod_origin";
 // from the header alone (draco_triangle_count) instead of decoding twice.
 constexpr const char* kTrianglesEntry = "raylod_triangles";
 
+namespace {
+
 // Bit-identical values become one attribute value, and vertices with the
 // same values one point, so that edgebreaker sees the connectivity across
 // normal seams (better prediction, smaller file). This is what Draco's
 // DeduplicateAttributeValues and DeduplicatePointIds do, in the same
 // first-use order, but with one flat hash table instead of a node-based
 // map per attribute (writing 9.4M triangles: 12.2 s before, 5.8 s after).
-static void fill_draco_mesh(const IndexedMesh& mesh, draco::Mesh& dm, int& position_id, int& normal_id) {
+void fill_draco_mesh(const IndexedMesh& mesh, draco::Mesh& dm, int& position_id, int& normal_id) {
   const bool normals = !mesh.normals.empty();
   const uint32_t n = uint32_t(mesh.positions.size());
   auto bits_of = [](const Vec3& v) {
@@ -158,8 +160,6 @@ static void fill_draco_mesh(const IndexedMesh& mesh, draco::Mesh& dm, int& posit
     dm.SetFace(draco::FaceIndex(uint32_t(t)), f);
   }
 }
-
-namespace {
 
 // `release`, if given, is `mesh` itself: its arrays are freed once Draco's
 // mesh holds a copy, before the encoder's own tables are allocated.
