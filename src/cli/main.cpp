@@ -15,6 +15,7 @@
 
 #include "cli/cli.h"
 #include "core/cluster.h"
+#include "core/system.h"
 
 namespace {
 
@@ -47,6 +48,13 @@ int main(int argc, char** argv) {
   // --memory-limit.
   mallopt(M_MMAP_THRESHOLD, 256 * 1024);
 #endif
+  if (const char* feature = raylod::missing_cpu_feature()) {
+    std::fprintf(stderr,
+                 "raylod: this build uses %s instructions, which this CPU lacks; rebuild with\n"
+                 "  cmake -S . -B build -DRAYLOD_X86_LEVEL=\"\"   (the compiler's default level)\n",
+                 feature);
+    return 1;
+  }
   if (argc < 2 || !std::strcmp(argv[1], "--help") || !std::strcmp(argv[1], "-h") || !std::strcmp(argv[1], "help")) {
     print_help();
     return argc < 2 ? 2 : 0;

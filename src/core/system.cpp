@@ -57,6 +57,37 @@ uint64_t physical_memory_bytes() {
   return pages > 0 && page > 0 ? uint64_t(pages) * uint64_t(page) : (uint64_t(4) << 30);
 }
 
+const char* missing_cpu_feature() {
+#if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
+  __builtin_cpu_init();
+#if defined(__SSE3__)
+  if (!__builtin_cpu_supports("sse3")) return "sse3";
+#endif
+#if defined(__SSSE3__)
+  if (!__builtin_cpu_supports("ssse3")) return "ssse3";
+#endif
+#if defined(__SSE4_1__)
+  if (!__builtin_cpu_supports("sse4.1")) return "sse4.1";
+#endif
+#if defined(__SSE4_2__)
+  if (!__builtin_cpu_supports("sse4.2")) return "sse4.2";
+#endif
+#if defined(__POPCNT__)
+  if (!__builtin_cpu_supports("popcnt")) return "popcnt";
+#endif
+#if defined(__AVX__)
+  if (!__builtin_cpu_supports("avx")) return "avx";
+#endif
+#if defined(__AVX2__)
+  if (!__builtin_cpu_supports("avx2")) return "avx2";
+#endif
+#if defined(__FMA__)
+  if (!__builtin_cpu_supports("fma")) return "fma";
+#endif
+#endif
+  return nullptr;
+}
+
 StatusOr<uint64_t> parse_size(const std::string& text) {
   const std::string quoted = "'" + text + "'";
   // Digits first: from_chars takes no sign, space, point or exponent, so

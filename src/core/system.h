@@ -33,6 +33,11 @@ class ScopedSmallPages {
   bool changed_ = false;  // the process allowed huge pages before
 };
 
+// The first instruction set extension this build was compiled to use
+// (CMake's RAYLOD_X86_LEVEL) that the CPU running it lacks, e.g. "sse4.2";
+// nullptr when the CPU has them all, or the build asks for none.
+const char* missing_cpu_feature();
+
 // Parses a size in bytes: a positive whole number with an optional unit,
 // "1000000", "512M", "2G", "1GiB" (B, K, M, G, T and their KB/KiB spellings,
 // any case; powers of 1024). Fractions ("1.5G", "0.5"), signs, exponents, 0
