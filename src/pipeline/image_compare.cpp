@@ -6,13 +6,10 @@
 #include <OpenImageIO/imagebuf.h>
 #include <OpenImageIO/imagebufalgo.h>
 
+#include "render/srgb.h"
+
 namespace raylod {
 namespace {
-
-float srgb_encode(float v) {
-  v = std::clamp(v, 0.0f, 1.0f);
-  return v <= 0.0031308f ? 12.92f * v : 1.055f * std::pow(v, 1.0f / 2.4f) - 0.055f;
-}
 
 OIIO::ImageBuf to_buf(const Image& im) {
   OIIO::ImageSpec spec(im.width, im.height, im.channels, OIIO::TypeDesc::FLOAT);
@@ -70,7 +67,7 @@ double ssim(const Image& a, const Image& b) {
 
 Image to_display(const Image& linear) {
   Image out = linear;
-  for (auto& v : out.pixels) v = srgb_encode(v);
+  for (auto& v : out.pixels) v = linear_to_srgb(v);
   return out;
 }
 

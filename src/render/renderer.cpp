@@ -25,6 +25,7 @@
 #include "core/progress.h"
 #include "core/random.h"
 #include "core/system.h"
+#include "render/srgb.h"
 #include "scene/scene_camera.h"
 #include "streaming/mesh_reader.h"
 
@@ -52,11 +53,6 @@ void strata(int spp, int& sx, int& sy) {
   for (int d = 1; d * d <= spp; ++d)
     if (spp % d == 0) sx = d;
   sy = spp / sx;
-}
-
-float linear_to_srgb(float v) {
-  v = std::clamp(v, 0.0f, 1.0f);
-  return v <= 0.0031308f ? 12.92f * v : 1.055f * std::pow(v, 1.0f / 2.4f) - 0.055f;
 }
 
 bool is_float_format(const std::filesystem::path& path) {
@@ -543,8 +539,7 @@ Status write_image(const std::filesystem::path& path, const Image& image) {
     return write_pixels(path, spec, image.pixels.data(), OIIO::TypeDesc::FLOAT);
   }
   std::vector<uint8_t> bytes(image.pixels.size());
-  for (size_t i = 0; i < bytes.size(); ++i)
-    bytes[i] = uint8_t(std::lround(linear_to_srgb(image.pixels[i]) * 255.0f));
+  srgb_bytes(image.pixels, bytes);
   OIIO::ImageSpec spec(image.width, image.height, image.channels, OIIO::TypeDesc::UINT8);
   spec.attribute("oiio:ColorSpace", "sRGB");
   return write_pixels(path, spec, bytes.data(), OIIO::TypeDesc::UINT8);
@@ -571,8 +566,7 @@ StatusOr<Image> read_image(const std::filesystem::path& path) {
   const bool encoded = spec.format.basetype == OIIO::TypeDesc::UINT8 || spec.format.basetype == OIIO::TypeDesc::UINT16;
   in->close();
   if (encoded) {  // back to linear, the inverse of write_image
-    for (float& v : image.pixels)
-      v = v <= 0.04045f ? v / 12.92f : std::pow((v + 0.055f) / 1.055f, 2.4f);
+    for (float& v : image.pixels) v = srgb_to_linear(v);
   }
   return image;
 }
