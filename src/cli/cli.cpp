@@ -121,16 +121,20 @@ StatusOr<double> crease_angle_from_args(const Args& args, double fallback) {
 }
 
 std::vector<Args::Option> cut_options() {
-  char k[256], tol[200];
+  char k[256], tol[200], angle[300];
   std::snprintf(k, sizeof k, "K: cells may collapse while their diagonal < K x footprint\n"
                 "                              (default %g; %g with --criterion diagonal)",
                 kDefaultFootprintScale, kDefaultDiagonalFootprintScale);
   std::snprintf(tol, sizeof tol,
                 "deviation criterion: largest surface deviation a collapse may cause,\n"
                 "                              in pixels (default %g)", kDefaultTolerancePx);
+  std::snprintf(angle, sizeof angle,
+                "deviation criterion on mirrors and glass: largest turn of a reflected\n"
+                "                              or refracted ray, in pixel angles (default %g)", kDefaultAngleTolerancePx);
   return {{"--criterion", "", "which cells collapse: deviation (default; bounded surface and\n"
                               "                              mirror-normal error) or diagonal (the paper's K test alone)", true, "NAME"},
           {"--tolerance", "", tol, true, "PX"},
+          {"--angle-tolerance", "", angle, true, "PX"},
           {"--footprint-scale", "", k, true, "K"}};
 }
 
@@ -144,6 +148,8 @@ StatusOr<CutOptions> cut_options_from_args(const Args& args) {
   if (args.has("--criterion")) { RAYLOD_ASSIGN_OR_RETURN(o.criterion, parse_cut_criterion(args.get("--criterion"))); }
   RAYLOD_ASSIGN_OR_RETURN(o.tolerance_px, args.get_double("--tolerance", kDefaultTolerancePx));
   if (!(o.tolerance_px > 0)) return Status::error("--tolerance must be > 0 (pixels)");
+  RAYLOD_ASSIGN_OR_RETURN(o.angle_tolerance_px, args.get_double("--angle-tolerance", kDefaultAngleTolerancePx));
+  if (!(o.angle_tolerance_px > 0)) return Status::error("--angle-tolerance must be > 0 (pixel angles)");
   const double default_k =
       o.criterion == CutCriterion::Diagonal ? kDefaultDiagonalFootprintScale : kDefaultFootprintScale;
   RAYLOD_ASSIGN_OR_RETURN(o.footprint_scale, args.get_double("--footprint-scale", default_k));

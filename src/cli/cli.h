@@ -74,6 +74,7 @@ std::vector<Args::Option> with_cut_options(std::vector<Args::Option> options);
 struct CutOptions {
   CutCriterion criterion = CutCriterion::Deviation;
   double tolerance_px = kDefaultTolerancePx;
+  double angle_tolerance_px = kDefaultAngleTolerancePx;
   double footprint_scale = kDefaultFootprintScale;
 };
 StatusOr<CutOptions> cut_options_from_args(const Args& args);

@@ -125,6 +125,7 @@ Status run_run(int argc, char** argv, bool& help) {
   opts.footprint_scale = cut.footprint_scale;
   opts.criterion = cut.criterion;
   opts.tolerance_px = cut.tolerance_px;
+  opts.angle_tolerance_px = cut.angle_tolerance_px;
   RAYLOD_ASSIGN_OR_RETURN(int64_t spp, args.get_int("--spp", 0, 1, 4096));
   RAYLOD_ASSIGN_OR_RETURN(opts.cache_limit, args.get_size("--cache-limit", uint64_t(4) << 30));
   opts.rays = uint64_t(rays);

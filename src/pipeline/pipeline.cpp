@@ -435,6 +435,7 @@ StatusOr<ProbeConfig> run_probe_config(const RunSession& session, const Scene& s
                                                               session.budget, options.progress, session.pages.get()));
   probe.criterion = options.criterion;
   probe.tolerance_px = options.tolerance_px;
+  probe.angle_tolerance_px = options.angle_tolerance_px;
   return probe;
 }
 
@@ -592,10 +593,13 @@ StatusOr<FittedCuts> select_fitting_cuts(RunSession& session, std::span<const Pr
                  ": coarsening the cut, footprint scale " + fmt("%g", probe.footprint_scale) + " -> " +
                  fmt("%g", probe.footprint_scale * 2) +
                  (probe.criterion == CutCriterion::Deviation
-                      ? ", tolerance " + fmt("%g", probe.tolerance_px) + " -> " + fmt("%g", probe.tolerance_px * 2) + " px"
+                      ? ", tolerance " + fmt("%g", probe.tolerance_px) + " -> " + fmt("%g", probe.tolerance_px * 2) +
+                            " px (angle " + fmt("%g", probe.angle_tolerance_px) + " -> " +
+                            fmt("%g", probe.angle_tolerance_px * 2) + " px)"
                       : std::string()));
     probe.footprint_scale *= 2;
     probe.tolerance_px *= 2;
+    probe.angle_tolerance_px *= 2;
   }
   fitted.footprint_scale = probe.footprint_scale;
   return fitted;

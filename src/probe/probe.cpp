@@ -395,6 +395,7 @@ std::string probe_key(const Scene& scene, const OctreeStore& store, std::span<co
   mix(config.footprint_scale);
   mix(config.criterion);
   mix(config.tolerance_px);
+  mix(config.angle_tolerance_px);
   mix(config.calibration_quantile);
   mix(config.shadow_factor);
   mix(config.limits.min_cos);
@@ -417,6 +418,7 @@ Status check_probe_inputs(const Scene& scene, std::span<const ProbeStore> stores
   }
   if (!(config.footprint_scale > 0)) return Status::error("probe: footprint scale must be > 0");
   if (!(config.tolerance_px > 0)) return Status::error("probe: tolerance must be > 0 pixels");
+  if (!(config.angle_tolerance_px > 0)) return Status::error("probe: angle tolerance must be > 0 pixels");
   return {};
 }
 
@@ -766,7 +768,7 @@ StatusOr<ProbeResult> select_shared_cuts(std::span<const ProbeView> views, const
             verdict[i] = 4;
             continue;
           }
-          if (bound_normals && 2.0 * dev.normal > config.tolerance_px * angular[size_t(L)][i]) { verdict[i] = 3; continue; }
+          if (bound_normals && 2.0 * dev.normal > config.angle_tolerance_px * angular[size_t(L)][i]) { verdict[i] = 3; continue; }
           verdict[i] = 1;
         }
       });

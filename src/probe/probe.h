@@ -47,7 +47,7 @@
 //     corners) is at most tolerance_px * need(cell), i.e. the collapsed
 //     surface stays within tolerance_px pixels of the input wherever a ray
 //     sees it, silhouettes included; AND, on mirror and glass objects, the
-//     reflected ray's turn 2 * normal_deviation is at most tolerance_px times
+//     reflected ray's turn 2 * normal_deviation is at most angle_tolerance_px times
 //     the angular spread ||dD|| of the rays leaving that surface, taken
 //     as the smallest along the rest of each path (a later surface may focus
 //     the beam while the error stays); the smallest measured at hits in the
@@ -104,6 +104,14 @@ StatusOr<CutCriterion> parse_cut_criterion(const std::string& name);
 inline constexpr double kDefaultFootprintScale = 64.0;
 inline constexpr double kDefaultDiagonalFootprintScale = 10.0;
 inline constexpr double kDefaultTolerancePx = 0.5;
+// On mirror and glass objects a collapse may turn a reflected ray (twice the
+// normal's tilt) by at most this many pixels' angular spread ||dD||. One
+// pixel: the position bound's 0.5 px, applied to the normal as well, kept
+// every mirror and glass scene measured 2.7 to 6.4 dB above its noise floor
+// (the paper bottle 3.1x, data/glass_scene.json 1.8x); at 1 px they keep
+// 2.7 and 4.1 dB (2.2x and 4.2x), at 2 px 0.7 and 1.8 dB, at 4 px both fall
+// below (README, "Accuracy across meshes").
+inline constexpr double kDefaultAngleTolerancePx = 1.0;
 
 struct ProbeConfig {
   uint64_t rays = 5000;            // test rays (the paper uses 5,000)
@@ -111,6 +119,7 @@ struct ProbeConfig {
   CutCriterion criterion = CutCriterion::Deviation;
   double footprint_scale = kDefaultFootprintScale;  // K: collapse cells with diagonal < K * footprint
   double tolerance_px = kDefaultTolerancePx;        // deviation criterion: surface deviation, in pixels
+  double angle_tolerance_px = kDefaultAngleTolerancePx;  // and a mirror or glass ray's turn, in pixel angles
   uint64_t cache_bytes = uint64_t(256) << 20;  // page cache budget; 0 = no limit
   // A page cache that outlives the trace (a view sequence's, so that a view
   // reuses the pages the views before it loaded), resized to cache_bytes

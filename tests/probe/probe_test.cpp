@@ -733,6 +733,45 @@ TEST(SharedCut, OneViewIsSelectCutsExactly) {
   EXPECT_EQ(shared->cuts[0].min_footprint, single->cuts[0].min_footprint);
 }
 
+// The mirror and glass normal bound has its own tolerance (angle_tolerance_px):
+// it moves the cut on a glass object and only there, every cell the
+// stricter bound collapses stays collapsed under the looser one, and the
+// bound is what kept the cells the looser one lets go.
+TEST(ProbeDeviation, AngleToleranceLoosensOnlyMirrorAndGlass) {
+  const Built& b = teapot();
+  auto with_angle = [&](MaterialType type, double angle) {
+    const OneObject one(b);
+    ProbeConfig c;
+    c.rays = 2000;
+    c.seed = 7;
+    c.angle_tolerance_px = angle;
+    return run_probe(make_scene(type, kEye, kLook), one.stores(), one.objects(), c);
+  };
+  auto strict = with_angle(MaterialType::Glass, 0.5), loose = with_angle(MaterialType::Glass, 4.0);
+  ASSERT_TRUE(strict && loose);
+  const Cut &s = strict->cuts[0], &l = loose->cuts[0];
+  EXPECT_GT(s.counters.at("cells_kept_for_normals"), l.counters.at("cells_kept_for_normals"));
+  ASSERT_FALSE(s.cells.empty());
+  size_t coarser = 0;
+  for (const CollapsedCell& c : s.cells) EXPECT_TRUE(collapsed_by(l, c.key)) << "level " << c.key.level;
+  for (const CollapsedCell& c : l.cells) coarser += !collapsed_by(s, c.key);
+  EXPECT_GT(coarser, 0u) << "the looser angle should collapse cells the stricter one keeps";
+  EXPECT_NE(s.key, l.key);  // cached cuts do not mix
+
+  // A diffuse teapot has no normal bound: the angle changes nothing.
+  auto d1 = with_angle(MaterialType::Diffuse, 0.5), d2 = with_angle(MaterialType::Diffuse, 4.0);
+  ASSERT_TRUE(d1 && d2);
+  EXPECT_EQ(cells_of(d1->cuts[0]), cells_of(d2->cuts[0]));
+  EXPECT_EQ(d1->cuts[0].counters.at("cells_kept_for_normals"), 0u);
+
+  ProbeConfig bad;
+  bad.angle_tolerance_px = 0;
+  const OneObject one(b);
+  auto rejected = run_probe(make_scene(MaterialType::Glass, kEye, kLook), one.stores(), one.objects(), bad);
+  ASSERT_FALSE(rejected);
+  EXPECT_NE(rejected.status().message().find("angle tolerance"), std::string::npos) << rejected.status().message();
+}
+
 // Property: every cell the shared cut collapses is collapsed (itself or
 // through an ancestor) by each view's own cut, for diffuse and glass (whose
 // normal bound uses the angular need too).
