@@ -35,9 +35,6 @@ void sort_by_key(const std::vector<uint32_t>& keys, std::vector<uint32_t>& order
   }
 }
 
-// Scratch arrays for more items than this are freed after use.
-constexpr size_t kKeepScratchItems = size_t(1) << 20;
-
 }  // namespace
 
 // Items are sorted once along a Morton curve of their centres and the tree
@@ -46,11 +43,12 @@ constexpr size_t kKeepScratchItems = size_t(1) << 20;
 // reading the page. Boxes are then computed bottom-up.
 Bvh build_bvh(std::span<const Bbox> boxes, uint32_t leaf_size) {
   Bvh bvh;
-  build_bvh(boxes, leaf_size, bvh);
+  BvhScratch scratch;
+  build_bvh(boxes, leaf_size, bvh, scratch);
   return bvh;
 }
 
-void build_bvh(std::span<const Bbox> boxes, uint32_t leaf_size, Bvh& bvh) {
+void build_bvh(std::span<const Bbox> boxes, uint32_t leaf_size, Bvh& bvh, BvhScratch& scratch) {
   bvh.nodes.clear();
   bvh.order.clear();
   if (boxes.empty()) return;
@@ -60,19 +58,17 @@ void build_bvh(std::span<const Bbox> boxes, uint32_t leaf_size, Bvh& bvh) {
   for (const Bbox& b : boxes) centres.expand(b.center());
   const Vec3d lo = centres.lo, ext = centres.extent();
   const double scale = 1023.0 / std::max({ext.x, ext.y, ext.z, 1e-300});
-  // Scratch kept by the thread: a probe builds one of these per page it
-  // reads, and fresh arrays each time cost a page fault per 4 KiB.
-  thread_local std::vector<uint32_t> keys, sort_tmp;
+  std::vector<uint32_t>& keys = scratch.keys;
   keys.resize(n);  // Morton codes; ties keep index order
   for (size_t i = 0; i < n; ++i) {
     const Vec3d q = (boxes[i].center() - lo) * scale;
     keys[i] = spread_bits(uint32_t(q.x)) | (spread_bits(uint32_t(q.y)) << 1) | (spread_bits(uint32_t(q.z)) << 2);
   }
-  sort_by_key(keys, bvh.order, sort_tmp);
+  sort_by_key(keys, bvh.order, scratch.sort_tmp);
 
   // Top-down: split ranges in halves; children are created after parents.
-  struct Range { uint32_t begin, end; };
-  thread_local std::vector<Range> ranges;
+  using Range = BvhScratch::Range;
+  std::vector<Range>& ranges = scratch.ranges;
   ranges.clear();
   bvh.nodes.reserve(2 * n / leaf_size + 1);
   bvh.nodes.push_back({});
@@ -104,11 +100,6 @@ void build_bvh(std::span<const Bbox> boxes, uint32_t leaf_size, Bvh& bvh) {
       box.expand(bvh.nodes[node.first + 1].box);
     }
     node.box = box;
-  }
-  if (n > kKeepScratchItems) {  // an outsized input: do not keep its scratch for the thread's life
-    std::vector<uint32_t>().swap(keys);
-    std::vector<uint32_t>().swap(sort_tmp);
-    std::vector<Range>().swap(ranges);
   }
 }
 

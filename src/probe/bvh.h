@@ -25,11 +25,20 @@ struct Bvh {
   size_t bytes() const { return nodes.capacity() * sizeof(BvhNode) + order.capacity() * sizeof(uint32_t); }
 };
 
+// The build's working arrays, for a caller that builds many BVHs in a row
+// (the probe, one per page it reads) and keeps them between builds: fresh
+// arrays each time cost a page fault per 4 KiB.
+struct BvhScratch {
+  struct Range { uint32_t begin, end; };
+  std::vector<uint32_t> keys, sort_tmp;
+  std::vector<Range> ranges;
+};
+
 // A linear BVH: items sorted along a Morton curve of their centres, ranges
 // halved down to leaf_size items per leaf. Deterministic for a given input.
 Bvh build_bvh(std::span<const Bbox> boxes, uint32_t leaf_size = 4);
-// The same into `out`, reusing its arrays' capacity.
-void build_bvh(std::span<const Bbox> boxes, uint32_t leaf_size, Bvh& out);
+// The same into `out` with `scratch`, reusing their arrays' capacity.
+void build_bvh(std::span<const Bbox> boxes, uint32_t leaf_size, Bvh& out, BvhScratch& scratch);
 
 // Per-ray constants for the slab test.
 struct RayBoxPrecomp {

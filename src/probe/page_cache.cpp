@@ -10,24 +10,24 @@ size_t Page::bytes() const {
          nodes.capacity() * sizeof(PageNode);
 }
 
-namespace {
-// Scratch kept by a thread for pages up to this size (store pages hold a few
-// thousand triangles); larger ones are freed after use.
-constexpr size_t kKeepScratchTriangles = size_t(1) << 20;
-}  // namespace
 
 Page make_page(const PageCorners& batch) {
+  PageScratch scratch;
+  return make_page(batch, scratch);
+}
+
+Page make_page(const PageCorners& batch, PageScratch& scratch) {
   Page page;
   const bool normals = batch.normal_codes.size() == batch.positions.size();
   const size_t n = batch.size();
-  // Scratch kept by the thread (see build_bvh): only the page's own arrays
-  // are new memory.
-  thread_local std::vector<Bbox> boxes;
-  thread_local Bvh bvh;
+  // With scratch kept from the page before, only the page's own arrays are
+  // new memory.
+  std::vector<Bbox>& boxes = scratch.boxes;
+  const Bvh& bvh = scratch.bvh;
   boxes.assign(n, Bbox{});
   for (size_t i = 0; i < n; ++i)
     for (int k = 0; k < 3; ++k) boxes[i].expand(batch.positions[3 * i + k]);
-  build_bvh(boxes, 8, bvh);
+  build_bvh(boxes, 8, scratch.bvh, scratch.bvh_scratch);
   // Triangles in leaf order, so that leaves index them directly.
   page.positions.resize(3 * n);
   if (normals) page.normal_codes.resize(3 * n);
@@ -49,10 +49,6 @@ Page make_page(const PageCorners& batch) {
     }
     p.first = b.first;
     p.count = b.count;
-  }
-  if (n > kKeepScratchTriangles) {  // an outsized page: do not keep its scratch for the thread's life
-    std::vector<Bbox>().swap(boxes);
-    bvh = Bvh{};
   }
   return page;
 }
@@ -82,15 +78,15 @@ StatusOr<std::shared_ptr<const Page>> PageCache::get(const OctreeStore& store, u
   if (index >= store.pages().size()) {
     result = Status::error("page " + std::to_string(index) + " does not exist");
   } else {
-    thread_local PageCorners batch;  // decoded corners, copied into the page in BVH order
+    PageScratch& scratch = scratch_.local();
+    PageCorners& batch = scratch.corners;  // decoded corners, copied into the page in BVH order
     Status s = store.read_page(index, batch);
     if (!s) {
       result = s;  // names the store file and the page
     } else {
       bytes_read = store.pages()[index].bytes;  // as stored (compact), not as decoded
-      result = std::shared_ptr<const Page>(std::make_shared<Page>(make_page(batch)));
+      result = std::shared_ptr<const Page>(std::make_shared<Page>(make_page(batch, scratch)));
     }
-    if (batch.size() > kKeepScratchTriangles) batch = PageCorners{};
   }
 
   lock.lock();
@@ -123,6 +119,19 @@ void PageCache::evict_locked() {
     entries_.erase(it);
     ++counters_.evictions;
   }
+}
+
+void PageCache::release_scratch() { scratch_.clear(); }
+
+uint64_t PageCache::scratch_bytes() const {
+  uint64_t bytes = 0;
+  for (const PageScratch& s : scratch_) {
+    bytes += s.corners.positions.capacity() * sizeof(Vec3) + s.corners.normal_codes.capacity() * sizeof(uint32_t) +
+             s.boxes.capacity() * sizeof(Bbox) + s.bvh.bytes() +
+             (s.bvh_scratch.keys.capacity() + s.bvh_scratch.sort_tmp.capacity()) * sizeof(uint32_t) +
+             s.bvh_scratch.ranges.capacity() * sizeof(BvhScratch::Range);
+  }
+  return bytes;
 }
 
 uint64_t PageCache::capacity() const {

@@ -15,6 +15,8 @@
 #include <unordered_map>
 #include <vector>
 
+#include <tbb/enumerable_thread_specific.h>
+
 #include "core/status.h"
 #include "probe/bvh.h"
 #include "streaming/octree_store.h"
@@ -44,7 +46,18 @@ struct Page {
   size_t bytes() const;
 };
 
+// What building pages needs besides the pages: the decoded corners, the
+// triangles' boxes, the BVH and its build arrays. Kept between pages by the
+// cache (one per thread) and freed when a trace ends.
+struct PageScratch {
+  PageCorners corners;
+  std::vector<Bbox> boxes;
+  Bvh bvh;
+  BvhScratch bvh_scratch;
+};
+
 // Builds a Page (with its BVH) from a page's corners.
+Page make_page(const PageCorners& corners, PageScratch& scratch);
 Page make_page(const PageCorners& corners);
 
 struct PageCacheCounters {
@@ -77,6 +90,13 @@ class PageCache {
   void set_capacity(uint64_t capacity_bytes);
   // Drops every page (a store was reopened: its pages are another file's).
   void clear();
+  // Frees what the threads kept for building pages (PageScratch), up to the
+  // largest page each read: a trace calls it when it ends, so that none of it
+  // stays while later stages work within the memory limit. Not while a
+  // trace reads through the cache.
+  void release_scratch();
+  // What the threads keep for building pages now (capacities, in bytes).
+  uint64_t scratch_bytes() const;
 
  private:
   using Key = std::pair<const OctreeStore*, uint32_t>;
@@ -98,6 +118,7 @@ class PageCache {
   mutable std::mutex mutex_;
   std::unordered_map<Key, Entry, KeyHash> entries_;
   std::list<Key> lru_;  // most recently used first; loaded pages only
+  tbb::enumerable_thread_specific<PageScratch> scratch_;
   PageCacheCounters counters_;
 };
 

@@ -480,6 +480,7 @@ StatusOr<ProbeTrace> trace_probe(const Scene& scene, std::span<const ProbeStore>
     });
     if (progress) progress->finish();
   }
+  cache.release_scratch();  // the trace is over: what its threads kept for building pages goes
   ProbeTrace result;
   ProbeRayCounters total;
   for (const RayOutcome& o : outcomes) {

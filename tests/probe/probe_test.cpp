@@ -175,8 +175,8 @@ TEST(StoreTracer, MatchesBruteForce) {
 }
 
 TEST(Bvh, ReusedArraysGiveTheFreshBuild) {
-  // build_bvh into a Bvh (and the thread's scratch) that held a larger and
-  // then a smaller tree gives exactly the tree a fresh build gives.
+  // build_bvh into a Bvh and scratch that held a larger and then a smaller
+  // tree gives exactly the tree a fresh build gives.
   std::mt19937 rng(11);
   std::uniform_real_distribution<double> u(-5, 5);
   auto boxes_of = [&](size_t n) {
@@ -189,10 +189,11 @@ TEST(Bvh, ReusedArraysGiveTheFreshBuild) {
     return boxes;
   };
   Bvh reused;
+  BvhScratch scratch;
   for (size_t n : {3000u, 17u, 700u, 1u, 0u, 250u}) {
     const std::vector<Bbox> boxes = boxes_of(n);
     const Bvh fresh = build_bvh(boxes, 8);
-    build_bvh(boxes, 8, reused);
+    build_bvh(boxes, 8, reused, scratch);
     ASSERT_EQ(reused.order, fresh.order) << n;
     ASSERT_EQ(reused.nodes.size(), fresh.nodes.size()) << n;
     for (size_t i = 0; i < fresh.nodes.size(); ++i) {
@@ -834,9 +835,17 @@ TEST(ProbeShares, KeptPageCacheGivesTheSameTraceAndReadsLess) {
   ASSERT_GT(own->counters.at("pages_read"), 1u);
 
   PageCache kept(0);
+  // Reading a page leaves the thread's scratch for the next one; a trace
+  // frees it when it ends, so none of it outlasts the probe.
+  ASSERT_TRUE(kept.get(*b.store, 0).is_ok());
+  EXPECT_GT(kept.scratch_bytes(), 0u);
+  kept.release_scratch();
+  EXPECT_EQ(kept.scratch_bytes(), 0u);
+  kept.clear();
   ProbeConfig shared = c;
   shared.pages = &kept;
   auto first = trace_probe(scene, stores, objects, shared);
+  EXPECT_EQ(kept.scratch_bytes(), 0u);
   auto second = trace_probe(scene, stores, objects, shared);
   ASSERT_TRUE(first && second);
   EXPECT_EQ(first->counters.at("pages_read"), own->counters.at("pages_read"));
