@@ -10,7 +10,6 @@ size_t Page::bytes() const {
          nodes.capacity() * sizeof(PageNode);
 }
 
-
 Page make_page(const PageCorners& batch) {
   PageScratch scratch;
   return make_page(batch, scratch);
