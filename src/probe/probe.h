@@ -107,10 +107,10 @@ inline constexpr double kDefaultTolerancePx = 0.5;
 // On mirror and glass objects a collapse may turn a reflected ray (twice the
 // normal's tilt) by at most this many pixels' angular spread ||dD||. One
 // pixel: the position bound's 0.5 px, applied to the normal as well, kept
-// every mirror and glass scene measured 2.7 to 6.4 dB above its noise floor
-// (the paper bottle 3.1x, data/glass_scene.json 1.8x); at 1 px they keep
-// 2.7 and 4.1 dB (2.2x and 4.2x), at 2 px 0.7 and 1.8 dB, at 4 px both fall
-// below (README, "Accuracy across meshes").
+// data/glass_scene.json and the paper bottle 4.8 and 6.4 dB above their
+// noise floors (1.8x and 3.1x); at 1 px they stay 2.7 and 4.1 dB above
+// (2.2x and 4.2x), at 2 px 0.7 and 1.8 dB, at 4 px both fall below
+// (README, "Accuracy across meshes").
 inline constexpr double kDefaultAngleTolerancePx = 1.0;
 
 struct ProbeConfig {
