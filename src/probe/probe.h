@@ -105,12 +105,13 @@ inline constexpr double kDefaultFootprintScale = 64.0;
 inline constexpr double kDefaultDiagonalFootprintScale = 10.0;
 inline constexpr double kDefaultTolerancePx = 0.5;
 // On mirror and glass objects a collapse may turn a reflected ray (twice the
-// normal's tilt) by at most this many pixels' angular spread ||dD||. One
-// pixel: the position bound's 0.5 px, applied to the normal as well, kept
-// data/glass_scene.json and the paper bottle 4.8 and 6.4 dB above their
-// noise floors (1.8x and 3.1x); at 1 px they stay 2.7 and 4.1 dB above
-// (2.2x and 4.2x), at 2 px 0.7 and 1.8 dB, at 4 px both fall below
-// (README, "Accuracy across meshes").
+// normal's tilt) by at most this many pixels' angular spread ||dD||.
+// Measured on data/glass_scene.json and the paper bottle (README, "Accuracy
+// across meshes"): at 0.5 (the position tolerance, which this bound used
+// before) they stay 4.8 and 6.4 dB above their noise floors (1.8x and 3.1x
+// fewer triangles); at 1, 2.7 and 4.1 dB (2.2x and 4.2x); at 2, 0.7 and
+// 1.8 dB; at 4 both fall below. 1 is the largest that keeps both as far
+// above as the CAD scenes are.
 inline constexpr double kDefaultAngleTolerancePx = 1.0;
 
 struct ProbeConfig {
