@@ -110,8 +110,8 @@ inline constexpr double kDefaultTolerancePx = 0.5;
 // across meshes"): at 0.5 (the position tolerance, which this bound used
 // before) they stay 4.8 and 6.4 dB above their noise floors (1.8x and 3.1x
 // fewer triangles); at 1, 2.7 and 4.1 dB (2.2x and 4.2x); at 2, 0.7 and
-// 1.8 dB; at 4 both fall below. 1 is the largest that keeps both as far
-// above as the CAD scenes are.
+// 1.8 dB; at 4 both fall below. 1 is the largest that keeps both more
+// than 2.5 dB above.
 inline constexpr double kDefaultAngleTolerancePx = 1.0;
 
 struct ProbeConfig {
