@@ -10,11 +10,6 @@ size_t Page::bytes() const {
          nodes.capacity() * sizeof(PageNode);
 }
 
-Page make_page(const PageCorners& batch) {
-  PageScratch scratch;
-  return make_page(batch, scratch);
-}
-
 Page make_page(const PageCorners& batch, PageScratch& scratch) {
   Page page;
   const bool normals = batch.normal_codes.size() == batch.positions.size();
@@ -22,11 +17,11 @@ Page make_page(const PageCorners& batch, PageScratch& scratch) {
   // With scratch kept from the page before, only the page's own arrays are
   // new memory.
   std::vector<Bbox>& boxes = scratch.boxes;
-  const Bvh& bvh = scratch.bvh;
+  Bvh& bvh = scratch.bvh;
   boxes.assign(n, Bbox{});
   for (size_t i = 0; i < n; ++i)
     for (int k = 0; k < 3; ++k) boxes[i].expand(batch.positions[3 * i + k]);
-  build_bvh(boxes, 8, scratch.bvh, scratch.bvh_scratch);
+  build_bvh(boxes, 8, bvh, scratch.bvh_scratch);
   // Triangles in leaf order, so that leaves index them directly.
   page.positions.resize(3 * n);
   if (normals) page.normal_codes.resize(3 * n);

@@ -56,9 +56,8 @@ struct PageScratch {
   BvhScratch bvh_scratch;
 };
 
-// Builds a Page (with its BVH) from a page's corners.
+// Builds a Page (with its BVH) from a page's corners, in `scratch`'s arrays.
 Page make_page(const PageCorners& corners, PageScratch& scratch);
-Page make_page(const PageCorners& corners);
 
 struct PageCacheCounters {
   uint64_t pages_read = 0;      // pages read from disk (misses that loaded)
