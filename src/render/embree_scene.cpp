@@ -444,35 +444,76 @@ void EmbreeScene::occluded_packet(std::span<const Ray> rays, const double* tfar,
   for (size_t i = 0; i < rays.size(); ++i) occluded[i] = r.tfar[i] < 0;  // -inf on a hit
 }
 
-SurfacePoint surface_point(const EmbreeScene& scene, const Hit& hit, bool with_edge_distance) {
-  const TriangleMesh& m = scene.mesh(hit.geom);
-  const uint32_t* tri = &m.indices[size_t(hit.prim) * 3];
-  const Vec3d a(m.positions[tri[0]]), b(m.positions[tri[1]]), c(m.positions[tri[2]]);
-  const double u = hit.u, v = hit.v, w = 1.0 - u - v;
-  SurfacePoint sp;
-  sp.position = a + u * (b - a) + v * (c - a);
-  const Vec3d cr = glm::cross(b - a, c - a);
-  const double twice_area = glm::length(cr);
-  sp.geometric = twice_area > 0 ? cr / twice_area : Vec3d(0, 0, 1);
-  sp.shading = sp.geometric;
-  if (!m.normals.empty()) {
-    const Vec3d n = w * Vec3d(m.normals[tri[0]]) + u * Vec3d(m.normals[tri[1]]) + v * Vec3d(m.normals[tri[2]]);
-    const double len = glm::length(n);
-    if (len > kMinShadingNormalLength) sp.shading = n / len;
-    // The vertex normals say which side is outside; the winding may disagree
-    // (CAD exports, and the reverse-wound twins a collapse keeps), so orient
-    // the face normal by them, as the probe does: inside/outside for glass
-    // then follows the normals, not whichever twin Embree reports.
-    if (glm::dot(sp.geometric, sp.shading) < 0) sp.geometric = -sp.geometric;
+void surface_points(const EmbreeScene& scene, std::span<const Hit> hits, const bool* found, bool with_edge_distance,
+                    SurfacePoint* out) {
+  // In three passes over the lanes -- fetch and cross products, square roots,
+  // divisions -- so that the lanes' sqrt and division chains overlap instead
+  // of each lane waiting out its own (their latency, not the fetches, is most
+  // of a camera hit's shading). Per lane, the arithmetic is that of one point.
+  constexpr int kMax = EmbreeScene::kPacketSize;
+  assert(hits.size() <= size_t(kMax));
+  const int n = int(hits.size());
+  Vec3d cr[kMax], ns[kMax];
+  double area2[kMax], normal2[kMax], w[kMax];
+  bool has_normals[kMax];
+  for (int i = 0; i < n; ++i) {
+    if (found && !found[i]) continue;
+    const Hit& hit = hits[size_t(i)];
+    const TriangleMesh& m = scene.mesh(hit.geom);
+    const uint32_t* tri = &m.indices[size_t(hit.prim) * 3];
+    const Vec3d a(m.positions[tri[0]]), b(m.positions[tri[1]]), c(m.positions[tri[2]]);
+    const double u = hit.u, v = hit.v;
+    w[i] = 1.0 - u - v;
+    SurfacePoint& sp = out[i];
+    sp.position = a + u * (b - a) + v * (c - a);
+    cr[i] = glm::cross(b - a, c - a);
+    area2[i] = glm::dot(cr[i], cr[i]);
+    has_normals[i] = !m.normals.empty();
+    if (has_normals[i]) {
+      ns[i] = w[i] * Vec3d(m.normals[tri[0]]) + u * Vec3d(m.normals[tri[1]]) + v * Vec3d(m.normals[tri[2]]);
+      normal2[i] = glm::dot(ns[i], ns[i]);
+    }
   }
-  if (!with_edge_distance) return sp;
-  // Distance to edge i = barycentric_i * height over that edge = b_i * 2A / |edge_i|.
-  const double la = glm::length(c - b), lb = glm::length(c - a), lc = glm::length(b - a);
-  double d = std::numeric_limits<double>::infinity();
-  if (la > 0) d = std::min(d, w * twice_area / la);
-  if (lb > 0) d = std::min(d, u * twice_area / lb);
-  if (lc > 0) d = std::min(d, v * twice_area / lc);
-  sp.edge_distance = std::isfinite(d) ? d : 0.0;
+  double twice_area[kMax], normal_length[kMax];
+  for (int i = 0; i < n; ++i) {
+    if (found && !found[i]) continue;
+    twice_area[i] = std::sqrt(area2[i]);
+    normal_length[i] = has_normals[i] ? std::sqrt(normal2[i]) : 0.0;
+  }
+  for (int i = 0; i < n; ++i) {
+    if (found && !found[i]) continue;
+    SurfacePoint& sp = out[i];
+    sp.geometric = twice_area[i] > 0 ? cr[i] / twice_area[i] : Vec3d(0, 0, 1);
+    sp.shading = sp.geometric;
+    if (has_normals[i]) {
+      if (normal_length[i] > kMinShadingNormalLength) sp.shading = ns[i] / normal_length[i];
+      // The vertex normals say which side is outside; the winding may disagree
+      // (CAD exports, and the reverse-wound twins a collapse keeps), so orient
+      // the face normal by them, as the probe does: inside/outside for glass
+      // then follows the normals, not whichever twin Embree reports.
+      if (glm::dot(sp.geometric, sp.shading) < 0) sp.geometric = -sp.geometric;
+    }
+  }
+  if (!with_edge_distance) return;
+  for (int i = 0; i < n; ++i) {
+    if (found && !found[i]) continue;
+    const Hit& hit = hits[size_t(i)];
+    const TriangleMesh& m = scene.mesh(hit.geom);
+    const uint32_t* tri = &m.indices[size_t(hit.prim) * 3];
+    const Vec3d a(m.positions[tri[0]]), b(m.positions[tri[1]]), c(m.positions[tri[2]]);
+    // Distance to edge i = barycentric_i * height over that edge = b_i * 2A / |edge_i|.
+    const double la = glm::length(c - b), lb = glm::length(c - a), lc = glm::length(b - a);
+    double d = std::numeric_limits<double>::infinity();
+    if (la > 0) d = std::min(d, w[i] * twice_area[i] / la);
+    if (lb > 0) d = std::min(d, double(hit.u) * twice_area[i] / lb);
+    if (lc > 0) d = std::min(d, double(hit.v) * twice_area[i] / lc);
+    out[i].edge_distance = std::isfinite(d) ? d : 0.0;
+  }
+}
+
+SurfacePoint surface_point(const EmbreeScene& scene, const Hit& hit, bool with_edge_distance) {
+  SurfacePoint sp;
+  surface_points(scene, {&hit, 1}, nullptr, with_edge_distance, &sp);
   return sp;
 }
 

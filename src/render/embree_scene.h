@@ -149,5 +149,9 @@ struct SurfacePoint {
   double edge_distance = 0;  // distance to the nearest triangle edge (only if asked for)
 };
 SurfacePoint surface_point(const EmbreeScene& scene, const Hit& hit, bool with_edge_distance = false);
+// The surface points of up to kPacketSize hits at once (lanes with found[i]
+// false are skipped; found may be null), each the same as surface_point's.
+void surface_points(const EmbreeScene& scene, std::span<const Hit> hits, const bool* found, bool with_edge_distance,
+                    SurfacePoint* out);
 
 }  // namespace raylod

@@ -182,13 +182,13 @@ void Integrator::shade_camera_packet(const CameraPacket& packet, CameraSample* o
   double offset[kMax];
   std::vector<ShadowQuery> queries;
   std::vector<int> query_lane;
+  surface_points(geometry_, {hits, size_t(n)}, found, config_.wireframe, sp);
   for (int i = 0; i < n; ++i) {
     out[i] = CameraSample{};
     if (!found[i]) {
       out[i].color = scene_.background;
       continue;
     }
-    sp[i] = surface_point(geometry_, hits[i], config_.wireframe);
     record_camera_hit(rays[i], hits[i], sp[i], out[i]);
     const Material& m = material(hits[i]);
     offset[i] = ray_offset(sp[i].position, config_.offset_scale);

@@ -4,6 +4,7 @@
 // for any thread count and for tiles that are not whole packets.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <bit>
 #include <cstring>
 #include <random>
@@ -88,6 +89,65 @@ TEST(PacketTraversal, SameHitsAndOcclusionAsSingleRays) {
   }
   EXPECT_GT(hits, 500);
   EXPECT_GT(blocked, 100);
+}
+
+// Distance from p to segment ab, by brute force (the closest point's parameter).
+double segment_distance(const Vec3d& p, const Vec3d& a, const Vec3d& b) {
+  const Vec3d ab = b - a;
+  const double t = std::clamp(glm::dot(p - a, ab) / glm::dot(ab, ab), 0.0, 1.0);
+  return glm::length(p - (a + t * ab));
+}
+
+TEST(SurfacePoints, EveryLaneAsAlone_AndAsTheTriangleSays) {
+  // Hits on the sphere (vertex normals) and the box and ground (face normals
+  // only), 16 to a packet with some lanes missing: surface_points gives each
+  // found lane exactly surface_point's bits, and those agree with the
+  // triangle computed here from its corners.
+  const Scene s = mirror_scene(64, 48);
+  auto geometry = EmbreeScene::build(sphere_box_meshes(s));
+  ASSERT_TRUE(geometry.is_ok()) << geometry.status().message();
+  const EmbreeScene& g = **geometry;
+  std::mt19937_64 rng(5);
+  std::uniform_real_distribution<double> u(-1, 1);
+  int checked = 0, skipped = 0;
+  for (int packet = 0; packet < 100; ++packet) {
+    const size_t n = 1 + size_t(packet % EmbreeScene::kPacketSize);
+    std::vector<Ray> rays(n);
+    for (size_t i = 0; i < n; ++i) {
+      const Vec3d target(1.8 * u(rng), 0.8 + u(rng), 1.8 * u(rng));
+      rays[i] = Ray{s.camera.eye, glm::normalize(target - s.camera.eye)};
+    }
+    Hit hits[EmbreeScene::kPacketSize];
+    bool found[EmbreeScene::kPacketSize];
+    g.intersect_packet(rays, kInf, true, hits, found);
+    for (const bool edges : {false, true}) {
+      SurfacePoint batch[EmbreeScene::kPacketSize];
+      surface_points(g, {hits, n}, found, edges, batch);
+      for (size_t i = 0; i < n; ++i) {
+        if (!found[i]) { ++skipped; continue; }
+        const SurfacePoint one = surface_point(g, hits[i], edges);
+        EXPECT_EQ(0, std::memcmp(&one, &batch[i], sizeof(SurfacePoint))) << "packet " << packet << " lane " << i;
+        const TriangleMesh& m = g.mesh(hits[i].geom);
+        const uint32_t* tri = &m.indices[size_t(hits[i].prim) * 3];
+        const Vec3d a(m.positions[tri[0]]), b(m.positions[tri[1]]), c(m.positions[tri[2]]);
+        const double bu = hits[i].u, bv = hits[i].v;
+        const Vec3d p = (1 - bu - bv) * a + bu * b + bv * c;
+        EXPECT_LT(glm::length(batch[i].position - p), 1e-12);
+        EXPECT_LT(glm::length(batch[i].position - rays[i].at(hits[i].t)), 1e-5);
+        const Vec3d face = glm::normalize(glm::cross(b - a, c - a));
+        EXPECT_NEAR(std::abs(glm::dot(batch[i].geometric, face)), 1.0, 1e-12);
+        EXPECT_NEAR(glm::length(batch[i].shading), 1.0, 1e-12);
+        EXPECT_GT(glm::dot(batch[i].geometric, batch[i].shading), 0.0);
+        if (edges) {
+          const double d = std::min({segment_distance(p, a, b), segment_distance(p, b, c), segment_distance(p, c, a)});
+          EXPECT_NEAR(batch[i].edge_distance, d, 1e-9) << "packet " << packet << " lane " << i;
+        }
+        ++checked;
+      }
+    }
+  }
+  EXPECT_GT(checked, 1000);
+  EXPECT_GT(skipped, 50);
 }
 
 TEST(Packets, SameImageAsSingleRaysWithDiffuseShadowsAndMirror) {
