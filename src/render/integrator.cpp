@@ -180,8 +180,11 @@ void Integrator::shade_camera_packet(const CameraPacket& packet, CameraSample* o
   // light order, so that each lane sums its lights in the order shade() does.
   SurfacePoint sp[kMax];
   double offset[kMax];
-  std::vector<ShadowQuery> queries;
-  std::vector<int> query_lane;
+  // Kept by the thread from packet to packet: grown once, not per packet.
+  thread_local std::vector<ShadowQuery> queries;
+  thread_local std::vector<int> query_lane;
+  queries.clear();
+  query_lane.clear();
   surface_points(geometry_, {hits, size_t(n)}, found, config_.wireframe, sp);
   for (int i = 0; i < n; ++i) {
     out[i] = CameraSample{};
