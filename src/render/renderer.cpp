@@ -71,6 +71,7 @@ Status write_pixels(const std::filesystem::path& path, const OIIO::ImageSpec& sp
   // Declared first so that it outlives the writer: a writer that still holds
   // the temporary open closes it before the temporary is removed.
   AtomicOutput atomic(path);
+  bool in_memory = false;
   {
     // The writer is chosen from the destination's name; the temporary name
     // ("out.png.tmp-...") is then only the file it writes to.
@@ -85,7 +86,7 @@ Status write_pixels(const std::filesystem::path& path, const OIIO::ImageSpec& sp
     // where every write is checked.
     std::vector<unsigned char> encoded;
     OIIO::Filesystem::IOVecOutput memory(encoded);
-    const bool in_memory = out->supports("ioproxy") && out->set_ioproxy(&memory);
+    in_memory = out->supports("ioproxy") && out->set_ioproxy(&memory);
     if (!out->open(atomic.temp_path().string(), stamped))
       return Status::error(path.string() + ": cannot open for writing: " + out->geterror());
     const bool wrote = out->write_image(type, data);
@@ -95,12 +96,20 @@ Status write_pixels(const std::filesystem::path& path, const OIIO::ImageSpec& sp
     if (in_memory) {
       std::ofstream f(atomic.temp_path(), std::ios::binary | std::ios::trunc);
       f.write(reinterpret_cast<const char*>(encoded.data()), std::streamsize(encoded.size()));
-      f.flush();
+      f.close();
       if (!f) return Status::error(path.string() + ": write failed (disk full?)");
+      // Every byte went through the checked write above; the file must hold
+      // all of them (commit's fsync then reports what the disk refuses).
+      std::error_code ec;
+      if (std::filesystem::file_size(atomic.temp_path(), ec) != encoded.size() || ec)
+        return Status::error(path.string() + ": write failed: the file is shorter than the encoded image (disk full?)");
     }
   }
-  // Read the file back: it must decode whole, with the size written.
-  {
+  // A writer that wrote the file itself is read back: it must decode whole,
+  // with the size written (some writers report success for a file cut
+  // short). An image encoded in memory was checked byte for byte above, and
+  // is not decoded again (for a 3840 x 2160 PNG that took 0.2 s).
+  if (!in_memory) {
     auto in = OIIO::ImageInput::open(atomic.temp_path().string());
     if (!in) return Status::error(path.string() + ": the written image cannot be read back (disk full?): " + OIIO::geterror());
     const OIIO::ImageSpec& got = in->spec();
@@ -441,30 +450,37 @@ RenderResult render_embree_scene(const EmbreeScene& geometry, const Scene& world
 
 namespace {
 
-// Under mpirun: every rank's tiles (pixels of every buffer, in tile order)
-// and ray counters, gathered into rank 0's result.
+// Under mpirun: every rank's tiles (each tile's rows in order, each row as
+// one run of every buffer's pixels) and ray counters, gathered into rank 0's
+// result.
 void gather_tiles(RenderResult& result, const RenderOptions& options) {
   const int ranks = options.tile_ranks, tile = std::max(1, options.tile_size);
   const int width = result.color.width, height = result.color.height;
   const int tiles_x = (width + tile - 1) / tile, tiles = tiles_x * ((height + tile - 1) / tile);
-  // Visits rank r's tiles' pixels in order: f(x, y).
-  auto each_pixel = [&](int r, auto&& f) {
+  std::vector<Image*> images{&result.color};
+  if (!result.depth.empty()) images.push_back(&result.depth);
+  if (!result.normal.empty()) images.push_back(&result.normal);
+  size_t pixel_bytes = result.triangle_id.empty() ? 0 : sizeof(uint32_t);
+  for (const Image* im : images) pixel_bytes += sizeof(float) * size_t(im->channels);
+  // Visits rank r's tiles' rows in order: f(row's first pixel index, pixels in the row).
+  auto each_row = [&](int r, auto&& f) {
     for (int t = r; t < tiles; t += ranks) {
       const int x0 = (t % tiles_x) * tile, y0 = (t / tiles_x) * tile;
-      for (int y = y0; y < std::min(height, y0 + tile); ++y)
-        for (int x = x0; x < std::min(width, x0 + tile); ++x) f(x, y);
+      const int n = std::min(width, x0 + tile) - x0;
+      for (int y = y0; y < std::min(height, y0 + tile); ++y) f(size_t(y) * width + x0, size_t(n));
     }
   };
-  auto buffers = [&](RenderResult& res) {
-    std::vector<Image*> images{&res.color};
-    if (!res.depth.empty()) images.push_back(&res.depth);
-    if (!res.normal.empty()) images.push_back(&res.normal);
-    return images;
-  };
+  size_t my_pixels = 0;
+  each_row(options.tile_rank, [&](size_t, size_t n) { my_pixels += n; });
   std::string mine = cluster::to_bytes(result.stats.rays);
-  each_pixel(options.tile_rank, [&](int x, int y) {
-    for (Image* im : buffers(result)) mine.append(reinterpret_cast<const char*>(im->at(x, y)), sizeof(float) * size_t(im->channels));
-    if (!result.triangle_id.empty()) mine += cluster::to_bytes(result.triangle_id[size_t(y) * width + x]);
+  mine.reserve(mine.size() + my_pixels * pixel_bytes);
+  each_row(options.tile_rank, [&](size_t first, size_t n) {
+    for (const Image* im : images) {
+      const size_t c = size_t(im->channels);
+      mine.append(reinterpret_cast<const char*>(im->pixels.data() + first * c), sizeof(float) * c * n);
+    }
+    if (!result.triangle_id.empty())
+      mine.append(reinterpret_cast<const char*>(result.triangle_id.data() + first), sizeof(uint32_t) * n);
   });
   const std::vector<std::string> parts = cluster::gather(mine);
   if (!cluster::is_root()) return;
@@ -473,14 +489,16 @@ void gather_tiles(RenderResult& result, const RenderOptions& options) {
     const std::string& part = parts[size_t(r)];
     total += cluster::from_bytes<RayCounters>(part);
     size_t at = sizeof(RayCounters);
-    each_pixel(r, [&](int x, int y) {
-      for (Image* im : buffers(result)) {
-        const size_t n = sizeof(float) * size_t(im->channels);
-        if (at + n <= part.size()) std::memcpy(im->at(x, y), part.data() + at, n);
-        at += n;
+    auto take = [&](void* to, size_t bytes) {
+      if (at + bytes <= part.size()) std::memcpy(to, part.data() + at, bytes);
+      at += bytes;
+    };
+    each_row(r, [&](size_t first, size_t n) {
+      for (Image* im : images) {
+        const size_t c = size_t(im->channels);
+        take(im->pixels.data() + first * c, sizeof(float) * c * n);
       }
-      if (!result.triangle_id.empty()) result.triangle_id[size_t(y) * width + x] = cluster::from_bytes<uint32_t>(part, at);
-      at += result.triangle_id.empty() ? 0 : sizeof(uint32_t);
+      if (!result.triangle_id.empty()) take(result.triangle_id.data() + first, sizeof(uint32_t) * n);
     });
   }
   result.stats.rays = total;
