@@ -49,7 +49,10 @@ inline uint32_t get_bits(const uint8_t* data, size_t size, uint64_t at, int bits
   if (bits == 0) return 0;
   const size_t byte = size_t(at >> 3);
   uint64_t w = 0;
-  std::memcpy(&w, data + byte, std::min<size_t>(8, size - byte));
+  // A whole word where the section has one (a fixed-size copy is one load);
+  // the section's last bytes alone are copied byte by byte.
+  if (byte + 8 <= size) std::memcpy(&w, data + byte, 8);
+  else std::memcpy(&w, data + byte, size - byte);
   return uint32_t((w >> (at & 7)) & ((uint64_t(1) << bits) - 1));
 }
 
@@ -249,10 +252,14 @@ Status parse_page(std::span<const uint8_t> bytes, const PageGrid& grid, GridPage
   out.q.resize(3 * size_t(nv));
   const uint8_t* pos = p + kHeaderBytes;
   uint64_t at = 0;
-  for (size_t k = 0; k < 3 * size_t(nv); ++k, at += uint64_t(position_bits)) {
-    const uint64_t q = uint64_t(origin[k % 3]) + get_bits(pos, size_t(pos_bytes), at, position_bits);
-    if (q > max_q) return Status::error("page vertex " + std::to_string(k / 3) + " is outside the root cube");
-    out.q[k] = uint32_t(q);
+  for (size_t v = 0; v < size_t(nv); ++v) {
+    bool inside = true;
+    for (int a = 0; a < 3; ++a, at += uint64_t(position_bits)) {
+      const uint64_t q = uint64_t(origin[a]) + get_bits(pos, size_t(pos_bytes), at, position_bits);
+      inside &= q <= max_q;
+      out.q[3 * v + size_t(a)] = uint32_t(q);
+    }
+    if (!inside) return Status::error("page vertex " + std::to_string(v) + " is outside the root cube");
   }
   if (out.has_normals) {
     out.codes.resize(nv);
