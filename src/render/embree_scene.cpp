@@ -454,7 +454,7 @@ void surface_points(const EmbreeScene& scene, std::span<const Hit> hits, const b
   assert(hits.size() <= size_t(kMax));
   const int n = int(hits.size());
   Vec3d cr[kMax], ns[kMax];
-  double area2[kMax], normal2[kMax], w[kMax];
+  double area2[kMax], normal2[kMax], w[kMax], edge2[kMax][3];
   bool has_normals[kMax];
   for (int i = 0; i < n; ++i) {
     if (found && !found[i]) continue;
@@ -472,13 +472,24 @@ void surface_points(const EmbreeScene& scene, std::span<const Hit> hits, const b
     if (has_normals[i]) {
       ns[i] = w[i] * Vec3d(m.normals[tri[0]]) + u * Vec3d(m.normals[tri[1]]) + v * Vec3d(m.normals[tri[2]]);
       normal2[i] = glm::dot(ns[i], ns[i]);
+    } else {
+      ns[i] = Vec3d(0);
+      normal2[i] = 0;
+    }
+    if (with_edge_distance) {
+      // Opposite corners a, b, c: |c - b|, |c - a|, |b - a|, squared.
+      edge2[i][0] = glm::dot(c - b, c - b);
+      edge2[i][1] = glm::dot(c - a, c - a);
+      edge2[i][2] = glm::dot(b - a, b - a);
     }
   }
-  double twice_area[kMax], normal_length[kMax];
+  double twice_area[kMax], normal_length[kMax], edge[kMax][3];
   for (int i = 0; i < n; ++i) {
     if (found && !found[i]) continue;
     twice_area[i] = std::sqrt(area2[i]);
     normal_length[i] = has_normals[i] ? std::sqrt(normal2[i]) : 0.0;
+    if (with_edge_distance)
+      for (int k = 0; k < 3; ++k) edge[i][k] = std::sqrt(edge2[i][k]);
   }
   for (int i = 0; i < n; ++i) {
     if (found && !found[i]) continue;
@@ -497,16 +508,11 @@ void surface_points(const EmbreeScene& scene, std::span<const Hit> hits, const b
   if (!with_edge_distance) return;
   for (int i = 0; i < n; ++i) {
     if (found && !found[i]) continue;
-    const Hit& hit = hits[size_t(i)];
-    const TriangleMesh& m = scene.mesh(hit.geom);
-    const uint32_t* tri = &m.indices[size_t(hit.prim) * 3];
-    const Vec3d a(m.positions[tri[0]]), b(m.positions[tri[1]]), c(m.positions[tri[2]]);
-    // Distance to edge i = barycentric_i * height over that edge = b_i * 2A / |edge_i|.
-    const double la = glm::length(c - b), lb = glm::length(c - a), lc = glm::length(b - a);
+    // Distance to edge k = barycentric_k * height over that edge = b_k * 2A / |edge_k|.
+    const double barycentric[3] = {w[i], double(hits[size_t(i)].u), double(hits[size_t(i)].v)};
     double d = std::numeric_limits<double>::infinity();
-    if (la > 0) d = std::min(d, w[i] * twice_area[i] / la);
-    if (lb > 0) d = std::min(d, double(hit.u) * twice_area[i] / lb);
-    if (lc > 0) d = std::min(d, double(hit.v) * twice_area[i] / lc);
+    for (int k = 0; k < 3; ++k)
+      if (edge[i][k] > 0) d = std::min(d, barycentric[k] * twice_area[i] / edge[i][k]);
     out[i].edge_distance = std::isfinite(d) ? d : 0.0;
   }
 }
