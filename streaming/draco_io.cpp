@@ -18,12 +18,14 @@
 #include <cstring>
 #include <fstream>
 #include <limits>
+#include <unordered_map>
 
 #include <draco/compression/decode.h>
 #include <draco/compression/encode.h>
 #include <draco/compression/point_cloud/point_cloud_decoder.h>
 #include <draco/metadata/metadata_decoder.h>
 #include <draco/mesh/mesh.h>
+#include <tbb/parallel_invoke.h>
 
 #include "core/fault_point.h"
 #include "core/system.h"
@@ -119,17 +121,41 @@ void fill_draco_mesh(const IndexedMesh& mesh, draco::Mesh& dm, int& position_id,
     std::memcpy(k.data(), &v.x, 12);
     return k;
   };
-  std::vector<uint32_t> slots, position_values, position_of, normal_values, normal_of, point_keys, point_of;
-  index_distinct_keys<3>(n, [&](size_t i) { return bits_of(mesh.positions[i]); }, slots, position_values, position_of);
+  std::vector<uint32_t> position_values, position_of, normal_values, normal_of, point_of;
+  // Distinct positions and distinct normals, side by side.
+  tbb::parallel_invoke(
+      [&] {
+        std::vector<uint32_t> slots;
+        index_distinct_keys<3>(n, [&](size_t i) { return bits_of(mesh.positions[i]); }, slots, position_values,
+                               position_of);
+      },
+      [&] {
+        if (!normals) return;
+        std::vector<uint32_t> slots;
+        index_distinct_keys<3>(n, [&](size_t i) { return bits_of(mesh.normals[i]); }, slots, normal_values, normal_of);
+      });
+  uint32_t points = 0;
   if (normals) {
-    index_distinct_keys<3>(n, [&](size_t i) { return bits_of(mesh.normals[i]); }, slots, normal_values, normal_of);
-    index_distinct_keys<3>(n, [&](size_t i) { return std::array<uint32_t, 3>{position_of[i], normal_of[i], 0}; },
-                           slots, point_keys, point_of);
+    // Distinct (position, normal) pairs in first-use order, as
+    // index_distinct_keys would number them: a vertex whose position no other
+    // vertex has is a point of its own, so only shared positions are hashed.
+    std::vector<uint8_t> shared(position_values.size() / 3, 0);
+    for (uint32_t i = 0; i < n; ++i) shared[position_of[i]] = uint8_t(std::min(shared[position_of[i]] + 1, 2));
+    std::unordered_map<uint64_t, uint32_t> pair_point;
+    point_of.resize(n);
+    for (uint32_t i = 0; i < n; ++i) {
+      if (shared[position_of[i]] < 2) {
+        point_of[i] = points++;
+        continue;
+      }
+      const auto [it, added] = pair_point.try_emplace(uint64_t(position_of[i]) << 32 | normal_of[i], points);
+      point_of[i] = it->second;
+      points += added;
+    }
   } else {
     point_of = position_of;
+    points = uint32_t(position_values.size() / 3);
   }
-  std::vector<uint32_t>().swap(slots);
-  const uint32_t points = uint32_t((normals ? point_keys : position_values).size() / 3);
   // Each point's vertex (the first vertex that gave it).
   std::vector<uint32_t> vertex_of_point(points, 0);
   for (uint32_t i = n; i-- > 0;) vertex_of_point[point_of[i]] = i;

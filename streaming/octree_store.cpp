@@ -371,15 +371,15 @@ class FileStore final : public OctreeStore {
                         [](const PageCorners& c) { return !c.normal_codes.empty(); });
   }
 
-  Status read_page(size_t i, PageBatch& page) const override {
-    return read_decoded(i, page, decode_page_batch, [](const PageBatch& p) { return !p.batch.normals.empty(); });
+  Status read_page(size_t i, PageMesh& page) const override {
+    return read_decoded(i, page, decode_page_mesh, [](const PageMesh& p) { return !p.normal_codes.empty(); });
   }
 
   bool found_corruption() const override { return found_corruption_; }
 
  private:
   // Page i read, checked and decoded into `out` (cleared first) by `decode`
-  // (decode_page, decode_page_corners or decode_page_batch).
+  // (decode_page, decode_page_corners or decode_page_mesh).
   template <class Out, class Decode, class HasNormals>
   Status read_decoded(size_t i, Out& out, Decode decode, HasNormals has_normals) const {
     out.clear();

@@ -55,7 +55,7 @@
 namespace raylod {
 
 struct PageCorners;  // page_codec.h
-struct PageBatch;    // page_codec.h
+struct PageMesh;     // page_codec.h
 
 // Symmetric 4x4 plane quadric Q = [[A, -b], [-b^T, c]] (eq. 4), A symmetric 3x3.
 struct Quadric {
@@ -157,8 +157,8 @@ class OctreeStore {
   virtual Status read_page(size_t i, TriangleBatch& batch) const = 0;
   // The same into PageCorners (normals as their octahedral codes).
   virtual Status read_page(size_t i, PageCorners& corners) const = 0;
-  // The same with each corner's vertex in the page.
-  virtual Status read_page(size_t i, PageBatch& page) const = 0;
+  // The same indexed, as the page is stored (normals as their codes).
+  virtual Status read_page(size_t i, PageMesh& page) const = 0;
   // True once read_page has found a page whose checksum does not match.
   virtual bool found_corruption() const = 0;
 

@@ -321,12 +321,17 @@ Status decode_page(std::span<const uint8_t> bytes, const PageGrid& grid, Triangl
   return decode_page_into(bytes, grid, batch, page);
 }
 
-Status decode_page_batch(std::span<const uint8_t> bytes, const PageGrid& grid, PageBatch& out) {
+void PageMesh::decode_normals() {
+  normals.resize(normal_codes.size());
+  for (size_t v = 0; v < normal_codes.size(); ++v) normals[v] = decode_octahedral(normal_codes[v]);
+}
+
+Status decode_page_mesh(std::span<const uint8_t> bytes, const PageGrid& grid, PageMesh& out) {
   out.clear();
   thread_local GridPage page;
-  RAYLOD_RETURN_IF_ERROR(decode_page_into(bytes, grid, out.batch, page));
-  out.corner_vertex = page.index;
-  out.vertices = uint32_t(page.vertices());
+  RAYLOD_RETURN_IF_ERROR(parse_page_positions(bytes, grid, page, out.positions));
+  out.normal_codes.swap(page.codes);
+  out.index.swap(page.index);
   return {};
 }
 

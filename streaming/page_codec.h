@@ -104,23 +104,28 @@ struct PageCorners {
 // decode_page into PageCorners (cleared first).
 Status decode_page_corners(std::span<const uint8_t> bytes, const PageGrid& grid, PageCorners& corners);
 
-// A page's triangles as decode_page gives them, with each corner's vertex
-// in the page: corners of one page vertex are bit-identical, so per-vertex
-// work (a cell lookup, a hash) is done once per vertex.
-struct PageBatch {
-  TriangleBatch batch;
-  std::vector<uint32_t> corner_vertex;  // 3 per triangle, each < vertices
-  uint32_t vertices = 0;
-  size_t size() const { return batch.size(); }
+// A page indexed as it is stored: each page vertex once, three vertex
+// indices per triangle. decode_page gives the same triangles as corners
+// (positions[index[c]], and normals); per-vertex work (a cell lookup, a hash,
+// a normal) is done here once per vertex, and nothing is copied per corner.
+struct PageMesh {
+  std::vector<Vec3> positions;         // per vertex
+  std::vector<uint32_t> normal_codes;  // per vertex, or empty without normals
+  std::vector<Vec3> normals;           // per vertex once decode_normals() ran, else empty
+  std::vector<uint32_t> index;         // 3 per triangle, each < vertices()
+  size_t size() const { return index.size() / 3; }
+  size_t vertices() const { return positions.size(); }
   void clear() {
-    batch.clear();
-    corner_vertex.clear();
-    vertices = 0;
+    positions.clear();
+    normal_codes.clear();
+    normals.clear();
+    index.clear();
   }
+  // Fills `normals` from `normal_codes` (decode_octahedral).
+  void decode_normals();
 };
-// decode_page into PageBatch (cleared first).
-Status decode_page_batch(std::span<const uint8_t> bytes, const PageGrid& grid, PageBatch& page);
-
+// decode_page into PageMesh (cleared first); normals stay as codes.
+Status decode_page_mesh(std::span<const uint8_t> bytes, const PageGrid& grid, PageMesh& page);
 // Decodes page bytes back to the corners encode_page was given: appends 3
 // grid coordinates per corner to `positions` and, if the page has normals,
 // one normal code per corner to `normals` (for the build's sorted runs).

@@ -24,6 +24,7 @@
 #include <tbb/blocked_range.h>
 #include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
+#include <tbb/parallel_sort.h>
 
 
 #include "core/ordered_pipeline.h"
@@ -238,29 +239,45 @@ uint32_t CollapseBuilder::kept_vertex(const Vec3& p_in, const Vec3& n_in, uint64
   return id;
 }
 
-void prepare_collapse(const TriangleBatch& batch, std::span<const uint32_t> cell, std::span<const Vec3> rep_pos,
-                      bool input_has_normals, PreparedBatch& out, std::span<const uint32_t> corner_vertex) {
-  assert(cell.size() == batch.positions.size());
-  const bool batch_normals = input_has_normals && batch.normals.size() == batch.positions.size();
-  const size_t nt = batch.size();
+namespace {
+
+// Whether two kept corners (page vertices a and b, not in a collapsed cell)
+// are one output vertex: bit-identical positions, and normals where the
+// page has them (decoded from their codes when `normals` is not given).
+bool same_kept_vertex(const PageMesh& page, const Vec3& pa, const Vec3& pb, uint32_t a, uint32_t b,
+                      const Vec3* normals) {
+  if (a == b) return true;
+  if (!same_bits(pa, pb)) return false;
+  if (page.normal_codes.empty()) return true;
+  const Vec3 na = normals ? normals[a] : decode_octahedral(page.normal_codes[a]);
+  const Vec3 nb = normals ? normals[b] : decode_octahedral(page.normal_codes[b]);
+  return same_bits(canonical(na), canonical(nb));
+}
+
+}  // namespace
+
+void prepare_collapse(const PageMesh& page, std::span<const uint32_t> vertex_cell, std::span<const Vec3> rep_pos,
+                      bool input_has_normals, PreparedBatch& out) {
+  assert(vertex_cell.size() == page.vertices());
+  const bool page_normals = input_has_normals && page.normals.size() == page.vertices();
+  const size_t nt = page.size(), nv = page.vertices();
   out.face.resize(nt);
   out.area2.resize(nt);
   out.fate.resize(nt);
-  out.hash.resize(3 * nt);
+  out.hash.resize(nv);
   out.angle.resize(input_has_normals ? 0 : 3 * nt);
-  const bool by_vertex = !corner_vertex.empty();
-  if (by_vertex) {
-    const uint32_t vertices = *std::max_element(corner_vertex.begin(), corner_vertex.end()) + 1;
-    out.vertex_hashed.assign(vertices, 0);
-    out.vertex_hash.resize(vertices);
-    out.vertex_normal.assign(vertices, kKeepVertex);
-  }
+  out.vertex_normal.assign(nv, kKeepVertex);
   out.rep_normals.clear();
-  const Vec3 n_none(0);
+  for (size_t v = 0; v < nv; ++v) {
+    if (vertex_cell[v] != kKeepVertex) continue;
+    const Vec3 n = input_has_normals && page_normals ? canonical(page.normals[v]) : Vec3(0);
+    out.hash[v] = hash_vertex(canonical(page.positions[v]), n, input_has_normals);
+  }
+  const Vec3* normals = page_normals ? page.normals.data() : nullptr;
   for (size_t t = 0; t < nt; ++t) {
-    const Vec3* p = &batch.positions[3 * t];
-    const Vec3* n = batch_normals ? &batch.normals[3 * t] : nullptr;
-    const uint32_t* c = &cell[3 * t];
+    const uint32_t* vi = &page.index[3 * t];
+    const Vec3 p[3] = {page.positions[vi[0]], page.positions[vi[1]], page.positions[vi[2]]};
+    const uint32_t c[3] = {vertex_cell[vi[0]], vertex_cell[vi[1]], vertex_cell[vi[2]]};
     const InputFace input = input_face(p);
     out.face[t] = input.unit;
     out.area2[t] = input.area2;
@@ -271,13 +288,13 @@ void prepare_collapse(const TriangleBatch& batch, std::span<const uint32_t> cell
         pos[k] = rep_pos[c[k]];
         collapsed = true;
         if (!(input.area2 > 0)) continue;  // no weight
-        if (n) {
-          uint32_t* entry = by_vertex ? &out.vertex_normal[corner_vertex[3 * t + k]] : nullptr;
-          if (entry && *entry != kKeepVertex) {
-            out.rep_normals[*entry].weight += input.area2;
+        if (normals) {
+          uint32_t& entry = out.vertex_normal[vi[k]];
+          if (entry != kKeepVertex) {
+            out.rep_normals[entry].weight += input.area2;
           } else {
-            if (entry) *entry = uint32_t(out.rep_normals.size());
-            out.rep_normals.push_back({c[k], input.area2, glm::normalize(Vec3d(n[k]))});
+            entry = uint32_t(out.rep_normals.size());
+            out.rep_normals.push_back({c[k], input.area2, glm::normalize(Vec3d(normals[vi[k]]))});
           }
         } else if (k == 0 || (c[k] != c[0] && (k == 1 || c[k] != c[1]))) {
           // The corners of one cell share the face normal: one entry, weighted by their count.
@@ -287,19 +304,6 @@ void prepare_collapse(const TriangleBatch& batch, std::span<const uint32_t> cell
         continue;
       }
       pos[k] = canonical(p[k]);
-      auto hash = [&] {
-        return hash_vertex(pos[k], input_has_normals ? canonical(n ? n[k] : n_none) : Vec3(0), input_has_normals);
-      };
-      if (by_vertex) {
-        const uint32_t v = corner_vertex[3 * t + k];
-        if (!out.vertex_hashed[v]) {
-          out.vertex_hash[v] = hash();
-          out.vertex_hashed[v] = 1;
-        }
-        out.hash[3 * t + k] = out.vertex_hash[v];
-      } else {
-        out.hash[3 * t + k] = hash();
-      }
       if (!input_has_normals) out.angle[3 * t + k] = corner_angle(p[0], p[1], p[2], k);
     }
     // Two corners are one output vertex when they are in one cell, or both
@@ -308,8 +312,7 @@ void prepare_collapse(const TriangleBatch& batch, std::span<const uint32_t> cell
     for (int k = 0; k < 3 && !repeated; ++k) {
       const int l = (k + 1) % 3;
       if (c[k] != c[l]) continue;
-      repeated = c[k] != kKeepVertex ||
-                 (same_bits(pos[k], pos[l]) && (!batch_normals || same_bits(canonical(n[k]), canonical(n[l]))));
+      repeated = c[k] != kKeepVertex || same_kept_vertex(page, pos[k], pos[l], vi[k], vi[l], normals);
     }
     if (repeated) out.fate[t] = TriangleFate::kCollapsed;
     else if (zero_area(pos[0], pos[1], pos[2])) out.fate[t] = TriangleFate::kZeroArea;
@@ -318,31 +321,58 @@ void prepare_collapse(const TriangleBatch& batch, std::span<const uint32_t> cell
   }
 }
 
-void CollapseBuilder::add(const TriangleBatch& batch, std::span<const uint32_t> cell) {
-  prepare_collapse(batch, cell, rep_pos_, has_normals_, prepared_);
-  add(batch, cell, prepared_);
+bool collapse_turns_over(const PageMesh& page, std::span<const uint32_t> vertex_cell, std::span<const Vec3> rep_pos,
+                         size_t t) {
+  const uint32_t* vi = &page.index[3 * t];
+  const uint32_t c[3] = {vertex_cell[vi[0]], vertex_cell[vi[1]], vertex_cell[vi[2]]};
+  // Most triangles: no corner collapsed, or all three in one cell.
+  if (c[0] == c[1] && c[1] == c[2]) return false;
+  if (c[0] == kKeepVertex && c[1] == kKeepVertex && c[2] == kKeepVertex) return false;
+  const Vec3 p[3] = {page.positions[vi[0]], page.positions[vi[1]], page.positions[vi[2]]};
+  Vec3 pos[3];
+  for (int k = 0; k < 3; ++k) pos[k] = c[k] != kKeepVertex ? rep_pos[c[k]] : canonical(p[k]);
+  for (int k = 0; k < 3; ++k) {
+    const int l = (k + 1) % 3;
+    if (c[k] == c[l] && (c[k] != kKeepVertex || same_kept_vertex(page, pos[k], pos[l], vi[k], vi[l], nullptr)))
+      return false;  // collapsed
+  }
+  if (zero_area(pos[0], pos[1], pos[2])) return false;
+  return turned_over(pos[0], pos[1], pos[2], input_face(p), true);
 }
 
-void CollapseBuilder::add(const TriangleBatch& batch, std::span<const uint32_t> cell, const PreparedBatch& prepared) {
+void CollapseBuilder::add(const TriangleBatch& batch, std::span<const uint32_t> cell) {
   assert(cell.size() == batch.positions.size());
-  const bool batch_normals = has_normals_ && batch.normals.size() == batch.positions.size();
+  // A soup is a page whose every corner is a vertex of its own.
+  page_.clear();
+  page_.positions = batch.positions;
+  if (has_normals_ && batch.normals.size() == batch.positions.size()) page_.normals = batch.normals;
+  page_.index.resize(batch.positions.size());
+  std::iota(page_.index.begin(), page_.index.end(), 0u);
+  prepare_collapse(page_, cell, rep_pos_, has_normals_, prepared_);
+  add(page_, cell, prepared_);
+}
+
+void CollapseBuilder::add(const PageMesh& page, std::span<const uint32_t> vertex_cell, const PreparedBatch& prepared) {
+  assert(vertex_cell.size() == page.vertices());
+  const bool page_normals = has_normals_ && page.normals.size() == page.vertices();
   const uint32_t nreps = uint32_t(reps_.size());
   for (const auto& r : prepared.rep_normals) clusters_.add(r.rep, r.normal, r.weight, kRepresentativeClusters);
-  for (size_t t = 0; t < batch.size(); ++t) {
-    const Vec3* p = &batch.positions[3 * t];
-    const Vec3 n_none(0);
-    const Vec3* n = batch_normals ? &batch.normals[3 * t] : nullptr;
-    const uint32_t* c = &cell[3 * t];
+  page_kept_.assign(page.vertices(), kKeepVertex);
+  const Vec3 n_none(0);
+  for (size_t t = 0; t < page.size(); ++t) {
+    const uint32_t* vi = &page.index[3 * t];
     // Normals and weights come from the input triangle, before collapse.
     const double area2 = prepared.area2[t];
     const Vec3d& face = prepared.face[t];
     std::array<uint32_t, 3> id;
     for (int k = 0; k < 3; ++k) {
-      if (c[k] != kKeepVertex) {
-        assert(c[k] < nreps);
-        id[k] = c[k];
+      const uint32_t v = vi[k];
+      if (const uint32_t c = vertex_cell[v]; c != kKeepVertex) {
+        assert(c < nreps);
+        id[k] = c;
       } else {
-        const uint32_t kv = kept_vertex(p[k], n ? n[k] : n_none, prepared.hash[3 * t + k]);
+        uint32_t& kv = page_kept_[v];
+        if (kv == kKeepVertex) kv = kept_vertex(page.positions[v], page_normals ? page.normals[v] : n_none, prepared.hash[v]);
         id[k] = nreps + kv;
         if (!has_normals_ && area2 > 0) clusters_.add(nreps + kv, face, prepared.angle[3 * t + k], kNoCluster);
       }
@@ -374,26 +404,42 @@ uint64_t CollapseBuilder::memory_bytes() const {
 IndexedMesh CollapseBuilder::finish(CollapseStats* stats_out) {
   const uint32_t nreps = uint32_t(reps_.size());
   // Same-orientation duplicates: sort the triangles by their rotation that
-  // starts at the smallest id (a stable sort keeps the first occurrence).
-  std::vector<std::array<uint32_t, 3>> keys(tris_.size());
-  for (size_t i = 0; i < tris_.size(); ++i) keys[i] = rotate_min_first(tris_[i]);
-  std::vector<uint32_t> order(tris_.size());
-  std::iota(order.begin(), order.end(), 0u);
-  std::stable_sort(order.begin(), order.end(), [&](uint32_t a, uint32_t b) { return keys[a] < keys[b]; });
+  // starts at the smallest id, then by their index, so the first occurrence
+  // comes first (a total order: any parallel sort gives the same result).
+  struct Keyed {
+    std::array<uint32_t, 3> key;
+    uint32_t triangle;
+    bool operator<(const Keyed& o) const { return key != o.key ? key < o.key : triangle < o.triangle; }
+  };
+  std::vector<Keyed> sorted(tris_.size());
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, tris_.size(), 1 << 16), [&](const tbb::blocked_range<size_t>& r) {
+    for (size_t i = r.begin(); i != r.end(); ++i) sorted[i] = {rotate_min_first(tris_[i]), uint32_t(i)};
+  });
+  tbb::parallel_sort(sorted.begin(), sorted.end());
   std::vector<bool> keep(tris_.size(), true);
-  std::vector<std::array<uint32_t, 3>> unique_keys;
-  for (size_t j = 0; j < order.size(); ++j) {
-    if (j > 0 && keys[order[j]] == keys[order[j - 1]]) { keep[order[j]] = false; ++stats_.dropped_duplicate; }
-    else unique_keys.push_back(keys[order[j]]);
+  size_t unique = 0;  // the distinct keys, compacted to the front of `sorted`
+  for (size_t j = 0; j < sorted.size(); ++j) {
+    if (unique > 0 && sorted[j].key == sorted[unique - 1].key) {
+      keep[sorted[j].triangle] = false;
+      ++stats_.dropped_duplicate;
+    } else {
+      sorted[unique++] = sorted[j];
+    }
   }
-  for (const auto& k : unique_keys) {
-    // The reverse of (a, b, c) with a smallest is (a, c, b), also a-first.
-    if (std::binary_search(unique_keys.begin(), unique_keys.end(), std::array<uint32_t, 3>{k[0], k[2], k[1]}))
-      ++stats_.reverse_twins;
+  // Reverse-wound twins: the reverse of (a, b, c) with a smallest is (a, c,
+  // b), also a-first, so it lies among the keys that start with a.
+  for (size_t g = 0; g < unique;) {
+    size_t end = g + 1;
+    while (end < unique && sorted[end].key[0] == sorted[g].key[0]) ++end;
+    const auto less = [](const Keyed& x, const std::array<uint32_t, 3>& k) { return x.key < k; };
+    for (size_t j = g; j < end; ++j) {
+      const std::array<uint32_t, 3> reverse{sorted[j].key[0], sorted[j].key[2], sorted[j].key[1]};
+      const auto it = std::lower_bound(sorted.begin() + ptrdiff_t(g), sorted.begin() + ptrdiff_t(end), reverse, less);
+      stats_.reverse_twins += it != sorted.begin() + ptrdiff_t(end) && it->key == reverse;
+    }
+    g = end;
   }
-  std::vector<std::array<uint32_t, 3>>().swap(keys);
-  std::vector<uint32_t>().swap(order);
-  std::vector<std::array<uint32_t, 3>>().swap(unique_keys);
+  std::vector<Keyed>().swap(sorted);
 
   // Resolve every corner's normal, then split each provisional vertex by the
   // distinct normals its corners got; output vertices in order of first use.
@@ -482,44 +528,35 @@ SimplifyEstimate estimate_simplify(const OctreeStore& store, const Cut& cut) {
 namespace {
 
 // A page in flight through collapse_pass: its triangles and the cut cell of
-// each corner.
+// each of its vertices.
 struct PageWork {
-  PageBatch page;
-  std::vector<uint32_t> cells;
-  std::vector<uint32_t> vertex_cell;  // per page vertex, kUnknown until looked up
+  PageMesh page;
+  std::vector<uint32_t> vertex_cell;  // per page vertex
   // Neighbouring vertices mostly share a cell: a small direct-mapped cache
   // of code -> cut cell saves most of the hash lookups (one per level of the
   // cut).
   static constexpr size_t kCache = 1 << 12;
-  static constexpr uint32_t kUnknown = kKeepVertex - 1;
   std::vector<uint64_t> cache_code = std::vector<uint64_t>(kCache, ~uint64_t(0));
   std::vector<uint32_t> cache_cell = std::vector<uint32_t>(kCache, kKeepVertex);
   PreparedBatch prepared;
 
-  // Each page vertex is looked up once, at its first corner.
   void look_up_cells(const CutLookup& lookup) {
-    const TriangleBatch& batch = page.batch;
-    cells.resize(batch.positions.size());
-    vertex_cell.assign(page.vertices, kUnknown);
-    for (size_t k = 0; k < batch.positions.size(); ++k) {
-      uint32_t& cell = vertex_cell[page.corner_vertex[k]];
-      if (cell == kUnknown) {
-        const uint64_t code = lookup.code_of(Vec3d(batch.positions[k]));
-        const size_t slot = (code ^ (code >> 17)) & (kCache - 1);
-        if (cache_code[slot] != code) {
-          cache_code[slot] = code;
-          cache_cell[slot] = lookup.find_code(code);
-        }
-        cell = cache_cell[slot];
+    vertex_cell.resize(page.vertices());
+    for (size_t v = 0; v < page.vertices(); ++v) {
+      const uint64_t code = lookup.code_of(Vec3d(page.positions[v]));
+      const size_t slot = (code ^ (code >> 17)) & (kCache - 1);
+      if (cache_code[slot] != code) {
+        cache_code[slot] = code;
+        cache_cell[slot] = lookup.find_code(code);
       }
-      cells[k] = cell;
+      vertex_cell[v] = cache_cell[slot];
     }
   }
 };
 
 // Marks folding[c] = 1 for every cut cell c that a triangle of the pages
 // `page_list` turns over once collapsed, deciding each triangle as
-// CollapseBuilder::add does (prepare_collapse) but building nothing: the
+// CollapseBuilder::add does (collapse_turns_over, prepare_collapse's fate) but building nothing: the
 // fold passes need only which cells fold, and each triangle decides alone,
 // so pages are scanned in parallel (the same marks for any thread count).
 Status mark_folding_cells(const OctreeStore& store, std::span<const CellKey> keys,
@@ -544,11 +581,10 @@ Status mark_folding_cells(const OctreeStore& store, std::span<const CellKey> key
         return;
       }
       w.look_up_cells(lookup);
-      prepare_collapse(w.page.batch, w.cells, rep_pos, h.has_normals, w.prepared, w.page.corner_vertex);
       for (size_t t = 0; t < w.page.size(); ++t) {
-        if (w.prepared.fate[t] != TriangleFate::kKeptFolded) continue;
+        if (!collapse_turns_over(w.page, w.vertex_cell, rep_pos, t)) continue;
         for (int k = 0; k < 3; ++k)
-          if (const uint32_t c = w.cells[3 * t + k]; c != kKeepVertex)
+          if (const uint32_t c = w.vertex_cell[w.page.index[3 * t + k]]; c != kKeepVertex)
             std::atomic_ref<uint8_t>(folding[c]).store(1, std::memory_order_relaxed);
       }
     }
@@ -599,14 +635,15 @@ Status collapse_pass(const OctreeStore& store, std::span<const CellKey> keys, co
       pages.size(), ntokens,
       [&](PageWork& w, size_t i) -> Status {
         RAYLOD_RETURN_IF_ERROR(store.read_page(i, w.page));
+        if (store.header().has_normals) w.page.decode_normals();
         w.look_up_cells(lookup);
-        prepare_collapse(w.page.batch, w.cells, builder.representative_positions(), store.header().has_normals,
-                         w.prepared, w.page.corner_vertex);
+        prepare_collapse(w.page, w.vertex_cell, builder.representative_positions(), store.header().has_normals,
+                         w.prepared);
         return {};
       },
       [&](PageWork& w, size_t i) -> Status {
         ++pages_read;
-        builder.add(w.page.batch, w.cells, w.prepared);
+        builder.add(w.page, w.vertex_cell, w.prepared);
         if (config.memory_limit && builder.memory_bytes() > config.memory_limit)
           return Status::error("the simplified mesh outgrew the memory limit of " + format_bytes(config.memory_limit) +
                                " after " + std::to_string(builder.triangles()) + " triangles (page " +

@@ -107,8 +107,8 @@ struct CollapseStats {
   uint64_t peak_bytes = 0;          // largest memory_bytes() seen
 };
 
-// What collapsing does to each triangle and corner of a batch, worked out
-// from the batch, its corners' cells and the representatives' positions
+// What collapsing does to each triangle and corner of a page, worked out
+// from the page, its vertices' cells and the representatives' positions
 // alone (prepare_collapse): pages are prepared in parallel, then added to
 // the builder one at a time in order.
 enum class TriangleFate : uint8_t {
@@ -121,27 +121,30 @@ struct PreparedBatch {
   std::vector<Vec3d> face;        // per triangle: its input triangle's unit normal (zero without area)
   std::vector<double> area2;      // per triangle: twice its input area (the weight of its corners' normals)
   std::vector<TriangleFate> fate;
-  std::vector<uint64_t> hash;     // per corner: the kept-vertex table's hash (kept corners)
+  std::vector<uint64_t> hash;     // per page vertex: the kept-vertex table's hash (kept vertices)
   std::vector<double> angle;      // per corner: interior angle (kept corners of inputs without normals)
-  // The normals the batch adds to representatives' clusters, in order of
+  // The normals the page adds to representatives' clusters, in order of
   // first use: with input normals one per page vertex (its corners' weights
-  // summed) or per corner without corner_vertex; else one per triangle and
-  // cell (the face normal, weighted by the corners there).
+  // summed); else one per triangle and cell (the face normal, weighted by
+  // the corners there).
   struct RepresentativeNormal {
     uint32_t rep;
     double weight;
     Vec3d normal;
   };
   std::vector<RepresentativeNormal> rep_normals;
-  std::vector<uint64_t> vertex_hash;    // scratch: per page vertex
-  std::vector<uint8_t> vertex_hashed;
   std::vector<uint32_t> vertex_normal;  // scratch: per page vertex, its entry in rep_normals
 };
-// rep_pos[i] is representative i's float position; input_has_normals as for
-// CollapseBuilder. corner_vertex, if given, names each corner's vertex in
-// its page (PageBatch): a vertex's hash is then computed once.
-void prepare_collapse(const TriangleBatch& batch, std::span<const uint32_t> cell, std::span<const Vec3> rep_pos,
-                      bool input_has_normals, PreparedBatch& out, std::span<const uint32_t> corner_vertex = {});
+// vertex_cell[v] is the representative index of page vertex v, or
+// kKeepVertex; rep_pos[i] is representative i's float position;
+// input_has_normals as for CollapseBuilder (the page's normals must then be
+// decoded, PageMesh::decode_normals).
+void prepare_collapse(const PageMesh& page, std::span<const uint32_t> vertex_cell, std::span<const Vec3> rep_pos,
+                      bool input_has_normals, PreparedBatch& out);
+// Whether triangle t of the page turns over once collapsed: the fate
+// prepare_collapse gives is kKeptFolded. Normals are not needed decoded.
+bool collapse_turns_over(const PageMesh& page, std::span<const uint32_t> vertex_cell, std::span<const Vec3> rep_pos,
+                         size_t t);
 
 // Builds the collapsed, indexed mesh from a stream of triangle batches.
 class CollapseBuilder {
@@ -153,9 +156,10 @@ class CollapseBuilder {
   // cell[k] is the representative index of batch vertex k (3 per triangle),
   // or kKeepVertex. Batch positions must be finite.
   void add(const TriangleBatch& batch, std::span<const uint32_t> cell);
-  // The same, with the batch prepared by prepare_collapse(batch, cell,
-  // representative_positions(), ...).
-  void add(const TriangleBatch& batch, std::span<const uint32_t> cell, const PreparedBatch& prepared);
+  // A page (normals decoded if the input has them), vertex_cell[v] the
+  // representative index of page vertex v or kKeepVertex, prepared by
+  // prepare_collapse(page, vertex_cell, representative_positions(), ...).
+  void add(const PageMesh& page, std::span<const uint32_t> vertex_cell, const PreparedBatch& prepared);
   std::span<const Vec3> representative_positions() const { return rep_pos_; }
   // Pre-sizes the buffers (avoids rehashing the vertex table while streaming).
   void reserve(uint64_t vertices, uint64_t triangles);
@@ -178,7 +182,9 @@ class CollapseBuilder {
   std::vector<Vec3> rep_pos_;            // float positions of the representatives
   std::vector<Vec3> kept_pos_, kept_normal_;  // kept_normal_ only with input normals
   NormalClusterPool clusters_;           // per provisional vertex (reps first, then kept)
-  PreparedBatch prepared_;               // scratch of add() without a prepared batch
+  PreparedBatch prepared_;               // scratch of add() with a batch
+  PageMesh page_;                        // scratch of add() with a batch
+  std::vector<uint32_t> page_kept_;      // scratch: per page vertex, its kept-vertex id once known
   std::vector<uint32_t> table_;          // open addressing into kept_*, kKeepVertex = empty
   std::vector<std::array<uint32_t, 3>> tris_;  // provisional ids: reps first, then kept
   std::vector<Vec3> keys_;               // per triangle: its input triangle's unit normal (crease key)
