@@ -1,6 +1,6 @@
 // bench_render: what the renderer costs, per stage and per ray kind.
 //
-//   bench_render [--width 1280] [--height 960] [--spp 1] [--runs 3] [--json FILE] MESH...
+//   bench_render [--width 1280] [--height 960] [--spp 1] [--runs 3] [--bvh-quality auto] [--json FILE] MESH...
 //
 // For each MESH, renders the default scene (glossy teapot on a diffuse floor,
 // a point and a directional light) with MESH as the teapot and reports: mesh
@@ -20,9 +20,12 @@
 // camera-single, primary-1 and primary-16 run interleaved, run after run, so
 // that load from other processes falls on all of them alike. Shadow rays/s
 // is derived as shadow rays / (diffuse-only - camera-only render time).
+// The BVH is the one `raylod render` builds for one frame of this size
+// (--bvh-quality auto; render/embree_scene.h) unless --bvh-quality names one.
 // Everything runs on all hardware threads (TBB).
 #include <algorithm>
 #include <chrono>
+#include <cstdint>
 #include <cstdio>
 #include <cstring>
 #include <fstream>
@@ -144,6 +147,7 @@ nlohmann::json variant_json(const Variant& v) {
 
 int main(int argc, char** argv) {
   int width = 1280, height = 960, spp = 1, runs = 3;
+  std::string bvh_quality = "auto";  // auto: what raylod render builds for one frame of this size
   std::string json_path;
   std::vector<std::string> meshes;
   for (int i = 1; i < argc; ++i) {
@@ -157,8 +161,15 @@ int main(int argc, char** argv) {
     else if (a == "--spp") spp = std::stoi(next());
     else if (a == "--runs") runs = std::max(1, std::stoi(next()));
     else if (a == "--json") json_path = next();
+    else if (a == "--bvh-quality") {
+      bvh_quality = next();
+      if (bvh_quality != "auto" && bvh_quality != "low" && bvh_quality != "medium" && bvh_quality != "high") {
+        std::fprintf(stderr, "bench_render: --bvh-quality takes auto, low, medium or high, not '%s'\n", bvh_quality.c_str());
+        return 2;
+      }
+    }
     else if (a == "-h" || a == "--help") {
-      std::printf("usage: bench_render [--width W] [--height H] [--spp N] [--runs R] [--json FILE] MESH...\n");
+      std::printf("usage: bench_render [--width W] [--height H] [--spp N] [--runs R] [--bvh-quality auto|low|medium|high] [--json FILE] MESH...\n");
       return 0;
     } else meshes.push_back(a);
   }
@@ -182,11 +193,15 @@ int main(int argc, char** argv) {
 
     RenderStats load_stats;
     const double t0 = now_seconds();
-    auto loaded = load_scene_meshes(scene, o, load_stats);
+    BvhConfig bvh;  // what `raylod render` builds for one frame of this size
+    auto loaded = load_scene_meshes(scene, o, load_stats, &bvh);
     if (!loaded) { std::fprintf(stderr, "bench_render: %s\n", loaded.status().message().c_str()); return 1; }
     const double load_s = now_seconds() - t0;
     const uint64_t rss_after_load = current_rss_bytes();
-    auto geometry = EmbreeScene::build(std::move(*loaded));
+    if (bvh_quality == "low") bvh.high_quality_below = 0, bvh.camera_rays = 1;
+    else if (bvh_quality == "medium") bvh.high_quality_below = 0, bvh.camera_rays = 0;
+    else if (bvh_quality == "high") bvh.high_quality_below = UINT64_MAX;
+    auto geometry = EmbreeScene::build(std::move(*loaded), bvh);
     if (!geometry) { std::fprintf(stderr, "bench_render: %s\n", geometry.status().message().c_str()); return 1; }
     const BvhInfo& info = (*geometry)->info();
 

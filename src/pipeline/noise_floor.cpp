@@ -60,6 +60,7 @@ StatusOr<FullRender> render_full_with_noise_floor(const Scene& scene, const Rend
   RenderStats load_stats;
   BvhConfig bvh;
   RAYLOD_ASSIGN_OR_RETURN(auto meshes, load_scene_meshes(scene, options, load_stats, &bvh));
+  if (options.bvh.camera_rays == 0) bvh.camera_rays *= 2;  // the reference and the noise floor's frame
   RAYLOD_ASSIGN_OR_RETURN(auto geometry, EmbreeScene::build(std::move(meshes), bvh));
   FullRender out;
   out.reference = render_embree_scene(*geometry, scene, options);

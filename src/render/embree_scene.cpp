@@ -259,6 +259,14 @@ bool on_embree_memory(void* user, ssize_t bytes, bool /*post*/) {
 
 }  // namespace
 
+BvhQuality choose_bvh_quality(uint64_t triangles, const BvhConfig& config) {
+  if (triangles < config.high_quality_below) return BvhQuality::High;
+  if (config.camera_rays > 0 &&
+      double(config.camera_rays) < config.low_quality_below_rays_per_triangle * double(triangles))
+    return BvhQuality::Low;
+  return BvhQuality::Medium;
+}
+
 StatusOr<std::unique_ptr<EmbreeScene>> EmbreeScene::build(std::vector<TriangleMesh> meshes, const BvhConfig& config) {
   std::unique_ptr<EmbreeScene> s(new EmbreeScene());
   s->meshes_ = std::move(meshes);
@@ -286,9 +294,13 @@ StatusOr<std::unique_ptr<EmbreeScene>> EmbreeScene::build(std::vector<TriangleMe
   rtcSetDeviceErrorFunction(s->device_, on_embree_error, s->monitor_.get());
   rtcSetDeviceMemoryMonitorFunction(s->device_, on_embree_memory, s->monitor_.get());
 
-  RTCBuildQuality quality = info.triangles < config.high_quality_below ? RTC_BUILD_QUALITY_HIGH : RTC_BUILD_QUALITY_MEDIUM;
+  const BvhQuality chosen = choose_bvh_quality(info.triangles, config);
+  const RTCBuildQuality quality = chosen == BvhQuality::High     ? RTC_BUILD_QUALITY_HIGH
+                                  : chosen == BvhQuality::Medium ? RTC_BUILD_QUALITY_MEDIUM
+                                                                 : RTC_BUILD_QUALITY_LOW;
   const bool compact = info.triangles >= config.compact_from;
-  info.quality = std::string(quality == RTC_BUILD_QUALITY_HIGH ? "high" : "medium") + (compact ? "+compact" : "");
+  info.quality = std::string(chosen == BvhQuality::High ? "high" : chosen == BvhQuality::Medium ? "medium" : "low") +
+                 (compact ? "+compact" : "");
   int flags = RTC_SCENE_FLAG_NONE;
   if (compact) flags |= RTC_SCENE_FLAG_COMPACT;
   if (config.robust) flags |= RTC_SCENE_FLAG_ROBUST;

@@ -67,13 +67,32 @@ TriangleMesh make_ground_mesh(const Ground& ground, const Camera& camera);
 // very large ones also the compact layout, which stores triangle indices
 // instead of vertex copies in the leaves (about half the BVH memory, slower
 // traversal).
+//
+// A large scene that serves fewer camera rays than it has triangles (a
+// full-resolution mesh rendered once: 10M triangles, 1280 x 960 at 4 spp)
+// is built with Embree's low-quality (Morton code) builder instead: its
+// build is then most of the render. Measured (README, "Benchmarks"): on the
+// 10M teapot the build takes 0.8 s instead of 2.4 s and the trace 4 to 13%
+// longer; on the 100M glass scene's 9.4M-triangle view 0.9 s instead of
+// 2.3 s, the trace 13 to 32% longer (1.24 -> 1.40 to 1.64 s). At one camera
+// ray per triangle the glass trace's loss would be about the build's gain,
+// hence the threshold. The choice depends on the frame (width x height x
+// spp), never on threads or ranks.
 struct BvhConfig {
   uint64_t high_quality_below = 2'000'000;  // triangles
   uint64_t compact_from = 20'000'000;       // triangles
+  // Camera rays the BVH serves (width x height x spp of every frame traced
+  // with it); 0 = unknown, no low-quality build.
+  uint64_t camera_rays = 0;
+  double low_quality_below_rays_per_triangle = 1.0;
   // Embree's robust mode: watertight-ish traversal, so that rays through
   // shared edges of a closed glass mesh do not leak between triangles.
   bool robust = true;
 };
+
+enum class BvhQuality { Low, Medium, High };
+// The builder for a scene of `triangles` under `config` (the rules above).
+BvhQuality choose_bvh_quality(uint64_t triangles, const BvhConfig& config);
 
 struct BvhInfo {
   uint64_t triangles = 0;
@@ -82,7 +101,7 @@ struct BvhInfo {
   uint64_t bvh_bytes = 0;          // Embree's allocations after the build (the BVH)
   uint64_t bvh_peak_bytes = 0;     // Embree's peak allocation during the build
   double build_seconds = 0;
-  std::string quality;             // "high", "medium", "medium+compact"
+  std::string quality;             // "high", "medium", "low", with "+compact"
   Bbox bounds;
 };
 

@@ -151,13 +151,15 @@ std::string render_stats_json(const RenderStats& s) {
 // of 24 B with normals, and vector slack; measured 34-36 B) and Embree's
 // allocation peak during the build (BVH plus the builder's temporary
 // primitive references). Measured with tools/bench_render on the teapots:
-// high quality (1M) 99 B, medium (10M) 119 B, medium+compact (30M) 38 B per
-// triangle; rounded up here so the check errs on the side of refusing.
+// high quality (1M) 99 B, medium (10M) 119 B, medium+compact (30M) 38 B,
+// low (10M) 103 B, low+compact (30M) 58 B per triangle; rounded up here so
+// the check errs on the side of refusing.
 uint64_t estimate_render_memory(uint64_t triangles, const BvhConfig& config) {
   const double mesh = 40.0;
-  double bvh = 130.0;                                        // medium quality
+  const bool compact = triangles >= config.compact_from;
+  double bvh = 130.0;                                        // medium or low quality
   if (triangles < config.high_quality_below) bvh = 110.0;    // spatial splits, smaller scenes
-  else if (triangles >= config.compact_from) bvh = 50.0;     // index-only leaves
+  else if (compact) bvh = choose_bvh_quality(triangles, config) == BvhQuality::Low ? 65.0 : 50.0;  // index-only leaves
   return uint64_t(16ull << 20) + uint64_t(double(triangles) * (mesh + bvh));
 }
 
@@ -166,6 +168,8 @@ BvhConfig bvh_for_memory_limit(uint64_t triangles, uint64_t limit, BvhConfig con
   BvhConfig compact = config;
   compact.high_quality_below = 0;
   compact.compact_from = 0;
+  if (estimate_render_memory(triangles, compact) <= limit) return compact;
+  compact.camera_rays = 0;  // the medium builder, whose compact build peaks lower than the low one's
   return estimate_render_memory(triangles, compact) <= limit ? compact : config;
 }
 
@@ -258,7 +262,11 @@ StatusOr<std::vector<TriangleMesh>> load_scene_meshes(const Scene& world_scene, 
   const std::vector<std::filesystem::path>& paths = sp.paths;
   const uint64_t declared = sp.declared;
   auto omitted = [&](size_t i) { return paths[i].empty(); };
-  const BvhConfig chosen = bvh_for_memory_limit(declared, options.memory_limit, options.bvh);
+  BvhConfig wanted = options.bvh;
+  if (wanted.camera_rays == 0)
+    wanted.camera_rays = uint64_t(scene.camera.width) * uint64_t(scene.camera.height) *
+                         uint64_t(options.spp > 0 ? options.spp : scene.spp);
+  const BvhConfig chosen = bvh_for_memory_limit(declared, options.memory_limit, wanted);
   if (bvh) *bvh = chosen;
   stats.estimated_bytes = estimate_render_memory(declared, chosen);
   if (options.memory_limit > 0 && stats.estimated_bytes > options.memory_limit) {

@@ -108,7 +108,10 @@ StatusOr<uint64_t> declared_scene_triangles(const Scene& scene, const RenderOpti
 // Loads every object's mesh (or its override) into world space, plus the
 // ground plane; checks the memory estimate against options.memory_limit
 // before reading any triangle. Fills the load part of stats, and `bvh` (if
-// given) with the configuration to build with (bvh_for_memory_limit).
+// given) with the configuration to build with (bvh_for_memory_limit), its
+// camera_rays, unless options.bvh gives them, those of one frame of the
+// scene (width x height x spp): a caller that traces more frames with the
+// same BVH multiplies them.
 // Warns through options.log about a mesh whose every triangle is degenerate.
 // The scene as the renderer sees it: every world position minus
 // scene.render_origin (if that is zero, as in a scene built in code, the

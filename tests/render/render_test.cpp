@@ -270,6 +270,70 @@ TEST(Determinism, SameImageForOneAndTwoThreads) {
   EXPECT_EQ(a.stats.rays.refraction, b.stats.rays.refraction);
 }
 
+// The builder by scene size and by the camera rays the BVH serves: small
+// scenes high quality; large ones medium, or low where the frame has fewer
+// camera rays than the scene has triangles (its build is then most of the
+// render). The memory estimate covers the low builder's larger compact
+// peak, and a limit only the medium compact build meets falls back to it.
+TEST(BvhQualityChoice, BySizeAndCameraRays) {
+  BvhConfig c;
+  EXPECT_EQ(choose_bvh_quality(1000, c), BvhQuality::High);
+  EXPECT_EQ(choose_bvh_quality(c.high_quality_below, c), BvhQuality::Medium);  // rays unknown
+  c.camera_rays = 1280 * 960 * 4;
+  EXPECT_EQ(choose_bvh_quality(1000, c), BvhQuality::High);
+  EXPECT_EQ(choose_bvh_quality(c.camera_rays, c), BvhQuality::Medium);
+  EXPECT_EQ(choose_bvh_quality(c.camera_rays + 1, c), BvhQuality::Low);
+  EXPECT_EQ(choose_bvh_quality(10'000'000, c), BvhQuality::Low);
+  c.low_quality_below_rays_per_triangle = 0.25;
+  EXPECT_EQ(choose_bvh_quality(10'000'000, c), BvhQuality::Medium);
+  EXPECT_EQ(choose_bvh_quality(4 * c.camera_rays + 4, c), BvhQuality::Low);
+
+  BvhConfig low;
+  low.camera_rays = 1;
+  BvhConfig medium;
+  const uint64_t n = 30'000'000;  // compact from 20M
+  EXPECT_GT(estimate_render_memory(n, low), estimate_render_memory(n, medium));
+  EXPECT_EQ(estimate_render_memory(5'000'000, low), estimate_render_memory(5'000'000, medium));
+  // Between the two compact estimates: the medium compact build is chosen.
+  const uint64_t limit = (estimate_render_memory(n, low) + estimate_render_memory(n, medium)) / 2;
+  const BvhConfig chosen = bvh_for_memory_limit(n, limit, low);
+  EXPECT_EQ(chosen.compact_from, 0u);
+  EXPECT_EQ(choose_bvh_quality(n, chosen), BvhQuality::Medium);
+  EXPECT_LE(estimate_render_memory(n, chosen), limit);
+  // With room for it, the low compact build stays.
+  EXPECT_EQ(choose_bvh_quality(n, bvh_for_memory_limit(n, estimate_render_memory(n, low), low)), BvhQuality::Low);
+}
+
+// The low-quality (Morton) build gives the same image for one and two
+// threads, and the same hits as the medium build but where two triangles
+// tie at a ray (a shared edge): a closest hit does not depend on the tree.
+TEST(BvhQualityChoice, LowBuildIsDeterministicAndFindsTheSameHits) {
+  const Scene s = sphere_box_scene(64, 48, material("glass", MaterialType::Glass));
+  auto render_with = [&](const BvhConfig& config, int threads) {
+    RenderOptions o = quiet_options();
+    o.aov_depth = o.aov_triangle_id = true;
+    RenderResult result;
+    tbb::task_arena(threads).execute([&] {
+      auto geometry = EmbreeScene::build(sphere_box_meshes(s), config);
+      if (!geometry) throw std::runtime_error(geometry.status().message());
+      EXPECT_EQ((*geometry)->info().quality.substr(0, 3), config.camera_rays == 1 ? "low" : "med");
+      result = render_embree_scene(**geometry, s, o);
+    });
+    return result;
+  };
+  BvhConfig low, medium;
+  low.high_quality_below = medium.high_quality_below = 0;
+  low.camera_rays = 1;
+  const RenderResult a = render_with(low, 1), b = render_with(low, 2), m = render_with(medium, 2);
+  ASSERT_EQ(a.color.pixels.size(), b.color.pixels.size());
+  EXPECT_EQ(0, std::memcmp(a.color.pixels.data(), b.color.pixels.data(), a.color.pixels.size() * sizeof(float)));
+  EXPECT_EQ(a.triangle_id, b.triangle_id);
+  size_t differ = 0;
+  for (size_t i = 0; i < m.triangle_id.size(); ++i) differ += m.triangle_id[i] != b.triangle_id[i];
+  EXPECT_LE(differ, m.triangle_id.size() / 200) << differ << " of " << m.triangle_id.size() << " pixels";
+  for (size_t i = 0; i < m.depth.pixels.size(); ++i) EXPECT_NEAR(m.depth.pixels[i], b.depth.pixels[i], 1e-4f) << i;
+}
+
 // What `mpirun raylod render` does on each rank: the tiles t with
 // t % ranks == rank, each pixel as the whole frame has it, and the rays of
 // the shares adding up to the frame's.
