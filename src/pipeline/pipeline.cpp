@@ -158,6 +158,7 @@ StatusOr<SimplifiedMesh> simplify_cut_to_draco(const OctreeStore& store, const C
   dopt.normal_bits = 0;
   dopt.max_normal_error = max_normal_error;
   const uint64_t triangles = simplified.mesh.triangle_count();
+  dopt.speed = draco_speed_for(triangles);
   RAYLOD_ASSIGN_OR_RETURN(DracoWriteReport written, write_draco(out, std::move(simplified.mesh), dopt));
   SimplifiedMesh sm;
   sm.drc = out;

@@ -74,9 +74,13 @@ TEST(DracoIo, ChoosesBitsFromTheRequestedError) {
 TEST(DracoIo, RoundTripSphereWithinTheStatedErrors) {
   const IndexedMesh mesh = indexed(test::uv_sphere({10, -3, 2}, 2.0f, 24, 32));
   const auto path = tmp_dir() / "sphere.drc";
-  for (double want : {1e-2, 1e-4}) {
+  // Both speeds the pipeline uses (draco_speed_for) keep the stated bounds.
+  EXPECT_EQ(draco_speed_for(kFastDracoFromTriangles - 1), 5);
+  EXPECT_EQ(draco_speed_for(kFastDracoFromTriangles), 6);
+  for (auto [want, speed] : {std::pair{1e-2, 5}, {1e-4, 5}, {1e-2, 6}, {1e-4, 6}}) {
     DracoOptions opt;
     opt.max_position_error = want;
+    opt.speed = speed;
     auto rep = write_draco(path, mesh, opt);
     ASSERT_TRUE(rep.is_ok()) << rep.status().message();
     EXPECT_LE(rep->max_position_error, want);
@@ -227,14 +231,17 @@ TEST(DracoIo, RoundTripKeepsReverseTwinsAndSeams) {
   IndexedMesh mesh = indexed(slab);
   // Add the reverse twin of the first triangle (a wall collapsed to zero thickness).
   for (int k : {0, 2, 1}) mesh.indices.push_back(mesh.indices[k]);
-  DracoOptions opt;
-  opt.max_position_error = 1e-5;
-  const auto path = tmp_dir() / "slab.drc";
-  auto rep = write_draco(path, mesh, opt);
-  ASSERT_TRUE(rep.is_ok()) << rep.status().message();
-  auto back = read_draco(path);
-  ASSERT_TRUE(back.is_ok()) << back.status().message();
-  expect_same_triangles(mesh, *back, rep->max_position_error, rep->max_normal_error);
+  for (int speed : {5, 6}) {
+    DracoOptions opt;
+    opt.max_position_error = 1e-5;
+    opt.speed = speed;
+    const auto path = tmp_dir() / "slab.drc";
+    auto rep = write_draco(path, mesh, opt);
+    ASSERT_TRUE(rep.is_ok()) << rep.status().message();
+    auto back = read_draco(path);
+    ASSERT_TRUE(back.is_ok()) << back.status().message();
+    expect_same_triangles(mesh, *back, rep->max_position_error, rep->max_normal_error);
+  }
 }
 
 TEST(DracoIo, NormalErrorBoundHoldsForRandomNormals) {
