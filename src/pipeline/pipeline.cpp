@@ -562,8 +562,11 @@ StatusOr<FittedCuts> select_fitting_cuts(RunSession& session, std::span<const Pr
   const uint64_t memory_limit = session.memory_limit;
   FittedCuts fitted;
   uint64_t previous_estimate = UINT64_MAX;
+  // The cells' needs are computed once; each coarsening step only decides.
+  RAYLOD_ASSIGN_OR_RETURN(CutSelection selection,
+                          CutSelection::make(views, scene, stores.probe_stores, stores.objects, probe));
   for (;;) {
-    RAYLOD_ASSIGN_OR_RETURN(fitted.probe, select_shared_cuts(views, scene, stores.probe_stores, stores.objects, probe));
+    RAYLOD_ASSIGN_OR_RETURN(fitted.probe, selection.select(probe));
     // What the later stages need: simplifying one store at a time (its mesh
     // under construction, then Draco-encoded) beside the stores' node tables,
     // then rendering all the simplified meshes (the node tables freed).

@@ -590,58 +590,79 @@ ViewFacts make_view_facts(const ProbeView& v) {
 
 }  // namespace
 
-StatusOr<ProbeResult> select_shared_cuts(std::span<const ProbeView> views, const Scene& scene,
-                                         std::span<const ProbeStore> stores, std::span<const ProbeObject> objects,
-                                         const ProbeConfig& config) {
+namespace {
+
+struct StoreNeeds {
+  bool specular = false;  // a mirror or glass object uses the store: its cells also bound the normal
+  // need() and the angular need per level, node by node (probe.h).
+  std::vector<std::vector<double>> need, angular;
+  // Each node's collapse deviation, computed by the first selection that
+  // tests the node (position < 0: not yet). Selections run one at a time.
+  std::vector<std::vector<CollapseDeviation>> deviation;
+  float min_footprint = 0;
+  uint64_t store_hits = 0;
+};
+
+}  // namespace
+
+struct CutSelection::State {
+  std::vector<ProbeView> views;
+  const Scene* scene = nullptr;
+  std::span<const ProbeStore> stores;
+  std::span<const ProbeObject> objects;
+  double shadow_factor = 0;
+  std::vector<ViewFacts> facts;
+  std::vector<ObjectXf> xf;
+  std::vector<StoreNeeds> needs;
+  double prepare_seconds = 0;
+};
+
+CutSelection::CutSelection() = default;
+CutSelection::~CutSelection() = default;
+CutSelection::CutSelection(CutSelection&&) noexcept = default;
+CutSelection& CutSelection::operator=(CutSelection&&) noexcept = default;
+
+namespace {
+auto hit_footprint = [](const HitRecord& h, double m) { return h.estimated ? h.footprint * m : h.footprint; };
+}  // namespace
+
+StatusOr<CutSelection> CutSelection::make(std::span<const ProbeView> views, const Scene& scene,
+                                          std::span<const ProbeStore> stores, std::span<const ProbeObject> objects,
+                                          const ProbeConfig& config) {
   RAYLOD_RETURN_IF_ERROR(check_probe_inputs(scene, stores, objects, config));
   if (views.empty()) return Status::error("probe: no views to select a cut for");
   for (const ProbeView& v : views)
     if (!v.trace) return Status::error("probe: a view has no trace");
-  const auto t_select = std::chrono::steady_clock::now();
-  ProbeResult result;
-  std::vector<ViewFacts> facts;
-  for (const ProbeView& v : views) facts.push_back(make_view_facts(v));
-  // Counters add up over the views; the magnification is the smallest.
-  result.magnification = kInf;
-  for (const ProbeView& v : views) {
-    for (const auto& [name, value] : v.trace->counters)
-      if (name != "magnification_ppm") result.counters[name] += value;
-    result.magnification = std::min(result.magnification, v.trace->magnification);
-    result.trace_seconds += v.trace->trace_seconds;
-  }
-  result.counters["magnification_ppm"] = uint64_t(std::llround(result.magnification * 1e6));
-  uint64_t total_rays = 0;
-  for (const ProbeView& v : views) total_rays += v.trace->rays;
-  std::vector<ObjectXf> xf;
-  for (const ProbeObject& o : objects) xf.push_back(make_object_xf(o, stores));
+  const auto t_start = std::chrono::steady_clock::now();
+  CutSelection sel;
+  sel.state_ = std::make_unique<State>();
+  State& state = *sel.state_;
+  state.views.assign(views.begin(), views.end());
+  state.scene = &scene;
+  state.stores = stores;
+  state.objects = objects;
+  state.shadow_factor = config.shadow_factor;
+  for (const ProbeView& v : views) state.facts.push_back(make_view_facts(v));
+  for (const ProbeObject& o : objects) state.xf.push_back(make_object_xf(o, stores));
+  state.needs.resize(stores.size());
+  const std::vector<ViewFacts>& facts = state.facts;
+  const std::vector<ObjectXf>& xf = state.xf;
 
   bool specular = false;
   for (const ProbeObject& o : objects) specular |= scene.materials[size_t(o.material)].reflects();
   if (scene.ground) specular |= scene.materials[size_t(scene.ground->material)].reflects();
   const bool lights = !scene.lights.empty();
-  const double K = config.footprint_scale;
 
-  // A4: one cut per store.
   for (size_t s = 0; s < stores.size(); ++s) {
     const OctreeStore& st = *stores[s].store;
     const int Q = st.header().quadric_depth;
-    Cut cut;
-    cut.store_hash = store_fingerprint(st);
-    cut.store_path = stores[s].path.string();
-    cut.key = shared_probe_key(views, scene, st, objects, s, config);
-    cut.rays = total_rays;
-    cut.seed = views[0].trace->seed;
-    cut.footprint_scale = K;
-    for (const auto& [name, value] : result.counters)
-      if (!is_page_cache_counter(name)) cut.counters[name] = value;
-
+    StoreNeeds& n = state.needs[s];
     // Measured footprints at the finest level, attached to the hit triangles'
     // corner cells, per view.
     struct Measured { double f = kInf; double angular = kInf; uint32_t hits = 0; };
     std::vector<std::unordered_map<uint64_t, Measured>> measured(views.size());
     double min_fp = kInf;
     uint64_t store_hits = 0;
-    auto hit_footprint = [&](const HitRecord& h, double m) { return h.estimated ? h.footprint * m : h.footprint; };
     for (size_t v = 0; v < views.size(); ++v)
       for (const HitRecord& h : views[v].trace->hits) {
         if (xf[h.object].store != s) continue;
@@ -658,8 +679,8 @@ StatusOr<ProbeResult> select_shared_cuts(std::span<const ProbeView> views, const
           ++e.hits;
         }
       }
-    cut.min_footprint = std::isfinite(min_fp) ? float(min_fp) : 0.0f;
-    cut.counters["store_hits"] = store_hits;
+    n.min_footprint = std::isfinite(min_fp) ? float(min_fp) : 0.0f;
+    n.store_hits = store_hits;
 
     // The policy's estimate for a cell no ray of view `view` reached (probe.h).
     auto estimate = [&](const ViewFacts& view, const CellKey& key) {
@@ -685,19 +706,19 @@ StatusOr<ProbeResult> select_shared_cuts(std::span<const ProbeView> views, const
     };
 
     // Mirror or glass objects on this store: their cells also bound the normal.
-    bool store_specular = false;
     for (const ObjectXf& x : xf)
-      if (x.store == s) store_specular |= scene.materials[size_t(x.material)].reflects();
-    const bool deviation = config.criterion == CutCriterion::Deviation;
-    const bool bound_normals = deviation && store_specular;
+      if (x.store == s) n.specular |= scene.materials[size_t(x.material)].reflects();
 
     // need() and the angular need bottom-up: at level Q the finest over the
     // views of each view's measured or estimated need, min over children above.
-    std::vector<std::vector<double>> need(size_t(Q) + 1), angular(size_t(Q) + 1);
+    std::vector<std::vector<double>>& need = n.need;
+    std::vector<std::vector<double>>& angular = n.angular;
+    need.resize(size_t(Q) + 1);
+    angular.resize(size_t(Q) + 1);
     {
       const auto nodes = st.level(Q);
       need[size_t(Q)].assign(nodes.size(), kInf);
-      if (bound_normals) angular[size_t(Q)].assign(nodes.size(), kInf);
+      if (n.specular) angular[size_t(Q)].assign(nodes.size(), kInf);
       tbb::parallel_for(tbb::blocked_range<size_t>(0, nodes.size(), 1024), [&](const tbb::blocked_range<size_t>& r) {
         for (size_t i = r.begin(); i != r.end(); ++i) {
           double f = kInf, a = kInf;
@@ -706,26 +727,77 @@ StatusOr<ProbeResult> select_shared_cuts(std::span<const ProbeView> views, const
             f = std::min(f, it != measured[v].end() ? it->second.f : estimate(facts[v], CellKey{uint32_t(Q), nodes[i].code}));
             // Unreached mirror or glass cells: the pixel angle, as magnified
             // as the most magnified measured paths.
-            if (bound_normals) a = std::min(a, it != measured[v].end() ? it->second.angular : facts[v].a_min * facts[v].m);
+            if (n.specular) a = std::min(a, it != measured[v].end() ? it->second.angular : facts[v].a_min * facts[v].m);
           }
           need[size_t(Q)][i] = f;
-          if (bound_normals) angular[size_t(Q)][i] = a;
+          if (n.specular) angular[size_t(Q)][i] = a;
         }
       });
     }
     for (int L = Q - 1; L >= 0; --L) {
       const auto parents = st.level(L), children = st.level(L + 1);
       need[size_t(L)].assign(parents.size(), kInf);
-      if (bound_normals) angular[size_t(L)].assign(parents.size(), kInf);
+      if (n.specular) angular[size_t(L)].assign(parents.size(), kInf);
       size_t j = 0;
       for (size_t i = 0; i < parents.size(); ++i) {
         while (j < children.size() && (children[j].code >> 3) < parents[i].code) ++j;
         for (; j < children.size() && (children[j].code >> 3) == parents[i].code; ++j) {
           need[size_t(L)][i] = std::min(need[size_t(L)][i], need[size_t(L) + 1][j]);
-          if (bound_normals) angular[size_t(L)][i] = std::min(angular[size_t(L)][i], angular[size_t(L) + 1][j]);
+          if (n.specular) angular[size_t(L)][i] = std::min(angular[size_t(L)][i], angular[size_t(L) + 1][j]);
         }
       }
     }
+    n.deviation.resize(size_t(Q) + 1);
+    for (int L = 0; L <= Q; ++L) n.deviation[size_t(L)].assign(st.level(L).size(), CollapseDeviation{-1.0, 0.0});
+  }
+  state.prepare_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
+  return sel;
+}
+
+StatusOr<ProbeResult> CutSelection::select(const ProbeConfig& config) {
+  if (!state_) return Status::error("probe: a cut selection that was not made");
+  State& state = *state_;
+  const Scene& scene = *state.scene;
+  const std::span<const ProbeStore> stores = state.stores;
+  const std::span<const ProbeObject> objects = state.objects;
+  const std::span<const ProbeView> views = state.views;
+  RAYLOD_RETURN_IF_ERROR(check_probe_inputs(scene, stores, objects, config));
+  if (config.shadow_factor != state.shadow_factor)
+    return Status::error("probe: a cut selection was prepared for another shadow factor");
+  const auto t_select = std::chrono::steady_clock::now();
+  ProbeResult result;
+  // Counters add up over the views; the magnification is the smallest.
+  result.magnification = kInf;
+  for (const ProbeView& v : views) {
+    for (const auto& [name, value] : v.trace->counters)
+      if (name != "magnification_ppm") result.counters[name] += value;
+    result.magnification = std::min(result.magnification, v.trace->magnification);
+    result.trace_seconds += v.trace->trace_seconds;
+  }
+  result.counters["magnification_ppm"] = uint64_t(std::llround(result.magnification * 1e6));
+  uint64_t total_rays = 0;
+  for (const ProbeView& v : views) total_rays += v.trace->rays;
+  const double K = config.footprint_scale;
+  const bool deviation = config.criterion == CutCriterion::Deviation;
+
+  // A4: one cut per store.
+  for (size_t s = 0; s < stores.size(); ++s) {
+    const OctreeStore& st = *stores[s].store;
+    const int Q = st.header().quadric_depth;
+    StoreNeeds& n = state.needs[s];
+    const bool bound_normals = deviation && n.specular;
+    Cut cut;
+    cut.store_hash = store_fingerprint(st);
+    cut.store_path = stores[s].path.string();
+    cut.key = shared_probe_key(views, scene, st, objects, s, config);
+    cut.rays = total_rays;
+    cut.seed = views[0].trace->seed;
+    cut.footprint_scale = K;
+    for (const auto& [name, value] : result.counters)
+      if (!is_page_cache_counter(name)) cut.counters[name] = value;
+    cut.min_footprint = n.min_footprint;
+    cut.counters["store_hits"] = n.store_hits;
+
     // The cut: top-down, the largest cells the criterion accepts (a cell
     // inside an accepted one is collapsed with it).
     const QemSolveConfig qem;
@@ -755,11 +827,14 @@ StatusOr<ProbeResult> select_shared_cuts(std::span<const ProbeView> views, const
       tbb::parallel_for(tbb::blocked_range<size_t>(0, nodes.size(), 256), [&](const tbb::blocked_range<size_t>& r) {
         for (size_t i = r.begin(); i != r.end(); ++i) {
           if (inside[i]) continue;
-          const double f = need[size_t(L)][i];
+          const double f = n.need[size_t(L)][i];
           if (!(diag < K * f)) continue;
           if (!deviation) { verdict[i] = 1; continue; }
-          const Bbox cell = st.cell_bounds(CellKey{uint32_t(L), nodes[i].code});
-          const CollapseDeviation dev = collapse_deviation(nodes[i], Bbox{cell.lo - origin, cell.hi - origin}, qem);
+          CollapseDeviation& dev = n.deviation[size_t(L)][i];
+          if (dev.position < 0) {  // not computed by an earlier selection
+            const Bbox cell = st.cell_bounds(CellKey{uint32_t(L), nodes[i].code});
+            dev = collapse_deviation(nodes[i], Bbox{cell.lo - origin, cell.hi - origin}, qem);
+          }
           if (dev.position > config.tolerance_px * f) { verdict[i] = 2; continue; }
           // The quadric does not see a rim (collapse_deviation.h), which the
           // representative may pull anywhere in the cell: a cell with an
@@ -769,7 +844,7 @@ StatusOr<ProbeResult> select_shared_cuts(std::span<const ProbeView> views, const
             verdict[i] = 4;
             continue;
           }
-          if (bound_normals && 2.0 * dev.normal > config.angle_tolerance_px * angular[size_t(L)][i]) { verdict[i] = 3; continue; }
+          if (bound_normals && 2.0 * dev.normal > config.angle_tolerance_px * n.angular[size_t(L)][i]) { verdict[i] = 3; continue; }
           verdict[i] = 1;
         }
       });
@@ -799,9 +874,9 @@ StatusOr<ProbeResult> select_shared_cuts(std::span<const ProbeView> views, const
     auto pack = [](uint32_t level, uint64_t code) { return (uint64_t(level) << 58) ^ code; };
     for (size_t i = 0; i < cut.cells.size(); ++i) cell_index[pack(cut.cells[i].key.level, cut.cells[i].key.code)] = i;
     uint64_t hit_cells = 0;
-    for (size_t v = 0; v < views.size(); ++v)
-      for (const HitRecord& h : views[v].trace->hits) {
-        if (xf[h.object].store != s) continue;
+    for (size_t v = 0; v < state.views.size(); ++v)
+      for (const HitRecord& h : state.views[v].trace->hits) {
+        if (state.xf[h.object].store != s) continue;
         size_t found[3];
         int nfound = 0;
         for (int k = 0; k < 3; ++k) {
@@ -815,7 +890,7 @@ StatusOr<ProbeResult> select_shared_cuts(std::span<const ProbeView> views, const
         }
         for (int k = 0; k < nfound; ++k) {
           CollapsedCell& c = cut.cells[found[k]];
-          const float f = float(hit_footprint(h, facts[v].m));
+          const float f = float(hit_footprint(h, state.facts[v].m));
           c.min_footprint = c.hits == 0 ? f : std::min(c.min_footprint, f);
           ++c.hits;
         }
@@ -826,8 +901,16 @@ StatusOr<ProbeResult> select_shared_cuts(std::span<const ProbeView> views, const
     cut.counters["quadric_depth"] = uint64_t(Q);
     result.cuts.push_back(std::move(cut));
   }
-  result.cut_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_select).count();
+  result.cut_seconds = state.prepare_seconds + std::chrono::duration<double>(std::chrono::steady_clock::now() - t_select).count();
+  state.prepare_seconds = 0;  // counted once, in the first selection
   return result;
+}
+
+StatusOr<ProbeResult> select_shared_cuts(std::span<const ProbeView> views, const Scene& scene,
+                                         std::span<const ProbeStore> stores, std::span<const ProbeObject> objects,
+                                         const ProbeConfig& config) {
+  RAYLOD_ASSIGN_OR_RETURN(CutSelection selection, CutSelection::make(views, scene, stores, objects, config));
+  return selection.select(config);
 }
 
 StatusOr<ProbeResult> run_probe(const Scene& scene, std::span<const ProbeStore> stores,

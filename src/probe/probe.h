@@ -73,6 +73,7 @@
 #include <limits>
 #include <filesystem>
 #include <map>
+#include <memory>
 #include <span>
 #include <string>
 #include <vector>
@@ -226,6 +227,32 @@ struct ProbeView {
 StatusOr<ProbeResult> select_shared_cuts(std::span<const ProbeView> views, const Scene& scene,
                                          std::span<const ProbeStore> stores, std::span<const ProbeObject> objects,
                                          const ProbeConfig& config);
+
+// select_shared_cuts in two parts, for selecting several cuts from the same
+// traces (the memory limit's coarsening, K and tolerance sweeps): make()
+// computes what does not depend on the criterion, K or the tolerances
+// (every cell's need and angular need from the traces and the unreached-cell
+// policy), and each select() decides the cut for one configuration, the
+// nodes' collapse deviations computed once and kept for the next. select(c)
+// gives exactly select_shared_cuts(views, ..., c) (the same cells, key and
+// counters), for any c with make()'s shadow_factor. The views' traces, the
+// scene, the stores and the objects must outlive the selection.
+class CutSelection {
+ public:
+  static StatusOr<CutSelection> make(std::span<const ProbeView> views, const Scene& scene,
+                                     std::span<const ProbeStore> stores, std::span<const ProbeObject> objects,
+                                     const ProbeConfig& config);
+  StatusOr<ProbeResult> select(const ProbeConfig& config);
+
+  CutSelection();
+  ~CutSelection();
+  CutSelection(CutSelection&&) noexcept;
+  CutSelection& operator=(CutSelection&&) noexcept;
+
+ private:
+  struct State;
+  std::unique_ptr<State> state_;
+};
 
 // Both: trace, then select.
 StatusOr<ProbeResult> run_probe(const Scene& scene, std::span<const ProbeStore> stores,

@@ -11,6 +11,7 @@
 #include <iterator>
 #include <random>
 #include <set>
+#include <tuple>
 
 #include <sys/resource.h>
 #include <unistd.h>
@@ -732,6 +733,55 @@ TEST(SharedCut, OneViewIsSelectCutsExactly) {
   EXPECT_EQ(shared->cuts[0].key, single->cuts[0].key);
   EXPECT_EQ(cells_of(shared->cuts[0]), cells_of(single->cuts[0]));
   EXPECT_EQ(shared->cuts[0].min_footprint, single->cuts[0].min_footprint);
+}
+
+// One CutSelection serves many configurations (the memory limit's
+// coarsening): each select() gives exactly what select_cuts gives for that
+// configuration -- cells, key, counters, min footprint -- whatever
+// configurations it selected before (the kept collapse deviations), on glass
+// (the angular need) and with both criteria.
+TEST(CutSelection, EverySelectionIsSelectCutsExactly) {
+  const Built& b = teapot();
+  const OneObject one(b);
+  const Scene scene = make_scene(MaterialType::Glass, kEye, kLook);
+  ProbeConfig c;
+  c.rays = 1000;
+  c.seed = 7;
+  auto t = trace_probe(scene, one.stores(), one.objects(), c);
+  ASSERT_TRUE(t) << t.status().message();
+  const ProbeView view{&t.value(), scene.camera};
+  auto selection = CutSelection::make(std::span<const ProbeView>(&view, 1), scene, one.stores(), one.objects(), c);
+  ASSERT_TRUE(selection) << selection.status().message();
+  size_t distinct = 0;
+  std::set<std::vector<CellKey>> seen;
+  for (auto [criterion, k, tol] : {std::tuple{CutCriterion::Deviation, 64.0, 0.5}, {CutCriterion::Deviation, 4.0, 0.5},
+                                   {CutCriterion::Deviation, 512.0, 4.0}, {CutCriterion::Diagonal, 10.0, 0.5},
+                                   {CutCriterion::Deviation, 64.0, 0.5}, {CutCriterion::Deviation, 128.0, 1.0}}) {
+    ProbeConfig cfg = c;
+    cfg.criterion = criterion;
+    cfg.footprint_scale = k;
+    cfg.tolerance_px = tol;
+    cfg.angle_tolerance_px = 2 * tol;
+    auto kept = selection->select(cfg);
+    auto fresh = select_cuts(*t, scene, one.stores(), one.objects(), cfg);
+    ASSERT_TRUE(kept.is_ok() && fresh.is_ok());
+    const Cut &a = kept->cuts[0], &f = fresh->cuts[0];
+    EXPECT_EQ(a.key, f.key);
+    EXPECT_EQ(cells_of(a), cells_of(f)) << k << " " << tol;
+    EXPECT_EQ(a.counters, f.counters);
+    EXPECT_EQ(a.min_footprint, f.min_footprint);
+    ASSERT_EQ(a.cells.size(), f.cells.size());
+    for (size_t i = 0; i < a.cells.size(); ++i) {
+      EXPECT_EQ(a.cells[i].hits, f.cells[i].hits);
+      EXPECT_EQ(a.cells[i].min_footprint, f.cells[i].min_footprint);
+    }
+    distinct += seen.insert(cells_of(a)).second;
+  }
+  EXPECT_GE(distinct, 4u);  // the configurations select different cuts
+  // A selection is for the shadow factor it was made with.
+  ProbeConfig other = c;
+  other.shadow_factor = 2 * c.shadow_factor;
+  EXPECT_FALSE(selection->select(other).is_ok());
 }
 
 // The mirror and glass normal bound has its own tolerance (angle_tolerance_px):
