@@ -198,9 +198,12 @@ int main(int argc, char** argv) {
     if (!loaded) { std::fprintf(stderr, "bench_render: %s\n", loaded.status().message().c_str()); return 1; }
     const double load_s = now_seconds() - t0;
     const uint64_t rss_after_load = current_rss_bytes();
-    if (bvh_quality == "low") bvh.high_quality_below = 0, bvh.camera_rays = 1;
-    else if (bvh_quality == "medium") bvh.high_quality_below = 0, bvh.camera_rays = 0;
-    else if (bvh_quality == "high") bvh.high_quality_below = UINT64_MAX;
+    if (bvh_quality == "low" || bvh_quality == "medium") {
+      bvh.high_quality_below = 0;
+      bvh.camera_rays = bvh_quality == "low" ? 1 : 0;  // any rays below the triangle count; 0 = unknown
+    } else if (bvh_quality == "high") {
+      bvh.high_quality_below = UINT64_MAX;
+    }
     auto geometry = EmbreeScene::build(std::move(*loaded), bvh);
     if (!geometry) { std::fprintf(stderr, "bench_render: %s\n", geometry.status().message().c_str()); return 1; }
     const BvhInfo& info = (*geometry)->info();

@@ -599,8 +599,14 @@ struct StoreNeeds {
   // Each node's collapse deviation, computed by the first selection that
   // tests the node (position < 0: not yet). Selections run one at a time.
   std::vector<std::vector<CollapseDeviation>> deviation;
+  // The store's hits, for the footprints of the marked cells: each hit's
+  // footprint (the estimate's factor m applied) and its corners' finest cells.
+  struct Hit {
+    float footprint = 0;
+    std::array<uint64_t, 3> codes{};
+  };
+  std::vector<Hit> hits;
   float min_footprint = 0;
-  uint64_t store_hits = 0;
 };
 
 }  // namespace
@@ -611,8 +617,6 @@ struct CutSelection::State {
   std::span<const ProbeStore> stores;
   std::span<const ProbeObject> objects;
   double shadow_factor = 0;
-  std::vector<ViewFacts> facts;
-  std::vector<ObjectXf> xf;
   std::vector<StoreNeeds> needs;
   double prepare_seconds = 0;
 };
@@ -621,10 +625,6 @@ CutSelection::CutSelection() = default;
 CutSelection::~CutSelection() = default;
 CutSelection::CutSelection(CutSelection&&) noexcept = default;
 CutSelection& CutSelection::operator=(CutSelection&&) noexcept = default;
-
-namespace {
-auto hit_footprint = [](const HitRecord& h, double m) { return h.estimated ? h.footprint * m : h.footprint; };
-}  // namespace
 
 StatusOr<CutSelection> CutSelection::make(std::span<const ProbeView> views, const Scene& scene,
                                           std::span<const ProbeStore> stores, std::span<const ProbeObject> objects,
@@ -642,11 +642,11 @@ StatusOr<CutSelection> CutSelection::make(std::span<const ProbeView> views, cons
   state.stores = stores;
   state.objects = objects;
   state.shadow_factor = config.shadow_factor;
-  for (const ProbeView& v : views) state.facts.push_back(make_view_facts(v));
-  for (const ProbeObject& o : objects) state.xf.push_back(make_object_xf(o, stores));
   state.needs.resize(stores.size());
-  const std::vector<ViewFacts>& facts = state.facts;
-  const std::vector<ObjectXf>& xf = state.xf;
+  std::vector<ViewFacts> facts;
+  for (const ProbeView& v : views) facts.push_back(make_view_facts(v));
+  std::vector<ObjectXf> xf;
+  for (const ProbeObject& o : objects) xf.push_back(make_object_xf(o, stores));
 
   bool specular = false;
   for (const ProbeObject& o : objects) specular |= scene.materials[size_t(o.material)].reflects();
@@ -662,14 +662,14 @@ StatusOr<CutSelection> CutSelection::make(std::span<const ProbeView> views, cons
     struct Measured { double f = kInf; double angular = kInf; uint32_t hits = 0; };
     std::vector<std::unordered_map<uint64_t, Measured>> measured(views.size());
     double min_fp = kInf;
-    uint64_t store_hits = 0;
     for (size_t v = 0; v < views.size(); ++v)
       for (const HitRecord& h : views[v].trace->hits) {
         if (xf[h.object].store != s) continue;
-        ++store_hits;
-        const double f = hit_footprint(h, facts[v].m);
+        const double f = h.estimated ? h.footprint * facts[v].m : h.footprint;
         min_fp = std::min(min_fp, f);
-        uint64_t codes[3];
+        StoreNeeds::Hit& hit = n.hits.emplace_back();
+        hit.footprint = float(f);
+        std::array<uint64_t, 3>& codes = hit.codes;
         for (int k = 0; k < 3; ++k) {
           codes[k] = st.cell_of(h.corners[k], Q).code;
           if ((k > 0 && codes[k] == codes[0]) || (k > 1 && codes[k] == codes[1])) continue;
@@ -680,7 +680,6 @@ StatusOr<CutSelection> CutSelection::make(std::span<const ProbeView> views, cons
         }
       }
     n.min_footprint = std::isfinite(min_fp) ? float(min_fp) : 0.0f;
-    n.store_hits = store_hits;
 
     // The policy's estimate for a cell no ray of view `view` reached (probe.h).
     auto estimate = [&](const ViewFacts& view, const CellKey& key) {
@@ -796,7 +795,7 @@ StatusOr<ProbeResult> CutSelection::select(const ProbeConfig& config) {
     for (const auto& [name, value] : result.counters)
       if (!is_page_cache_counter(name)) cut.counters[name] = value;
     cut.min_footprint = n.min_footprint;
-    cut.counters["store_hits"] = n.store_hits;
+    cut.counters["store_hits"] = n.hits.size();
 
     // The cut: top-down, the largest cells the criterion accepts (a cell
     // inside an accepted one is collapsed with it).
@@ -874,27 +873,22 @@ StatusOr<ProbeResult> CutSelection::select(const ProbeConfig& config) {
     auto pack = [](uint32_t level, uint64_t code) { return (uint64_t(level) << 58) ^ code; };
     for (size_t i = 0; i < cut.cells.size(); ++i) cell_index[pack(cut.cells[i].key.level, cut.cells[i].key.code)] = i;
     uint64_t hit_cells = 0;
-    for (size_t v = 0; v < state.views.size(); ++v)
-      for (const HitRecord& h : state.views[v].trace->hits) {
-        if (state.xf[h.object].store != s) continue;
-        size_t found[3];
-        int nfound = 0;
-        for (int k = 0; k < 3; ++k) {
-          const uint64_t code = st.cell_of(h.corners[k], Q).code;
-          for (int L = Q; L >= 0; --L) {
-            auto it = cell_index.find(pack(uint32_t(L), code >> (3 * (Q - L))));
-            if (it == cell_index.end()) continue;
-            if (std::find(found, found + nfound, it->second) == found + nfound) found[nfound++] = it->second;
-            break;
-          }
+    for (const StoreNeeds::Hit& h : n.hits) {
+      size_t found[3];
+      int nfound = 0;
+      for (const uint64_t code : h.codes)
+        for (int L = Q; L >= 0; --L) {
+          auto it = cell_index.find(pack(uint32_t(L), code >> (3 * (Q - L))));
+          if (it == cell_index.end()) continue;
+          if (std::find(found, found + nfound, it->second) == found + nfound) found[nfound++] = it->second;
+          break;
         }
-        for (int k = 0; k < nfound; ++k) {
-          CollapsedCell& c = cut.cells[found[k]];
-          const float f = float(hit_footprint(h, state.facts[v].m));
-          c.min_footprint = c.hits == 0 ? f : std::min(c.min_footprint, f);
-          ++c.hits;
-        }
+      for (int k = 0; k < nfound; ++k) {
+        CollapsedCell& c = cut.cells[found[k]];
+        c.min_footprint = c.hits == 0 ? h.footprint : std::min(c.min_footprint, h.footprint);
+        ++c.hits;
       }
+    }
     for (const CollapsedCell& c : cut.cells) hit_cells += c.hits > 0;
     cut.counters["cells_marked"] = cut.cells.size();
     cut.counters["cells_marked_with_hits"] = hit_cells;
