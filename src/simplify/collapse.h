@@ -23,9 +23,12 @@
 //     input normals keeps its input normal exactly. A kept vertex without
 //     them gets, per corner, the angle-weighted sum of its input triangles'
 //     normals within the crease angle of that corner's input triangle (the
-//     full render's rule). A representative clusters the normals of every
-//     corner merged into it (input vertex normals, else face normals; area
-//     weighted), and a corner there gets the clusters within the crease
+//     full render's rule). A representative clusters the normals of the
+//     corners merged into it from triangles that reach out of its cell (input
+//     vertex normals, else face normals; area weighted): those are the
+//     triangles the output keeps or that border them, while a triangle wholly
+//     inside the cell vanishes unexamined (at 100M triangles, 9 in 10 under a
+//     coarse cut). A corner there gets the clusters within the crease
 //     angle of its input triangle's normal: a cell spanning a crease has one
 //     normal per side, a flat side exactly its own normal. If nothing is
 //     within the angle, the mean of all clusters, then the dominant plane
@@ -94,8 +97,9 @@ struct CollapseStats {
   uint64_t input_triangles = 0;
   uint64_t output_triangles = 0;
   uint64_t dropped_collapsed = 0;   // two corners became the same output vertex
+  uint64_t inside_cell = 0;         // of those: all three corners in one cell (not examined further)
   uint64_t dropped_zero_area = 0;   // distinct vertices, exactly zero area
-  uint64_t input_degenerate = 0;    // input triangles with exactly zero area (whatever the cut did to them)
+  uint64_t input_degenerate = 0;    // input triangles with exactly zero area, among those not inside one cell
   uint64_t dropped_duplicate = 0;   // same vertices and orientation as an earlier triangle
   uint64_t reverse_twins = 0;       // kept triangles whose reverse-wound twin is also kept
   uint64_t output_vertices = 0;
@@ -112,6 +116,7 @@ struct CollapseStats {
 // alone (prepare_collapse): pages are prepared in parallel, then added to
 // the builder one at a time in order.
 enum class TriangleFate : uint8_t {
+  kInsideCell,  // all three corners in one collapsed cell: dropped, and adds no normals
   kCollapsed,  // two corners became the same output vertex
   kZeroArea,   // distinct output vertices, exactly zero area
   kKept,
@@ -247,7 +252,9 @@ struct SimplifyResult {
   uint64_t fold_cells_refined = 0;    // cut cells replaced by their children (or kept) for a fold
   bool folds_stopped_by_memory = false;  // a fold pass's refinement was left out: it would not fit memory_limit
   uint64_t pages_read = 0;
-  double seconds = 0;
+  double seconds = 0;          // all of simplify(), of which:
+  double fold_seconds = 0;     //   the fold passes' scans
+  double finish_seconds = 0;   //   CollapseBuilder::finish (duplicates, normals, output order)
 };
 
 // Streams the store's pages and collapses the cut. Vertex clustering can

@@ -2,6 +2,7 @@
 // differential test against the in-memory reference vertex clustering.
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <map>
 #include <random>
 #include <set>
@@ -113,6 +114,31 @@ TEST(CollapseBuilder, FlagsTheRepresentativesOfTrianglesTurnedOver) {
   const IndexedMesh m = b.finish(&st);
   EXPECT_EQ(m.triangle_count(), 2u);
   EXPECT_EQ(st.folded, 1u);
+}
+
+TEST(CollapseBuilder, TrianglesWhollyInsideACellVanishAndGiveItNoNormal) {
+  // Triangle A reaches from the cell (its corner at the origin) to two kept
+  // corners and faces +z. Triangle B lies wholly inside the cell, tilted 20
+  // degrees (within the crease angle of A): it vanishes unexamined, so the
+  // representative's corner of A gets A's own normal exactly. (Were B's
+  // normal clustered in, the corner would lean towards it.)
+  TriangleBatch soup;
+  add_tri(soup, {0, 0, 0}, {1, 0, 0}, {0, 1, 0});
+  const float s = std::sin(0.349066f), c = std::cos(0.349066f);
+  add_tri(soup, {0.1f, 0.1f, 0}, {0.3f, 0.1f, 0}, {0.1f, 0.1f + 0.2f * c, 0.2f * s});
+  std::vector<Representative> reps(1);
+  reps[0].position = Vec3d(0.05, 0.05, 0);
+  CollapseBuilder b(reps, false);
+  b.add(soup, std::vector<uint32_t>{0, kKeepVertex, kKeepVertex, 0, 0, 0});
+  CollapseStats st;
+  const IndexedMesh m = b.finish(&st);
+  ASSERT_EQ(m.triangle_count(), 1u);
+  EXPECT_EQ(st.inside_cell, 1u);
+  EXPECT_EQ(st.dropped_collapsed, 1u);
+  EXPECT_EQ(st.input_triangles, 2u);
+  const uint32_t rep = m.indices[0];
+  EXPECT_EQ(m.positions[rep], Vec3(0.05f, 0.05f, 0));
+  EXPECT_EQ(m.normals[rep], Vec3(0, 0, 1));
 }
 
 TEST(CollapseBuilder, ReserveMidStreamKeepsTheVerticesFoundSoFar) {
