@@ -200,6 +200,7 @@ void CollapseBuilder::reserve(uint64_t vertices, uint64_t triangles) {
       while (table_[i] != kKeepVertex) i = (i + 1) & mask;
       table_[i] = id;
     }
+    table_count_ = kept_pos_.size();
   }
   kept_pos_.reserve(vertices);
   if (has_normals_) kept_normal_.reserve(vertices);
@@ -229,14 +230,36 @@ uint32_t CollapseBuilder::kept_vertex(const Vec3& p_in, const Vec3& n_in, uint64
     if (same_bits(kept_pos_[id], p) && (!has_normals_ || same_bits(kept_normal_[id], n))) return id;
     i = (i + 1) & mask;
   }
+  const uint32_t id = new_kept_vertex(p, n);
+  table_[i] = id;
+  if (2 * ++table_count_ > table_.size()) grow_table();  // load factor <= 1/2
+  return id;
+}
+
+uint32_t CollapseBuilder::new_kept_vertex(const Vec3& p, const Vec3& n) {
   const uint32_t id = uint32_t(kept_pos_.size());
   assert(uint64_t(id) + reps_.size() < kKeepVertex);
-  kept_pos_.push_back(p);
-  if (has_normals_) kept_normal_.push_back(n);
+  kept_pos_.push_back(canonical(p));
+  if (has_normals_) kept_normal_.push_back(canonical(n));
   clusters_.add_vertex();
-  table_[i] = id;
-  if (2 * kept_pos_.size() > table_.size()) grow_table();  // load factor <= 1/2
   return id;
+}
+
+void mark_page_unique_vertices(const PageMesh& page, std::span<const uint32_t> vertex_cell,
+                               std::span<const Bbox> other_pages, const Bbox& inner, PreparedBatch& out) {
+  out.unique.assign(page.vertices(), 0);
+  for (size_t v = 0; v < page.vertices(); ++v) {
+    if (vertex_cell[v] != kKeepVertex) continue;
+    const Vec3d p(page.positions[v]);
+    bool unique = p.x > inner.lo.x && p.x < inner.hi.x && p.y > inner.lo.y && p.y < inner.hi.y && p.z > inner.lo.z &&
+                  p.z < inner.hi.z;
+    if (!unique) {
+      unique = true;
+      for (const Bbox& b : other_pages)
+        if (b.contains(p)) { unique = false; break; }
+    }
+    out.unique[v] = unique;
+  }
 }
 
 namespace {
@@ -268,6 +291,7 @@ void prepare_collapse(const PageMesh& page, std::span<const uint32_t> vertex_cel
   out.angle.resize(input_has_normals ? 0 : 3 * nt);
   out.vertex_normal.assign(nv, kKeepVertex);
   out.rep_normals.clear();
+  out.unique.clear();
   for (size_t v = 0; v < nv; ++v) {
     if (vertex_cell[v] != kKeepVertex) continue;
     const Vec3 n = input_has_normals && page_normals ? canonical(page.normals[v]) : Vec3(0);
@@ -386,7 +410,11 @@ void CollapseBuilder::add(const PageMesh& page, std::span<const uint32_t> vertex
         id[k] = c;
       } else {
         uint32_t& kv = page_kept_[v];
-        if (kv == kKeepVertex) kv = kept_vertex(page.positions[v], page_normals ? page.normals[v] : n_none, prepared.hash[v]);
+        if (kv == kKeepVertex) {
+          const Vec3& n = page_normals ? page.normals[v] : n_none;
+          kv = !prepared.unique.empty() && prepared.unique[v] ? new_kept_vertex(page.positions[v], n)
+                                                              : kept_vertex(page.positions[v], n, prepared.hash[v]);
+        }
         id[k] = nreps + kv;
         if (!has_normals_ && area2 > 0) clusters_.add(nreps + kv, face, prepared.angle[3 * t + k], kNoCluster);
       }
@@ -639,6 +667,79 @@ std::vector<uint32_t> pages_touching(const OctreeStore& store, std::span<const B
   return out;
 }
 
+// For each page, the bounds of the other pages whose bounds meet its own
+// (only they can hold a vertex at a position of this page's), and its cell
+// shrunk by the farthest any of them reaches out of its own cell (no other
+// page's bounds reach into that box's interior).
+class PageNeighbours {
+ public:
+  explicit PageNeighbours(const OctreeStore& store) {
+    const auto pages = store.pages();
+    const StoreHeader& h = store.header();
+    const double cell = h.root_size / double(uint64_t(1) << h.page_level);
+    const uint32_t max_coord = uint32_t((uint64_t(1) << h.page_level) - 1);
+    auto coord = [&](double v, double lo) {
+      const double t = std::floor((v - lo) / cell);
+      return t <= 0 ? 0u : t >= double(max_coord) ? max_coord : uint32_t(t);
+    };
+    auto for_cells = [&](const Bbox& b, auto&& f) {
+      uint32_t lo[3], hi[3];
+      for (int a = 0; a < 3; ++a) {
+        lo[a] = coord(b.lo[a], h.root_lo[a]);
+        hi[a] = coord(b.hi[a], h.root_lo[a]);
+      }
+      for (uint32_t x = lo[0]; x <= hi[0]; ++x)
+        for (uint32_t y = lo[1]; y <= hi[1]; ++y)
+          for (uint32_t z = lo[2]; z <= hi[2]; ++z) f(morton_encode(x, y, z));
+    };
+    std::unordered_map<uint64_t, std::vector<uint32_t>> by_cell;
+    std::vector<double> spill(pages.size(), 0);
+    for (size_t i = 0; i < pages.size(); ++i) {
+      if (pages[i].bounds.empty()) continue;
+      for_cells(pages[i].bounds, [&](uint64_t c) { by_cell[c].push_back(uint32_t(i)); });
+      const Bbox own = store.cell_bounds({uint32_t(h.page_level), pages[i].code});
+      for (int a = 0; a < 3; ++a)
+        spill[i] = std::max({spill[i], own.lo[a] - pages[i].bounds.lo[a], pages[i].bounds.hi[a] - own.hi[a]});
+    }
+    start_.assign(1, 0);
+    inner_.resize(pages.size());
+    std::vector<uint32_t> found;
+    for (size_t i = 0; i < pages.size(); ++i) {
+      found.clear();
+      if (!pages[i].bounds.empty())
+        for_cells(pages[i].bounds, [&](uint64_t c) {
+          for (uint32_t j : by_cell[c]) found.push_back(j);
+        });
+      std::sort(found.begin(), found.end());
+      found.erase(std::unique(found.begin(), found.end()), found.end());
+      double margin = 0;
+      for (uint32_t j : found) {
+        if (j == i || !meet(pages[i].bounds, pages[j].bounds)) continue;
+        boxes_.push_back(pages[j].bounds);
+        margin = std::max(margin, spill[j]);
+      }
+      start_.push_back(uint32_t(boxes_.size()));
+      Bbox inner = store.cell_bounds({uint32_t(h.page_level), pages[i].code});
+      inner.lo += margin;
+      inner.hi -= margin;
+      inner_[i] = inner;
+    }
+  }
+  std::span<const Bbox> others(size_t page) const {
+    return std::span<const Bbox>(boxes_).subspan(start_[page], start_[page + 1] - start_[page]);
+  }
+  const Bbox& inner(size_t page) const { return inner_[page]; }
+
+ private:
+  static bool meet(const Bbox& a, const Bbox& b) {
+    return a.lo.x <= b.hi.x && b.lo.x <= a.hi.x && a.lo.y <= b.hi.y && b.lo.y <= a.hi.y && a.lo.z <= b.hi.z &&
+           b.lo.z <= a.hi.z;
+  }
+  std::vector<uint32_t> start_;
+  std::vector<Bbox> boxes_;
+  std::vector<Bbox> inner_;
+};
+
 // One pass over the store's pages collapsing `keys` (cells the store has
 // nodes for) to the builder's representatives. Pages are read, decoded and looked up in parallel
 // and added to the builder one at a time in page order, so the mesh does not
@@ -649,6 +750,7 @@ Status collapse_pass(const OctreeStore& store, std::span<const CellKey> keys, co
   const CutLookup lookup(h.root_lo, h.root_size, keys);
   builder.reserve(estimate.vertices + estimate.vertices / 4, estimate.triangles);
   const auto pages = store.pages();
+  const PageNeighbours neighbours(store);
   std::optional<Progress> progress;
   if (config.progress) progress.emplace("simplify", pages.size(), "pages");
 
@@ -661,6 +763,7 @@ Status collapse_pass(const OctreeStore& store, std::span<const CellKey> keys, co
         w.look_up_cells(lookup);
         prepare_collapse(w.page, w.vertex_cell, builder.representative_positions(), store.header().has_normals,
                          w.prepared);
+        mark_page_unique_vertices(w.page, w.vertex_cell, neighbours.others(i), neighbours.inner(i), w.prepared);
         return {};
       },
       [&](PageWork& w, size_t i) -> Status {

@@ -139,6 +139,10 @@ struct PreparedBatch {
   };
   std::vector<RepresentativeNormal> rep_normals;
   std::vector<uint32_t> vertex_normal;  // scratch: per page vertex, its entry in rep_normals
+  // Per page vertex: 1 if no other page can hold a vertex at its position
+  // (mark_page_unique_vertices); such a kept vertex skips the builder's
+  // table of kept vertices. Empty: every vertex goes through the table.
+  std::vector<uint8_t> unique;
 };
 // vertex_cell[v] is the representative index of page vertex v, or
 // kKeepVertex; rep_pos[i] is representative i's float position;
@@ -146,6 +150,13 @@ struct PreparedBatch {
 // decoded, PageMesh::decode_normals).
 void prepare_collapse(const PageMesh& page, std::span<const uint32_t> vertex_cell, std::span<const Vec3> rep_pos,
                       bool input_has_normals, PreparedBatch& out);
+// Marks out.unique for the kept vertices (vertex_cell kKeepVertex) of a page
+// whose position lies in no box of `other_pages` (the decoded bounds of every
+// other page whose bounds meet this page's): no other page has a vertex
+// there, so the vertex is new to the mesh. `inner` is a box such that no
+// other page's bounds reach into its interior (a fast accept; may be empty).
+void mark_page_unique_vertices(const PageMesh& page, std::span<const uint32_t> vertex_cell,
+                               std::span<const Bbox> other_pages, const Bbox& inner, PreparedBatch& out);
 // Whether triangle t of the page turns over once collapsed: the fate
 // prepare_collapse gives is kKeptFolded. Normals are not needed decoded.
 bool collapse_turns_over(const PageMesh& page, std::span<const uint32_t> vertex_cell, std::span<const Vec3> rep_pos,
@@ -179,6 +190,7 @@ class CollapseBuilder {
 
  private:
   uint32_t kept_vertex(const Vec3& p, const Vec3& n, uint64_t hash);
+  uint32_t new_kept_vertex(const Vec3& p, const Vec3& n);  // one no other page has (skips the table)
   void grow_table();
 
   std::span<const Representative> reps_;
@@ -191,6 +203,7 @@ class CollapseBuilder {
   PageMesh page_;                        // scratch of add() with a batch
   std::vector<uint32_t> page_kept_;      // scratch: per page vertex, its kept-vertex id once known
   std::vector<uint32_t> table_;          // open addressing into kept_*, kKeepVertex = empty
+  size_t table_count_ = 0;               // ids in table_
   std::vector<std::array<uint32_t, 3>> tris_;  // provisional ids: reps first, then kept
   std::vector<Vec3> keys_;               // per triangle: its input triangle's unit normal (crease key)
   std::vector<uint8_t> folding_;         // per representative
