@@ -32,6 +32,34 @@ double corner_angle(const Vec3& a, const Vec3& b, const Vec3& c, int k) {
   return std::atan2(s, d);  // robust for slivers, unlike acos of a ratio
 }
 
+void NormalClusterPool::add_to_nearest(uint32_t v, const Vec3d& n, double w) {
+  if (!(w > 0)) return;
+  uint32_t best = kNoCluster;
+  double best_cos = kCosOverflow;
+  for (uint32_t c = heads_[v]; c != kNoCluster; c = pool_[c].next) {
+    if (pool_[c].seed == Vec3(0)) continue;
+    const double cs = glm::dot(Vec3d(pool_[c].seed), n);
+    if (cs >= best_cos) { best_cos = cs; best = c; }
+  }
+  if (best != kNoCluster) {
+    pool_[best].sum += Vec3(w * n);
+    return;
+  }
+  // Into the leftover sum (seed zero), as add() does when a vertex is full.
+  uint32_t last = kNoCluster;
+  for (uint32_t c = heads_[v]; c != kNoCluster; c = pool_[c].next) {
+    if (pool_[c].seed == Vec3(0)) {
+      pool_[c].sum += Vec3(w * n);
+      return;
+    }
+    last = c;
+  }
+  const uint32_t id = uint32_t(pool_.size());
+  pool_.push_back(NormalCluster{Vec3(w * n), Vec3(0), kNoCluster});
+  if (last == kNoCluster) heads_[v] = id;
+  else pool_[last].next = id;
+}
+
 void NormalClusterPool::add(uint32_t v, const Vec3d& n, double w, uint32_t max_clusters) {
   if (!(w > 0)) return;
   // Neighbouring corners mostly share a direction: the cluster the vertex

@@ -80,6 +80,11 @@ class NormalClusterPool {
   // 10 degrees, else into the vertex's leftover sum (seed zero), which only
   // a crease angle of 180 degrees and mean() include.
   void add(uint32_t v, const Vec3d& n, double w, uint32_t max_clusters);
+  // Adds w * n to the cluster of v whose seed is nearest n if it is within
+  // the overflow angle of add() (10 degrees), else to v's leftover sum: a sum
+  // of many normals whose direction no cluster stands for (the mean across a
+  // crease) must not become a direction of its own.
+  void add_to_nearest(uint32_t v, const Vec3d& n, double w);
   // The rule for a corner whose own (face) normal is `key`: the normalised sum
   // of v's clusters within the crease angle (cos_crease) of key; zero if
   // there is none (then the caller falls back).

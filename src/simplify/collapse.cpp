@@ -131,6 +131,7 @@ Representative make_representative(const NodeRecord& node, const Bbox& cell_boun
   r.rank = s.rank;
   r.clamped = s.clamped;
   r.fallback_normal = dominant_normal(node.quadric);
+  r.normal_sum = 6.0 * node.normal_sum;  // area / 3 per corner -> twice the area
   return r;
 }
 
@@ -183,7 +184,7 @@ constexpr uint32_t kRepresentativeClusters = 64;
 CollapseBuilder::CollapseBuilder(std::span<const Representative> reps, bool input_has_normals,
                                  double crease_angle_deg)
     : reps_(reps), has_normals_(input_has_normals), cos_crease_(crease_cosine(crease_angle_deg)),
-      clusters_(reps.size()), folding_(reps.size(), 0) {
+      clusters_(reps.size()), folding_(reps.size(), 0), reached_sum_(reps.size(), Vec3d(0)) {
   rep_pos_.reserve(reps.size());
   for (const auto& r : reps) rep_pos_.push_back(Vec3(r.position));
   table_.assign(1024, kKeepVertex);
@@ -388,7 +389,10 @@ void CollapseBuilder::add(const PageMesh& page, std::span<const uint32_t> vertex
   assert(vertex_cell.size() == page.vertices());
   const bool page_normals = has_normals_ && page.normals.size() == page.vertices();
   const uint32_t nreps = uint32_t(reps_.size());
-  for (const auto& r : prepared.rep_normals) clusters_.add(r.rep, r.normal, r.weight, kRepresentativeClusters);
+  for (const auto& r : prepared.rep_normals) {
+    clusters_.add(r.rep, r.normal, r.weight, kRepresentativeClusters);
+    reached_sum_[r.rep] += r.weight * r.normal;
+  }
   page_kept_.assign(page.vertices(), kKeepVertex);
   const Vec3 n_none(0);
   for (size_t t = 0; t < page.size(); ++t) {
@@ -440,11 +444,23 @@ void CollapseBuilder::add(const PageMesh& page, std::span<const uint32_t> vertex
 uint64_t CollapseBuilder::memory_bytes() const {
   return rep_pos_.capacity() * sizeof(Vec3) + kept_pos_.capacity() * sizeof(Vec3) +
          kept_normal_.capacity() * sizeof(Vec3) + clusters_.memory_bytes() + table_.capacity() * sizeof(uint32_t) +
-         tris_.capacity() * sizeof(tris_[0]) + keys_.capacity() * sizeof(Vec3);
+         tris_.capacity() * sizeof(tris_[0]) + keys_.capacity() * sizeof(Vec3) +
+         reached_sum_.capacity() * sizeof(Vec3d);
 }
 
 IndexedMesh CollapseBuilder::finish(CollapseStats* stats_out) {
   const uint32_t nreps = uint32_t(reps_.size());
+  // The triangles wholly inside a cell gave it no normals (prepare_collapse):
+  // their sum is the cell's whole sum (from the store's node) less what the
+  // others gave, and it joins the cluster nearest its direction. On a smooth
+  // cell that restores the mean over the whole cell; across a crease the sum
+  // points between the sides, no cluster is near it, and it is left out.
+  for (uint32_t v = 0; v < nreps; ++v) {
+    const Vec3d inside = reps_[v].normal_sum - reached_sum_[v];
+    const double w = glm::length(inside);
+    if (w > 1e-9 * (glm::length(reps_[v].normal_sum) + glm::length(reached_sum_[v])))
+      clusters_.add_to_nearest(v, inside / w, w);
+  }
   // Same-orientation duplicates: sort the triangles by their rotation that
   // starts at the smallest id, then by their index, so the first occurrence
   // comes first (a total order: any parallel sort gives the same result).
@@ -564,7 +580,7 @@ SimplifyEstimate estimate_cells(const OctreeStore& store, const Cells& cells, Ke
   e.triangles = std::min<uint64_t>(t, t - removed + 2 * found);
   e.vertices = e.triangles / 2 + found;
   e.bytes = e.triangles * kCollapseBytesPerTriangle + e.vertices * kCollapseBytesPerVertex +
-            found * (sizeof(Representative) + 48);
+            found * (sizeof(Representative) + 72);
   e.write_bytes = e.triangles * (12 + kDracoEncodeBytesPerTriangle) + e.vertices * 2 * sizeof(Vec3);
   return e;
 }

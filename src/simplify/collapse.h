@@ -23,12 +23,16 @@
 //     input normals keeps its input normal exactly. A kept vertex without
 //     them gets, per corner, the angle-weighted sum of its input triangles'
 //     normals within the crease angle of that corner's input triangle (the
-//     full render's rule). A representative clusters the normals of the
-//     corners merged into it from triangles that reach out of its cell (input
-//     vertex normals, else face normals; area weighted): those are the
-//     triangles the output keeps or that border them, while a triangle wholly
-//     inside the cell vanishes unexamined (at 100M triangles, 9 in 10 under a
-//     coarse cut). A corner there gets the clusters within the crease
+//     full render's rule). A representative clusters the normals of every
+//     corner merged into it (input vertex normals, else face normals; area
+//     weighted). A triangle wholly inside the cell vanishes unexamined (at
+//     100M triangles, 9 in 10 under a coarse cut): the corners of the
+//     triangles reaching out of the cell are clustered one by one, and the
+//     rest come as one sum, the store node's normal sum less theirs, which
+//     joins the cluster within 10 degrees of its direction (a smooth cell's
+//     mean is then its whole mean) or, across a crease, where it points
+//     between the sides, the leftover sum that only a crease angle of 180
+//     degrees uses. A corner there gets the clusters within the crease
 //     angle of its input triangle's normal: a cell spanning a crease has one
 //     normal per side, a flat side exactly its own normal. If nothing is
 //     within the angle, the mean of all clusters, then the dominant plane
@@ -60,6 +64,9 @@ inline constexpr uint32_t kKeepVertex = 0xffffffffu;
 struct Representative {
   Vec3d position{0};         // world coordinates, float-representable, inside the cell
   Vec3d fallback_normal{0, 1, 0};  // unit; used when the merged normals cancel
+  // The cell's area-weighted normal sum over all its corners, in the units of
+  // PreparedBatch::RepresentativeNormal (twice the area): NodeRecord::normal_sum x 6.
+  Vec3d normal_sum{0};
   int rank = 0;              // rank of the QEM solve (qem_solve.h)
   bool clamped = false;
 };
@@ -207,6 +214,7 @@ class CollapseBuilder {
   std::vector<std::array<uint32_t, 3>> tris_;  // provisional ids: reps first, then kept
   std::vector<Vec3> keys_;               // per triangle: its input triangle's unit normal (crease key)
   std::vector<uint8_t> folding_;         // per representative
+  std::vector<Vec3d> reached_sum_;       // per representative: the normals its clusters were given
   CollapseStats stats_;
 };
 

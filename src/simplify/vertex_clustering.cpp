@@ -56,16 +56,11 @@ IndexedMesh cluster_vertices(const TriangleBatch& soup, const VertexClusteringCo
     const Vec3d plane_n = quadric_plane_normal(p[0], p[1], p[2], tn);
     const Vec3d cross = glm::cross(p[1] - p[0], p[2] - p[0]);
     const double area2 = glm::length(cross);
-    // A triangle wholly inside one cell gives that cell no normal (collapse.h).
-    const GridIndex g0 = grid_index(soup.positions[3 * t]);
-    const bool inside_one_cell =
-        grid_index(soup.positions[3 * t + 1]) == g0 && grid_index(soup.positions[3 * t + 2]) == g0;
     for (int k = 0; k < 3; ++k) {
       Cell& c = cells[grid_index(soup.positions[3 * t + k])];
       if (area2 > 0) quadric_add(c.quadric, quadric_from_plane(plane_n, p[k], area2 / 6.0));
       c.vertex_sum += p[k];
       ++c.count;
-      if (inside_one_cell) continue;
       c.normal_sum += tn ? area2 * Vec3d(tn[k]) : cross;
       c.weight_sum += area2;
     }

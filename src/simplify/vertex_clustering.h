@@ -24,9 +24,7 @@ struct VertexClusteringConfig {
 // corner's triangle (unit plane normal: quadric_plane_normal; weight: a third
 // of the triangle's area), as the octree store does. Triangles whose corners
 // fall in fewer than three cells, or have exactly zero area, are
-// dropped, as are same-orientation repeats. Normals as in collapse.h: a
-// cell's normal sums those of the corners in it whose triangle reaches out of
-// the cell.
+// dropped, as are same-orientation repeats. Normals as in collapse.h.
 IndexedMesh cluster_vertices(const TriangleBatch& soup, const VertexClusteringConfig& config);
 
 // The plane normal a triangle contributes to the quadrics, as the store build

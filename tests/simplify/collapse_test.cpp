@@ -116,29 +116,38 @@ TEST(CollapseBuilder, FlagsTheRepresentativesOfTrianglesTurnedOver) {
   EXPECT_EQ(st.folded, 1u);
 }
 
-TEST(CollapseBuilder, TrianglesWhollyInsideACellVanishAndGiveItNoNormal) {
+TEST(CollapseBuilder, TrianglesWhollyInsideACellGiveTheirNormalsThroughTheCellsSum) {
   // Triangle A reaches from the cell (its corner at the origin) to two kept
-  // corners and faces +z. Triangle B lies wholly inside the cell, tilted 20
-  // degrees (within the crease angle of A): it vanishes unexamined, so the
-  // representative's corner of A gets A's own normal exactly. (Were B's
-  // normal clustered in, the corner would lean towards it.)
-  TriangleBatch soup;
-  add_tri(soup, {0, 0, 0}, {1, 0, 0}, {0, 1, 0});
-  const float s = std::sin(0.349066f), c = std::cos(0.349066f);
-  add_tri(soup, {0.1f, 0.1f, 0}, {0.3f, 0.1f, 0}, {0.1f, 0.1f + 0.2f * c, 0.2f * s});
-  std::vector<Representative> reps(1);
-  reps[0].position = Vec3d(0.05, 0.05, 0);
-  CollapseBuilder b(reps, false);
-  b.add(soup, std::vector<uint32_t>{0, kKeepVertex, kKeepVertex, 0, 0, 0});
-  CollapseStats st;
-  const IndexedMesh m = b.finish(&st);
-  ASSERT_EQ(m.triangle_count(), 1u);
-  EXPECT_EQ(st.inside_cell, 1u);
-  EXPECT_EQ(st.dropped_collapsed, 1u);
-  EXPECT_EQ(st.input_triangles, 2u);
-  const uint32_t rep = m.indices[0];
-  EXPECT_EQ(m.positions[rep], Vec3(0.05f, 0.05f, 0));
-  EXPECT_EQ(m.normals[rep], Vec3(0, 0, 1));
+  // corners and faces +z. Triangle B lies wholly inside the cell, tilted by
+  // `tilt` about x: it vanishes unexamined, and its normal comes back as the
+  // cell's sum (the store's node) less what A gave. Within 10 degrees of A's
+  // normal it joins A's cluster; farther, it stays out of the crease rule.
+  for (const double tilt_deg : {5.0, 20.0}) {
+    const double tilt = tilt_deg * M_PI / 180.0;
+    TriangleBatch soup;
+    add_tri(soup, {0, 0, 0}, {1, 0, 0}, {0, 1, 0});
+    const float s = float(std::sin(tilt)), c = float(std::cos(tilt));
+    add_tri(soup, {0.1f, 0.1f, 0}, {0.3f, 0.1f, 0}, {0.1f, 0.1f + 0.2f * c, 0.2f * s});
+    auto weighted_normal = [&](size_t t) {  // twice the area times the unit normal, per corner
+      const Vec3d p0(soup.positions[3 * t]), p1(soup.positions[3 * t + 1]), p2(soup.positions[3 * t + 2]);
+      return glm::cross(p1 - p0, p2 - p0);
+    };
+    std::vector<Representative> reps(1);
+    reps[0].position = Vec3d(0.05, 0.05, 0);
+    reps[0].normal_sum = weighted_normal(0) + 3.0 * weighted_normal(1);  // A's one corner, B's three
+    CollapseBuilder b(reps, false);
+    b.add(soup, std::vector<uint32_t>{0, kKeepVertex, kKeepVertex, 0, 0, 0});
+    CollapseStats st;
+    const IndexedMesh m = b.finish(&st);
+    ASSERT_EQ(m.triangle_count(), 1u);
+    EXPECT_EQ(st.inside_cell, 1u);
+    EXPECT_EQ(st.dropped_collapsed, 1u);
+    EXPECT_EQ(st.input_triangles, 2u);
+    const uint32_t rep = m.indices[0];
+    EXPECT_EQ(m.positions[rep], Vec3(0.05f, 0.05f, 0));
+    const Vec3d expect = tilt_deg < 10 ? glm::normalize(weighted_normal(0) + 3.0 * weighted_normal(1)) : Vec3d(0, 0, 1);
+    EXPECT_NEAR(glm::distance(Vec3d(m.normals[rep]), expect), 0.0, 1e-6) << "tilt " << tilt_deg;
+  }
 }
 
 TEST(CollapseBuilder, ReserveMidStreamKeepsTheVerticesFoundSoFar) {
