@@ -171,8 +171,10 @@ int run_simplify(int argc, char** argv) {
               ull(s.output_vertices), ull(s.representatives_used), ull(s.kept_vertices), ull(s.split_vertices));
   std::printf("  cut        %llu cells (%llu not in the store), %llu representatives clamped to their cell\n",
               ull(r.cut_cells), ull(r.cut_cells_missing), ull(r.clamped_representatives));
-  std::printf("  dropped    %llu collapsed, %llu zero-area, %llu duplicate; %llu reverse-wound twins kept\n",
-              ull(s.dropped_collapsed), ull(s.dropped_zero_area), ull(s.dropped_duplicate), ull(s.reverse_twins));
+  std::printf("  dropped    %llu collapsed (%llu inside one cell), %llu zero-area, %llu duplicate; %llu reverse-wound "
+              "twins kept\n",
+              ull(s.dropped_collapsed), ull(s.inside_cell), ull(s.dropped_zero_area), ull(s.dropped_duplicate),
+              ull(s.reverse_twins));
   if (r.fold_passes || s.folded)
     std::printf("  folds      %llu cells refined in %llu more passes for triangles turned over; %llu turned over left\n",
                 ull(r.fold_cells_refined), ull(r.fold_passes), ull(s.folded));
