@@ -25,9 +25,12 @@
 #include <draco/compression/point_cloud/point_cloud_decoder.h>
 #include <draco/metadata/metadata_decoder.h>
 #include <draco/mesh/mesh.h>
+#include <tbb/parallel_for.h>
 #include <tbb/parallel_invoke.h>
 
 #include "core/fault_point.h"
+#include "core/ordered_pipeline.h"
+#include "core/parallelism.h"
 #include "core/system.h"
 #include "streaming/distinct_keys.h"
 
@@ -189,8 +192,28 @@ void fill_draco_mesh(const IndexedMesh& mesh, draco::Mesh& dm, int& position_id,
 
 // `release`, if given, is `mesh` itself: its arrays are freed once Draco's
 // mesh holds a copy, before the encoder's own tables are allocated.
+// The quantisation of a part file's parts: the whole mesh's grid, as Draco
+// computes it for one mesh (AttributeQuantizationTransform: the per-axis
+// float minimum, and the largest float extent, 1 if that is 0).
+struct ExplicitGrid {
+  float origin[3];
+  float range;
+};
+ExplicitGrid whole_mesh_grid(const IndexedMesh& mesh) {
+  Vec3 lo(std::numeric_limits<float>::max()), hi(std::numeric_limits<float>::lowest());
+  for (const Vec3& p : mesh.positions) {
+    lo = glm::min(lo, p);
+    hi = glm::max(hi, p);
+  }
+  ExplicitGrid g{{lo.x, lo.y, lo.z}, 0.f};
+  for (int a = 0; a < 3; ++a) g.range = std::max(g.range, hi[a] - lo[a]);
+  if (g.range == 0.f) g.range = 1.f;
+  return g;
+}
+
 StatusOr<DracoEncoded> encode_draco_mesh(const std::filesystem::path& path, const IndexedMesh& mesh,
-                                          const DracoOptions& options, IndexedMesh* release) {
+                                          const DracoOptions& options, IndexedMesh* release,
+                                          const ExplicitGrid* grid = nullptr) {
   RAYLOD_RETURN_IF_ERROR(check_mesh(path, mesh));
   const bool normals = !mesh.normals.empty();
   Bbox box;
@@ -248,7 +271,11 @@ StatusOr<DracoEncoded> encode_draco_mesh(const std::filesystem::path& path, cons
   if (release) *release = IndexedMesh{};
 
   draco::Encoder encoder;
-  encoder.SetAttributeQuantization(draco::GeometryAttribute::POSITION, report.position_bits);
+  if (grid)
+    encoder.SetAttributeExplicitQuantization(draco::GeometryAttribute::POSITION, report.position_bits, 3, grid->origin,
+                                             grid->range);
+  else
+    encoder.SetAttributeQuantization(draco::GeometryAttribute::POSITION, report.position_bits);
   if (normals) encoder.SetAttributeQuantization(draco::GeometryAttribute::NORMAL, report.normal_bits);
   const int speed = std::clamp(options.speed, 0, 10);
   encoder.SetSpeedOptions(speed, speed);
@@ -260,16 +287,123 @@ StatusOr<DracoEncoded> encode_draco_mesh(const std::filesystem::path& path, cons
   return encoded;
 }
 
+void put_le(std::vector<char>& out, uint64_t v, int bytes) {
+  for (int i = 0; i < bytes; ++i) out.push_back(char((v >> (8 * i)) & 0xff));
+}
+uint64_t get_le(const char* p, int bytes) {
+  uint64_t v = 0;
+  for (int i = 0; i < bytes; ++i) v |= uint64_t(uint8_t(p[i])) << (8 * i);
+  return v;
+}
+constexpr size_t kPartsHeaderBytes = 16, kPartEntryBytes = 16;
+
+// A part file (draco_io.h): the triangles [t0, t1) of each part with the
+// vertices they use, encoded in parallel on the whole mesh's grid. The
+// position bits are chosen for the whole mesh (its extent and error bound),
+// so every part reports the same bounds.
+StatusOr<DracoEncoded> encode_draco_parts(const std::filesystem::path& path, const IndexedMesh& mesh,
+                                           const DracoOptions& options, IndexedMesh* release) {
+  RAYLOD_RETURN_IF_ERROR(check_mesh(path, mesh));
+  const size_t triangles = mesh.triangle_count();
+  const size_t parts = std::clamp<size_t>(size_t(std::max(options.parts, 1)), 1, std::max<size_t>(triangles, 1));
+  const ExplicitGrid grid = whole_mesh_grid(mesh);
+  // The whole mesh's bits, so the parts share them (a part's own extent is smaller).
+  DracoOptions part_options = options;
+  Bbox box;
+  double max_abs = 0;
+  for (const Vec3& p : mesh.positions) {
+    box.expand(p);
+    max_abs = std::max({max_abs, double(std::abs(p.x)), double(std::abs(p.y)), double(std::abs(p.z))});
+  }
+  const double extent = std::max({box.extent().x, box.extent().y, box.extent().z});
+  double requested = 0;
+  if (options.position_bits <= 0) {
+    requested = options.max_position_error > 0 ? options.max_position_error : 1e-6 * std::max(extent, 1e-30);
+    part_options.position_bits = choose_position_bits(extent, max_abs, requested);
+  }
+  std::vector<StatusOr<DracoEncoded>> encoded(parts, Status::error("not encoded"));
+  tbb::parallel_for(size_t(0), parts, [&](size_t p) {
+    const size_t t0 = triangles * p / parts, t1 = triangles * (p + 1) / parts;
+    IndexedMesh part;
+    part.origin = mesh.origin;
+    std::unordered_map<uint32_t, uint32_t> local;
+    local.reserve(2 * (t1 - t0));
+    part.indices.reserve(3 * (t1 - t0));
+    for (size_t c = 3 * t0; c < 3 * t1; ++c) {
+      const uint32_t v = mesh.indices[c];
+      const auto [it, added] = local.try_emplace(v, uint32_t(part.positions.size()));
+      if (added) {
+        part.positions.push_back(mesh.positions[v]);
+        if (!mesh.normals.empty()) part.normals.push_back(mesh.normals[v]);
+      }
+      part.indices.push_back(it->second);
+    }
+    std::unordered_map<uint32_t, uint32_t>().swap(local);
+    encoded[p] = encode_draco_mesh(path, part, part_options, &part, &grid);
+  });
+  for (auto& e : encoded) RAYLOD_RETURN_IF_ERROR(e.status());  // the first failing part's error
+  if (release) *release = IndexedMesh{};
+  DracoEncoded out;
+  out.report = encoded[0]->report;  // the bits and the normal bound are every part's
+  out.report.requested_position_error = requested;
+  out.report.max_position_error = position_error_bound(extent, max_abs, out.report.position_bits);
+  out.position_id = encoded[0]->position_id;
+  out.normal_id = encoded[0]->normal_id;
+  size_t total = kPartsHeaderBytes + kPartEntryBytes * parts;
+  for (const auto& e : encoded) total += e->bytes.size();
+  out.bytes.reserve(total);
+  out.bytes.insert(out.bytes.end(), kDracoPartsMagic, kDracoPartsMagic + 8);
+  put_le(out.bytes, 1, 4);
+  put_le(out.bytes, parts, 4);
+  for (size_t p = 0; p < parts; ++p) {
+    put_le(out.bytes, encoded[p]->bytes.size(), 8);
+    put_le(out.bytes, triangles * (p + 1) / parts - triangles * p / parts, 8);
+  }
+  for (auto& e : encoded) {
+    out.bytes.insert(out.bytes.end(), e->bytes.begin(), e->bytes.end());
+    std::vector<char>().swap(e->bytes);
+  }
+  out.report.bytes = out.bytes.size();
+  return out;
+}
+
 }  // namespace
 
 StatusOr<DracoEncoded> encode_draco(const std::filesystem::path& path, const IndexedMesh& mesh,
                                      const DracoOptions& options) {
+  if (options.parts > 1) return encode_draco_parts(path, mesh, options, nullptr);
   return encode_draco_mesh(path, mesh, options, nullptr);
 }
 
 StatusOr<DracoEncoded> encode_draco(const std::filesystem::path& path, IndexedMesh&& mesh,
                                      const DracoOptions& options) {
+  if (options.parts > 1) return encode_draco_parts(path, mesh, options, &mesh);
   return encode_draco_mesh(path, mesh, options, &mesh);
+}
+
+StatusOr<std::vector<std::span<const char>>> draco_parts(const char* data, size_t size, const std::string& name) {
+  const std::string where = name + ": ";
+  std::vector<std::span<const char>> out;
+  if (size < 8 || std::memcmp(data, kDracoPartsMagic, 8) != 0) {
+    out.emplace_back(data, size);
+    return out;
+  }
+  if (size < kPartsHeaderBytes) return Status::error(where + "part file header is truncated");
+  const uint64_t version = get_le(data + 8, 4), parts = get_le(data + 12, 4);
+  if (version != 1) return Status::error(where + "part file version " + std::to_string(version) + ", this raylod reads 1");
+  if (parts == 0 || parts > 256) return Status::error(where + "part file names " + std::to_string(parts) + " parts (1 to 256)");
+  const size_t table_end = kPartsHeaderBytes + kPartEntryBytes * parts;
+  if (size < table_end) return Status::error(where + "part table is truncated");
+  uint64_t offset = table_end;
+  for (uint64_t p = 0; p < parts; ++p) {
+    const uint64_t bytes = get_le(data + kPartsHeaderBytes + kPartEntryBytes * p, 8);
+    if (bytes > size - offset)
+      return Status::error(where + "part " + std::to_string(p) + " of " + std::to_string(parts) + " runs past the end of the file");
+    out.emplace_back(data + offset, size_t(bytes));
+    offset += bytes;
+  }
+  if (offset != size) return Status::error(where + std::to_string(size - offset) + " bytes after the last part");
+  return out;
 }
 
 namespace {
@@ -314,6 +448,46 @@ StatusOr<IndexedMesh> read_draco(const std::filesystem::path& path) {
   std::vector<char> data(size_t(std::max<std::streamoff>(0, f.tellg())));
   f.seekg(0);
   if (!f.read(data.data(), std::streamsize(data.size()))) return Status::error(where + "read failed");
+  if (data.size() >= 8 && std::memcmp(data.data(), kDracoPartsMagic, 8) == 0) {
+    // Parts decoded in parallel and appended in order, a few in flight, so
+    // that the parts and the whole mesh are not all held at once.
+    RAYLOD_ASSIGN_OR_RETURN(const auto parts, draco_parts(data.data(), data.size(), path.string()));
+    RAYLOD_ASSIGN_OR_RETURN(const uint64_t triangles, draco_triangle_count(path));
+    IndexedMesh mesh;
+    mesh.indices.reserve(size_t(3 * std::min<uint64_t>(triangles, uint64_t(1) << 40)));
+    const size_t ntokens = std::clamp<size_t>(size_t(ambient_parallelism()) + 1, 2, 8);
+    RAYLOD_RETURN_IF_ERROR(ordered_pipeline<IndexedMesh>(
+        parts.size(), ntokens,
+        [&](IndexedMesh& part, size_t p) -> Status {
+          RAYLOD_ASSIGN_OR_RETURN(part, decode_draco(parts[p].data(), parts[p].size(),
+                                                     path.string() + " (part " + std::to_string(p + 1) + ")"));
+          return Status::ok();
+        },
+        [&](IndexedMesh& d, size_t p) -> Status {
+          if (p == 0) {
+            mesh.origin = d.origin;
+            const size_t vertices = size_t(double(d.positions.size()) * double(parts.size()) * 1.05);
+            mesh.positions.reserve(vertices);
+            if (!d.normals.empty()) mesh.normals.reserve(vertices);
+          } else if (d.origin != mesh.origin) {
+            return Status::error(where + "parts disagree on the mesh origin");
+          } else if (d.normals.empty() != mesh.normals.empty()) {
+            return Status::error(where + "parts disagree on having normals");
+          }
+          const uint32_t base = uint32_t(mesh.positions.size());
+          if (uint64_t(base) + d.positions.size() >= uint64_t(UINT32_MAX))
+            return Status::error(where + "more than 2^32 vertices");
+          mesh.positions.insert(mesh.positions.end(), d.positions.begin(), d.positions.end());
+          mesh.normals.insert(mesh.normals.end(), d.normals.begin(), d.normals.end());
+          for (uint32_t v : d.indices) mesh.indices.push_back(base + v);
+          d = IndexedMesh{};
+          return Status::ok();
+        }));
+    if (mesh.triangle_count() != triangles)
+      return Status::error(where + "the parts hold " + std::to_string(mesh.triangle_count()) + " triangles, the part table " +
+                           std::to_string(triangles));
+    return mesh;
+  }
   if (data.size() < 5 || std::memcmp(data.data(), "DRACO", 5) != 0)
     return Status::error(where + "not a Draco file (no DRACO header)");
   return decode_draco(data.data(), data.size(), path.string());
@@ -329,6 +503,16 @@ StatusOr<uint64_t> draco_triangle_count(const std::filesystem::path& path) {
     std::vector<char> head(64 << 10);
     f.read(head.data(), std::streamsize(head.size()));
     head.resize(size_t(f.gcount()));
+    if (head.size() >= kPartsHeaderBytes && std::memcmp(head.data(), kDracoPartsMagic, 8) == 0) {
+      // A part file: the triangle counts are in its table (256 parts at most fit the head).
+      const uint64_t parts = get_le(head.data() + 12, 4);
+      if (get_le(head.data() + 8, 4) == 1 && parts >= 1 && parts <= 256 &&
+          head.size() >= kPartsHeaderBytes + kPartEntryBytes * parts) {
+        uint64_t n = 0;
+        for (uint64_t p = 0; p < parts; ++p) n += get_le(head.data() + kPartsHeaderBytes + kPartEntryBytes * p + 8, 8);
+        return n;
+      }
+    }
     draco::DecoderBuffer buffer;
     buffer.Init(head.data(), head.size());
     draco::DracoHeader header;

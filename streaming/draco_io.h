@@ -3,7 +3,10 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <algorithm>
 #include <memory>
+#include <span>
+#include <vector>
 
 #include "core/status.h"
 #include "streaming/mesh_reader.h"
@@ -34,7 +37,30 @@ struct IndexedMesh {
 inline constexpr uint64_t kFastDracoFromTriangles = 1'000'000;
 inline int draco_speed_for(uint64_t triangles) { return triangles >= kFastDracoFromTriangles ? 6 : 5; }
 
+// A large simplified mesh is written as a part file: its triangles split
+// into consecutive ranges, each range (with the vertices it uses, in order
+// of first use) its own Draco bitstream, all quantised on the whole mesh's
+// grid (Draco's explicit quantisation with the whole mesh's origin and
+// range), so a vertex shared by two parts decodes to the same position in
+// both. The parts are encoded and decoded in parallel; their number depends
+// on the triangle count alone, so the bytes do not depend on the threads.
+// Layout (little-endian):
+//   "RLODDRCP", u32 version (1), u32 part count P,
+//   P x (u64 Draco bytes, u64 triangles),
+//   the P Draco bitstreams, in order.
+// read_draco, draco_triangle_count and open_draco_reader read part files and
+// plain .drc alike; write_draco writes a plain .drc unless asked for parts.
+inline constexpr char kDracoPartsMagic[8] = {'R', 'L', 'O', 'D', 'D', 'R', 'C', 'P'};
+inline constexpr uint64_t kDracoPartTriangles = 1'000'000;
+// Parts for a mesh of `triangles`: 1 below 2 x kDracoPartTriangles, else one
+// per kDracoPartTriangles (rounded up), at most 256.
+inline int draco_parts_for(uint64_t triangles) {
+  if (triangles < 2 * kDracoPartTriangles) return 1;
+  return int(std::min<uint64_t>(256, (triangles + kDracoPartTriangles - 1) / kDracoPartTriangles));
+}
+
 struct DracoOptions {
+  int parts = 1;          // > 1: a part file of this many parts (at most one per triangle)
   int position_bits = 0;  // 0 = choose from the data and max_position_error
   int normal_bits = 10;   // 0 = choose from max_normal_error
   double max_position_error = 0;  // world units; used when position_bits == 0
@@ -78,6 +104,9 @@ StatusOr<IndexedMesh> read_draco(const std::filesystem::path& path);
 StatusOr<uint64_t> draco_triangle_count(const std::filesystem::path& path);
 // Decodes a Draco mesh held in memory (name says whose, in errors).
 StatusOr<IndexedMesh> decode_draco(const char* data, size_t size, const std::string& name);
+// The Draco bitstreams of a part file held in memory (views into `data`);
+// an error if it is not one or is malformed. A plain Draco buffer gives one.
+StatusOr<std::vector<std::span<const char>>> draco_parts(const char* data, size_t size, const std::string& name);
 
 // The encoded bytes, without writing them (write_draco and the .glb writer).
 struct DracoEncoded {

@@ -25,9 +25,9 @@ struct DecodedFacts {
   Vec3 lo{0}, hi{0};
 };
 
-StatusOr<DecodedFacts> decode_facts(const GlbMesh& mesh, const std::string& where) {
+StatusOr<DecodedFacts> decode_facts(const std::vector<char>& draco_bytes, const std::string& where) {
   draco::DecoderBuffer buffer;
-  buffer.Init(mesh.draco.data(), mesh.draco.size());
+  buffer.Init(draco_bytes.data(), draco_bytes.size());
   draco::Decoder decoder;
   auto decoded = decoder.DecodeMeshFromBuffer(&buffer);
   if (!decoded.ok()) return Status::error(where + ": Draco decoding failed: " + decoded.status().error_msg_string());
@@ -75,10 +75,11 @@ StatusOr<uint64_t> write_glb(const std::filesystem::path& path, const std::vecto
   doc["extensionsRequired"] = json::array({"KHR_draco_mesh_compression"});
   json accessors = json::array(), views = json::array(), jmeshes = json::array(), jnodes = json::array();
   std::string bin;
-  for (size_t m = 0; m < meshes.size(); ++m) {
-    RAYLOD_ASSIGN_OR_RETURN(DecodedFacts f, decode_facts(meshes[m], name + ": mesh " + std::to_string(m)));
-    views.push_back({{"buffer", 0}, {"byteOffset", bin.size()}, {"byteLength", meshes[m].draco.size()}});
-    append_padded(bin, meshes[m].draco.data(), meshes[m].draco.size(), '\0');
+  // One primitive per Draco bitstream (a mesh's first, then its further parts).
+  auto add_primitive = [&](const std::vector<char>& bytes, const std::string& where) -> StatusOr<json> {
+    RAYLOD_ASSIGN_OR_RETURN(DecodedFacts f, decode_facts(bytes, where));
+    views.push_back({{"buffer", 0}, {"byteOffset", bin.size()}, {"byteLength", bytes.size()}});
+    append_padded(bin, bytes.data(), bytes.size(), '\0');
     json attributes, draco_attributes;
     attributes["POSITION"] = accessors.size();
     draco_attributes["POSITION"] = f.position_id;
@@ -91,7 +92,18 @@ StatusOr<uint64_t> write_glb(const std::filesystem::path& path, const std::vecto
     json primitive = {{"attributes", attributes}, {"indices", accessors.size()}, {"mode", 4}};
     accessors.push_back({{"componentType", kUnsignedInt}, {"count", uint64_t(f.faces) * 3}, {"type", "SCALAR"}});
     primitive["extensions"]["KHR_draco_mesh_compression"] = {{"bufferView", views.size() - 1}, {"attributes", draco_attributes}};
-    json mesh = {{"primitives", json::array({primitive})}};
+    return primitive;
+  };
+  for (size_t m = 0; m < meshes.size(); ++m) {
+    const std::string where = name + ": mesh " + std::to_string(m);
+    json primitives = json::array();
+    RAYLOD_ASSIGN_OR_RETURN(json first, add_primitive(meshes[m].draco, where));
+    primitives.push_back(std::move(first));
+    for (size_t part = 0; part < meshes[m].more_parts.size(); ++part) {
+      RAYLOD_ASSIGN_OR_RETURN(json more, add_primitive(meshes[m].more_parts[part], where + " part " + std::to_string(part + 2)));
+      primitives.push_back(std::move(more));
+    }
+    json mesh = {{"primitives", primitives}};
     if (!meshes[m].name.empty()) mesh["name"] = meshes[m].name;
     jmeshes.push_back(mesh);
   }

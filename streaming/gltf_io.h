@@ -100,7 +100,8 @@ StatusOr<std::unique_ptr<MeshReader>> open_gltf_reader(const std::filesystem::pa
 // content), written as one KHR_draco_mesh_compression primitive.
 struct GlbMesh {
   std::string name;
-  std::vector<char> draco;
+  std::vector<char> draco;                     // the first primitive's Draco bitstream
+  std::vector<std::vector<char>> more_parts;  // further primitives of the mesh (a .drc part file's parts)
 };
 // A node placing a mesh (node to world).
 struct GlbNode {

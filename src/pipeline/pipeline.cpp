@@ -159,6 +159,7 @@ StatusOr<SimplifiedMesh> simplify_cut_to_draco(const OctreeStore& store, const C
   dopt.max_normal_error = max_normal_error;
   const uint64_t triangles = simplified.mesh.triangle_count();
   dopt.speed = draco_speed_for(triangles);
+  dopt.parts = draco_parts_for(triangles);  // a part file from 2M triangles: encoded and decoded in parallel
   RAYLOD_ASSIGN_OR_RETURN(DracoWriteReport written, write_draco(out, std::move(simplified.mesh), dopt));
   SimplifiedMesh sm;
   sm.drc = out;
@@ -319,7 +320,11 @@ StatusOr<uint64_t> export_simplified_glb(const fs::path& out, const std::vector<
     if (!in) return Status::error(meshes[i].drc.string() + ": cannot open the simplified mesh");
     GlbMesh m;
     m.name = stores.meshes[i].filename().string();
-    m.draco.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+    const std::vector<char> bytes{std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+    // A part file's parts become the primitives of one glTF mesh.
+    RAYLOD_ASSIGN_OR_RETURN(const auto parts, draco_parts(bytes.data(), bytes.size(), meshes[i].drc.string()));
+    m.draco.assign(parts[0].begin(), parts[0].end());
+    for (size_t p = 1; p < parts.size(); ++p) m.more_parts.emplace_back(parts[p].begin(), parts[p].end());
     glb_index[i] = glb_meshes.size();
     glb_meshes.push_back(std::move(m));
   }

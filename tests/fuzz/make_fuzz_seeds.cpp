@@ -142,7 +142,7 @@ int main(int argc, char** argv) try {
     DracoOptions o;
     auto encoded = encode_draco(out / "gltf" / "draco.glb", indexed, o);
     check(encoded.status());
-    check(write_glb(out / "gltf" / "draco.glb", {GlbMesh{"grid", encoded.value().bytes}},
+    check(write_glb(out / "gltf" / "draco.glb", {GlbMesh{"grid", encoded.value().bytes, {}}},
                     {GlbNode{"grid", 0, glm::dmat4(1.0)}}).status());
     test::GltfBuilder b;
     std::vector<Vec3> p(small.positions.begin(), small.positions.end()), n(small.normals.begin(), small.normals.end());

@@ -2,9 +2,15 @@
 // quantisation bound, normals within the reported angle bound.
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <array>
 #include <cstdlib>
+#include <cstring>
 #include <fstream>
 #include <random>
+#include <set>
+
+#include <tbb/global_control.h>
 
 #include <draco/compression/encode.h>
 #include <draco/mesh/mesh.h>
@@ -317,6 +323,113 @@ TEST(DracoIo, BadInputsGiveClearErrorsAndNoFile) {
   std::filesystem::resize_file(good, std::filesystem::file_size(good) / 2);
   EXPECT_FALSE(read_draco(good).is_ok());
   EXPECT_FALSE(read_draco(dir / "missing.drc").is_ok());
+}
+
+std::vector<char> file_bytes(const std::filesystem::path& p) {
+  std::ifstream f(p, std::ios::binary);
+  return {std::istreambuf_iterator<char>(f), std::istreambuf_iterator<char>()};
+}
+
+TEST(DracoParts, DecodeWithinTheBoundsAndWithoutCracks) {
+  // The parts are quantised on the whole mesh's grid (the bits chosen for
+  // the whole mesh), so a vertex on the seam between two parts decodes to
+  // the same position in both.
+  const IndexedMesh mesh = indexed(test::uv_sphere({0.3f, -1.2f, 2.0f}, 1.7f, 40, 64));
+  const test::ScratchDir dir("draco-parts");
+  DracoOptions one;
+  one.max_position_error = 1e-4;
+  DracoOptions four = one;
+  four.parts = 4;
+  auto w1 = write_draco(dir.path / "one.drc", mesh, one);
+  auto w4 = write_draco(dir.path / "four.drc", mesh, four);
+  ASSERT_TRUE(w1.is_ok()) << w1.status().message();
+  ASSERT_TRUE(w4.is_ok()) << w4.status().message();
+  EXPECT_EQ(w4->position_bits, w1->position_bits);
+  EXPECT_EQ(w4->max_position_error, w1->max_position_error);
+  EXPECT_EQ(w4->bytes, std::filesystem::file_size(dir.path / "four.drc"));
+  const std::vector<char> bytes = file_bytes(dir.path / "four.drc");
+  ASSERT_GE(bytes.size(), 8u);
+  EXPECT_EQ(std::memcmp(bytes.data(), kDracoPartsMagic, 8), 0);
+  auto parts = draco_parts(bytes.data(), bytes.size(), "four.drc");
+  ASSERT_TRUE(parts.is_ok()) << parts.status().message();
+  EXPECT_EQ(parts->size(), 4u);
+
+  auto r1 = read_draco(dir.path / "one.drc");
+  auto r4 = read_draco(dir.path / "four.drc");
+  ASSERT_TRUE(r1.is_ok()) << r1.status().message();
+  ASSERT_TRUE(r4.is_ok()) << r4.status().message();
+  EXPECT_EQ(r4->triangle_count(), mesh.triangle_count());
+  // Within the stated bounds of the input, and without cracks: a vertex two
+  // parts share decodes to one position, so the part file has as many
+  // distinct positions as the single bitstream.
+  expect_same_triangles(mesh, *r4, w4->max_position_error, w4->max_normal_error);
+  auto distinct = [](const IndexedMesh& m) {
+    std::set<std::array<float, 3>> s;
+    for (const Vec3& p : m.positions) s.insert({p.x, p.y, p.z});
+    return s.size();
+  };
+  EXPECT_EQ(distinct(*r4), distinct(*r1));
+  EXPECT_EQ(distinct(*r1), distinct(mesh));
+  auto count = draco_triangle_count(dir.path / "four.drc");
+  ASSERT_TRUE(count.is_ok()) << count.status().message();
+  EXPECT_EQ(*count, mesh.triangle_count());
+}
+
+TEST(DracoParts, SameBytesForAnyThreadCount) {
+  const IndexedMesh mesh = indexed(test::uv_sphere({0, 0, 0}, 1.0f, 30, 50));
+  const test::ScratchDir dir("draco-parts-threads");
+  DracoOptions o;
+  o.parts = 5;
+  std::vector<std::vector<char>> got;
+  for (int threads : {1, 2}) {
+    tbb::global_control limit(tbb::global_control::max_allowed_parallelism, size_t(threads));
+    const auto path = dir.path / ("t" + std::to_string(threads) + ".drc");
+    auto w = write_draco(path, mesh, o);
+    ASSERT_TRUE(w.is_ok()) << w.status().message();
+    got.push_back(file_bytes(path));
+  }
+  EXPECT_EQ(got[0], got[1]);
+}
+
+TEST(DracoParts, DamagedPartFilesGiveErrorsNamingTheFile) {
+  const IndexedMesh mesh = indexed(test::uv_sphere({0, 0, 0}, 1.0f, 20, 30));
+  const test::ScratchDir dir("draco-parts-damage");
+  DracoOptions o;
+  o.parts = 3;
+  const auto good = dir.path / "good.drc";
+  ASSERT_TRUE(write_draco(good, mesh, o).is_ok());
+  const std::vector<char> bytes = file_bytes(good);
+  auto write = [&](const std::string& name, const std::vector<char>& b) {
+    const auto p = dir.path / name;
+    std::ofstream(p, std::ios::binary).write(b.data(), std::streamsize(b.size()));
+    return p;
+  };
+  struct Case {
+    std::string name, expect;
+    std::vector<char> bytes;
+  };
+  std::vector<Case> cases;
+  cases.push_back({"truncated.drc", "runs past the end", std::vector<char>(bytes.begin(), bytes.end() - 10)});
+  cases.push_back({"header.drc", "truncated", std::vector<char>(bytes.begin(), bytes.begin() + 12)});
+  std::vector<char> zero_parts = bytes;
+  zero_parts[12] = zero_parts[13] = zero_parts[14] = zero_parts[15] = 0;
+  cases.push_back({"zero.drc", "parts (1 to 256)", zero_parts});
+  std::vector<char> version = bytes;
+  version[8] = 9;
+  cases.push_back({"version.drc", "version 9", version});
+  std::vector<char> tail = bytes;
+  tail.push_back(0);
+  cases.push_back({"tail.drc", "after the last part", tail});
+  std::vector<char> garbled = bytes;
+  for (size_t i = 16 + 16 * 3 + 40; i < 16 + 16 * 3 + 80 && i < garbled.size(); ++i) garbled[i] = char(0x5a);
+  cases.push_back({"garbled.drc", "part 1", garbled});
+  for (const Case& c : cases) {
+    const auto path = write(c.name, c.bytes);
+    auto r = read_draco(path);
+    ASSERT_FALSE(r.is_ok()) << c.name;
+    EXPECT_NE(r.status().message().find(path.string()), std::string::npos) << r.status().message();
+    EXPECT_NE(r.status().message().find(c.expect), std::string::npos) << c.name << ": " << r.status().message();
+  }
 }
 
 }  // namespace

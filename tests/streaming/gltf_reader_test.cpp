@@ -179,14 +179,23 @@ TEST(GltfReader, PlyToGlbRoundTripWithinTheQuantisationBound) {
     mesh.indices.push_back(uint32_t(it - mesh.positions.begin()));
     if (it == mesh.positions.end()) mesh.positions.push_back(p);
   }
+  // One Draco primitive, then a part file's three parts as three primitives
+  // of one glTF mesh (what `raylod run --export` writes for a large mesh).
+  for (const int parts : {1, 3}) {
   DracoOptions opt;
   opt.max_position_error = 1e-4;
-  const auto glb = test::scratch_dir() / "sphere.glb";
+  opt.parts = parts;
+  const auto glb = test::scratch_dir() / ("sphere-" + std::to_string(parts) + ".glb");
   auto encoded = encode_draco(glb, mesh, opt);
   ASSERT_TRUE(encoded.is_ok()) << encoded.status().message();
   const double bound = encoded->report.max_position_error;
   EXPECT_LE(bound, 1e-4);
-  std::vector<GlbMesh> meshes{{"sphere", encoded->bytes}};
+  auto split = draco_parts(encoded->bytes.data(), encoded->bytes.size(), glb.string());
+  ASSERT_TRUE(split.is_ok()) << split.status().message();
+  ASSERT_EQ(split->size(), size_t(parts));
+  GlbMesh sphere{"sphere", std::vector<char>((*split)[0].begin(), (*split)[0].end()), {}};
+  for (size_t p = 1; p < split->size(); ++p) sphere.more_parts.emplace_back((*split)[p].begin(), (*split)[p].end());
+  std::vector<GlbMesh> meshes{sphere};
   auto written = write_glb(glb, meshes, {GlbNode{"sphere", 0, glm::dmat4(1.0)}});
   ASSERT_TRUE(written.is_ok()) << written.status().message();
   const auto out = test::read_all(glb);
@@ -206,7 +215,8 @@ TEST(GltfReader, PlyToGlbRoundTripWithinTheQuantisationBound) {
         if (all) found = used[u] = true;
       }
     }
-    EXPECT_TRUE(found) << "input triangle " << t << " has no output triangle within " << bound;
+    EXPECT_TRUE(found) << parts << " parts: input triangle " << t << " has no output triangle within " << bound;
+  }
   }
 }
 
