@@ -606,6 +606,23 @@ struct PageWork {
   std::vector<uint32_t> cache_cell = std::vector<uint32_t>(kCache, kKeepVertex);
   PreparedBatch prepared;
 
+  // The normals of the vertices of triangles not wholly inside one cell (the
+  // only ones prepare_collapse and the builder read); the others stay zero.
+  std::vector<uint8_t> needed;
+  void decode_needed_normals() {
+    const size_t nv = page.vertices();
+    needed.assign(nv, 0);
+    for (size_t t = 0; t < page.size(); ++t) {
+      const uint32_t* vi = &page.index[3 * t];
+      const uint32_t c = vertex_cell[vi[0]];
+      if (c != kKeepVertex && c == vertex_cell[vi[1]] && c == vertex_cell[vi[2]]) continue;
+      needed[vi[0]] = needed[vi[1]] = needed[vi[2]] = 1;
+    }
+    page.normals.assign(nv, Vec3(0));
+    for (size_t v = 0; v < nv; ++v)
+      if (needed[v]) page.normals[v] = decode_octahedral(page.normal_codes[v]);
+  }
+
   void look_up_cells(const CutLookup& lookup) {
     vertex_cell.resize(page.vertices());
     for (size_t v = 0; v < page.vertices(); ++v) {
@@ -775,8 +792,8 @@ Status collapse_pass(const OctreeStore& store, std::span<const CellKey> keys, co
       pages.size(), ntokens,
       [&](PageWork& w, size_t i) -> Status {
         RAYLOD_RETURN_IF_ERROR(store.read_page(i, w.page));
-        if (store.header().has_normals) w.page.decode_normals();
         w.look_up_cells(lookup);
+        if (store.header().has_normals) w.decode_needed_normals();
         prepare_collapse(w.page, w.vertex_cell, builder.representative_positions(), store.header().has_normals,
                          w.prepared);
         mark_page_unique_vertices(w.page, w.vertex_cell, neighbours.others(i), neighbours.inner(i), w.prepared);
