@@ -132,6 +132,7 @@ Representative make_representative(const NodeRecord& node, const Bbox& cell_boun
   r.clamped = s.clamped;
   r.fallback_normal = dominant_normal(node.quadric);
   r.normal_sum = 6.0 * node.normal_sum;  // area / 3 per corner -> twice the area
+  r.has_normal_sum = true;
   return r;
 }
 
@@ -304,8 +305,9 @@ void prepare_collapse(const PageMesh& page, std::span<const uint32_t> vertex_cel
     const Vec3 p[3] = {page.positions[vi[0]], page.positions[vi[1]], page.positions[vi[2]]};
     const uint32_t c[3] = {vertex_cell[vi[0]], vertex_cell[vi[1]], vertex_cell[vi[2]]};
     if (c[0] != kKeepVertex && c[0] == c[1] && c[1] == c[2]) {
-      // Wholly inside one collapsed cell: it disappears and gives its cell
-      // no normals (most triangles of a coarse cut end here, unexamined).
+      // Wholly inside one collapsed cell: it disappears unexamined (most
+      // triangles of a coarse cut end here); its normal reaches the cell
+      // through the node's sum (CollapseBuilder::finish).
       out.face[t] = Vec3d(0);
       out.area2[t] = 0;
       out.fate[t] = TriangleFate::kInsideCell;
@@ -456,6 +458,7 @@ IndexedMesh CollapseBuilder::finish(CollapseStats* stats_out) {
   // cell that restores the mean over the whole cell; across a crease the sum
   // points between the sides, no cluster is near it, and it is left out.
   for (uint32_t v = 0; v < nreps; ++v) {
+    if (!reps_[v].has_normal_sum) continue;
     const Vec3d inside = reps_[v].normal_sum - reached_sum_[v];
     const double w = glm::length(inside);
     if (w > 1e-9 * (glm::length(reps_[v].normal_sum) + glm::length(reached_sum_[v])))

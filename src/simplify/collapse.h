@@ -66,7 +66,10 @@ struct Representative {
   Vec3d fallback_normal{0, 1, 0};  // unit; used when the merged normals cancel
   // The cell's area-weighted normal sum over all its corners, in the units of
   // PreparedBatch::RepresentativeNormal (twice the area): NodeRecord::normal_sum x 6.
+  // Without it (has_normal_sum false) the normals of triangles wholly inside
+  // the cell are left out.
   Vec3d normal_sum{0};
+  bool has_normal_sum = false;
   int rank = 0;              // rank of the QEM solve (qem_solve.h)
   bool clamped = false;
 };
@@ -123,7 +126,8 @@ struct CollapseStats {
 // alone (prepare_collapse): pages are prepared in parallel, then added to
 // the builder one at a time in order.
 enum class TriangleFate : uint8_t {
-  kInsideCell,  // all three corners in one collapsed cell: dropped, and adds no normals
+  kInsideCell,  // all three corners in one collapsed cell: dropped unexamined (its normal comes
+                // back through Representative::normal_sum)
   kCollapsed,  // two corners became the same output vertex
   kZeroArea,   // distinct output vertices, exactly zero area
   kKept,

@@ -135,6 +135,7 @@ TEST(CollapseBuilder, TrianglesWhollyInsideACellGiveTheirNormalsThroughTheCellsS
     std::vector<Representative> reps(1);
     reps[0].position = Vec3d(0.05, 0.05, 0);
     reps[0].normal_sum = weighted_normal(0) + 3.0 * weighted_normal(1);  // A's one corner, B's three
+    reps[0].has_normal_sum = true;
     CollapseBuilder b(reps, false);
     b.add(soup, std::vector<uint32_t>{0, kKeepVertex, kKeepVertex, 0, 0, 0});
     CollapseStats st;
