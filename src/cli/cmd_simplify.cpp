@@ -37,7 +37,10 @@ StatusOr<DracoWriteReport> write_simplified_glb(const std::filesystem::path& out
   DracoWriteReport report = encoded.report;
   std::vector<GlbMesh> meshes(1);
   meshes[0].name = out.stem().string();
-  meshes[0].draco = std::move(encoded.bytes);
+  // A part file's parts become the primitives of the one glTF mesh.
+  RAYLOD_ASSIGN_OR_RETURN(const auto parts, draco_parts(encoded.bytes.data(), encoded.bytes.size(), out.string()));
+  meshes[0].draco.assign(parts[0].begin(), parts[0].end());
+  for (size_t p = 1; p < parts.size(); ++p) meshes[0].more_parts.emplace_back(parts[p].begin(), parts[p].end());
   RAYLOD_ASSIGN_OR_RETURN(report.bytes, write_glb(out, meshes, {GlbNode{meshes[0].name, 0, glm::translate(glm::dmat4(1.0), origin)}}));
   return report;
 }
@@ -59,6 +62,9 @@ int run_simplify(int argc, char** argv) {
               true, "E"},
              {"--normal-bits", "", "Draco: octahedral normal quantisation bits, 2..30 (default 10)", true, "N"},
              {"--speed", "", "Draco: encoder speed 0 (smallest) .. 10 (fastest) (default 5)", true, "S"},
+             {"--parts", "", "Draco: split the mesh into N bitstreams encoded and decoded in parallel (.drc:\n"
+                             "a raylod part file, which other Draco tools do not read; .glb: N primitives)\n"
+                             "(default 1; raylod run uses one per million triangles from 2M)", true, "N"},
              {"--crease-angle", "", "normals: facets meeting at more than DEG degrees keep separate\n"
                                     "                              normals (default 30, as the scene's crease_angle)", true, "DEG"},
              {"--fold-passes", "", "passes that refine cells whose collapse turns a triangle over\n"
@@ -84,6 +90,8 @@ int run_simplify(int argc, char** argv) {
   if (!normal_bits) return fail("simplify", normal_bits.status());
   auto speed = args.get_int("--speed", 5, 0, 10);
   if (!speed) return fail("simplify", speed.status());
+  auto parts = args.get_int("--parts", 1, 1, 256);
+  if (!parts) return fail("simplify", parts.status());
   auto fold_passes = args.get_int("--fold-passes", 0, 0, 64);
   if (!fold_passes) return fail("simplify", fold_passes.status());
   auto position_error = args.get_double("--position-error", 0);
@@ -133,6 +141,7 @@ int run_simplify(int argc, char** argv) {
     DracoOptions opt;
     opt.normal_bits = int(*normal_bits);
     opt.speed = int(*speed);
+    opt.parts = int(*parts);
     // The smallest footprint the probe measured, with a safety factor of 8,
     // so quantisation stays well below what any test ray can resolve.
     float footprint = cut->min_footprint;

@@ -71,14 +71,18 @@ const std::vector<fs::path>& written_glbs() {
   r = raylod("simplify " + (dir / "crank.stl.raylod").string() + " " + (dir / "one.cut").string() + " -q -o " +
              (dir / "one.glb").string());
   EXPECT_EQ(r.status, 0) << r.out;
-  for (const char* name : {"two.glb", "again.glb", "one.glb"})
+  // The same split into three parts: three primitives of one mesh.
+  r = raylod("simplify " + (dir / "crank.stl.raylod").string() + " " + (dir / "one.cut").string() + " -q --parts 3 -o " +
+             (dir / "parts.glb").string());
+  EXPECT_EQ(r.status, 0) << r.out;
+  for (const char* name : {"two.glb", "again.glb", "one.glb", "parts.glb"})
     if (fs::exists(dir / name)) files.push_back(dir / name);
   return files;
 }
 
 TEST(GltfCli, ExportsAndReadsBackMultiMeshGlb) {
   const auto& files = written_glbs();
-  ASSERT_EQ(files.size(), 3u);
+  ASSERT_EQ(files.size(), 4u);
   const CommandResult info = raylod("info " + (scratch() / "two.glb").string());
   ASSERT_EQ(info.status, 0) << info.out;
   EXPECT_NE(info.out.find("2 meshes, 2 node instances"), std::string::npos) << info.out;
@@ -91,6 +95,17 @@ TEST(GltfCli, ExportsAndReadsBackMultiMeshGlb) {
   const CommandResult one = raylod("info '" + (scratch() / "two.glb").string() + "#meshes[1]'");
   ASSERT_EQ(one.status, 0) << one.out;
   EXPECT_NE(one.out.find("format:     glTF (glb)"), std::string::npos) << one.out;
+  // The three-part file: one mesh of three primitives, the triangles of the one-part file.
+  const CommandResult single = raylod("info " + (scratch() / "one.glb").string());
+  const CommandResult parts = raylod("info " + (scratch() / "parts.glb").string());
+  ASSERT_EQ(parts.status, 0) << parts.out;
+  EXPECT_NE(parts.out.find("3 triangle primitives"), std::string::npos) << parts.out;
+  const auto triangles = [](const std::string& out) {
+    const size_t at = out.find("triangles:");
+    return at == std::string::npos ? std::string() : out.substr(at, out.find('\n', at) - at);
+  };
+  EXPECT_FALSE(triangles(parts.out).empty()) << parts.out;
+  EXPECT_EQ(triangles(parts.out), triangles(single.out));
 }
 
 TEST(GltfCli, BadGlbFailsNamingTheFile) {
@@ -103,7 +118,7 @@ TEST(GltfCli, BadGlbFailsNamingTheFile) {
 
 TEST(GltfValidator, EveryGlbRaylodWritesHasNoErrors) {
   const auto& files = written_glbs();
-  ASSERT_EQ(files.size(), 3u);
+  ASSERT_EQ(files.size(), 4u);
   if (shell("node --version").status != 0) GTEST_SKIP() << "node is not installed: glTF-Validator not run";
   std::string cmd = "node " + (fs::path(RAYLOD_TEST_DIR) / ".." / "tools" / "validate_gltf.js").string();
   for (const auto& f : files) cmd += " " + f.string();
