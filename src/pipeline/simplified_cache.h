@@ -1,7 +1,8 @@
 // The cache of simplified meshes that `raylod run` reuses across views.
 //
 // Layout under the cache directory:
-//   simplified/<key>.drc    the simplified mesh (Draco)
+//   simplified/<key>.drc    the simplified mesh (Draco; a part file from 2M
+//                           triangles, streaming/draco_io.h)
 //   simplified/<key>.cut    the cut it was made from (for the reuse rule)
 //   simplified/<key>.json   metadata: store hash, options, triangle count,
 //                           content hash of the .drc, last use
