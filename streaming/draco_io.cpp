@@ -454,7 +454,10 @@ StatusOr<IndexedMesh> read_draco(const std::filesystem::path& path) {
     RAYLOD_ASSIGN_OR_RETURN(const auto parts, draco_parts(data.data(), data.size(), path.string()));
     RAYLOD_ASSIGN_OR_RETURN(const uint64_t triangles, draco_triangle_count(path));
     IndexedMesh mesh;
-    mesh.indices.reserve(size_t(3 * std::min<uint64_t>(triangles, uint64_t(1) << 40)));
+    // The table's count, checked below, bounded here by what the bytes can
+    // hold (edgebreaker needs more than a bit per triangle): a damaged table
+    // must not reserve terabytes.
+    mesh.indices.reserve(size_t(3 * std::min<uint64_t>(triangles, 8 * uint64_t(data.size()))));
     const size_t ntokens = std::clamp<size_t>(size_t(ambient_parallelism()) + 1, 2, 8);
     RAYLOD_RETURN_IF_ERROR(ordered_pipeline<IndexedMesh>(
         parts.size(), ntokens,

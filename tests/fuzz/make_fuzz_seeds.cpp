@@ -133,6 +133,9 @@ int main(int argc, char** argv) try {
   DracoOptions coarse;
   coarse.position_bits = 8;
   check(write_draco(out / "draco" / "grid.drc", indexed, coarse).status());
+  DracoOptions parts = coarse;  // a part file (draco_io.h) of three bitstreams
+  parts.parts = 3;
+  check(write_draco(out / "draco" / "grid-parts.drc", indexed, parts).status());
 
   // glTF: a .glb as raylod writes it (a Draco primitive), a .gltf with a
   // data URI (indexed triangles with normals, a strip, a node hierarchy) and
