@@ -192,8 +192,10 @@ int run_simplify(int argc, char** argv) {
   if (s.normal_fallbacks) std::printf("  normals    %llu fell back (merged normals cancelled; the quadric's normal used)\n", ull(s.normal_fallbacks));
   std::printf("%s", quantisation.c_str());
   std::printf("  bytes      %llu (%s)\n", ull(bytes), format_bytes(bytes).c_str());
-  std::printf("  time       open %.2f s, collapse %.2f s (%llu pages; fold checks %.2f s, finish %.2f s), write %.2f s\n",
-              open_seconds, r.seconds, ull(r.pages_read), r.fold_seconds, r.finish_seconds, write_seconds);
+  std::printf("  time       open %.2f s, collapse %.2f s (%llu pages read, %llu inside one cell not; fold checks %.2f s, "
+              "finish %.2f s), write %.2f s\n",
+              open_seconds, r.seconds, ull(r.pages_read), ull(r.pages_skipped), r.fold_seconds, r.finish_seconds,
+              write_seconds);
   std::printf("  memory     peak %s (mesh build %s, estimate %s)\n", format_bytes(peak_rss_bytes()).c_str(),
               format_bytes(s.peak_bytes).c_str(), format_bytes(estimate.bytes).c_str());
   return 0;

@@ -387,6 +387,12 @@ void CollapseBuilder::add(const TriangleBatch& batch, std::span<const uint32_t> 
   add(page_, cell, prepared_);
 }
 
+void CollapseBuilder::add_inside_cell(uint64_t triangles) {
+  stats_.input_triangles += triangles;
+  stats_.dropped_collapsed += triangles;
+  stats_.inside_cell += triangles;
+}
+
 void CollapseBuilder::add(const PageMesh& page, std::span<const uint32_t> vertex_cell, const PreparedBatch& prepared) {
   assert(vertex_cell.size() == page.vertices());
   const bool page_normals = has_normals_ && page.normals.size() == page.vertices();
@@ -608,6 +614,7 @@ struct PageWork {
   std::vector<uint64_t> cache_code = std::vector<uint64_t>(kCache, ~uint64_t(0));
   std::vector<uint32_t> cache_cell = std::vector<uint32_t>(kCache, kKeepVertex);
   PreparedBatch prepared;
+  bool inside_one_cell = false;  // the page lies in one collapsed cell: not read
 
   // The normals of the vertices of triangles not wholly inside one cell (the
   // only ones prepare_collapse and the builder read); the others stay zero.
@@ -640,6 +647,16 @@ struct PageWork {
   }
 };
 
+// Whether every vertex of the page lies in one collapsed cell (then every
+// triangle of it is inside that cell, and the page need not be read): its
+// bounds' corners are in the same cut cell. Binning is monotone per axis, so
+// every point between them is in that cell too.
+bool page_inside_one_cell(const PageInfo& page, const CutLookup& lookup) {
+  if (page.bounds.empty()) return false;
+  const uint32_t c = lookup.find(page.bounds.lo);
+  return c != kKeepVertex && c == lookup.find(page.bounds.hi);
+}
+
 // Marks folding[c] = 1 for every cut cell c that a triangle of the pages
 // `page_list` turns over once collapsed, deciding each triangle as
 // CollapseBuilder::add does (collapse_turns_over, prepare_collapse's fate) but building nothing: the
@@ -647,7 +664,7 @@ struct PageWork {
 // so pages are scanned in parallel (the same marks for any thread count).
 Status mark_folding_cells(const OctreeStore& store, std::span<const CellKey> keys,
                           std::span<const Representative> reps, std::span<const uint32_t> page_list,
-                          std::vector<uint8_t>& folding) {
+                          std::vector<uint8_t>& folding, uint64_t& pages_skipped) {
   const StoreHeader& h = store.header();
   const CutLookup lookup(h.root_lo, h.root_size, keys);
   std::vector<Vec3> rep_pos;
@@ -655,12 +672,17 @@ Status mark_folding_cells(const OctreeStore& store, std::span<const CellKey> key
   for (const auto& r : reps) rep_pos.push_back(Vec3(r.position));
   folding.assign(reps.size(), 0);
   tbb::enumerable_thread_specific<PageWork> work;
+  std::atomic<uint64_t> skipped{0};
   std::mutex error_mutex;
   size_t error_page = page_list.size();
   Status error;
   tbb::parallel_for(tbb::blocked_range<size_t>(0, page_list.size(), 1), [&](const tbb::blocked_range<size_t>& r) {
     PageWork& w = work.local();
     for (size_t j = r.begin(); j != r.end(); ++j) {
+      if (page_inside_one_cell(store.pages()[page_list[j]], lookup)) {
+        skipped.fetch_add(1, std::memory_order_relaxed);
+        continue;  // no triangle of it turns over: all collapse
+      }
       if (Status st = store.read_page(page_list[j], w.page); !st.ok()) {
         std::lock_guard lock(error_mutex);
         if (j < error_page) { error_page = j; error = st; }  // the first failing page, whatever the threads
@@ -675,6 +697,7 @@ Status mark_folding_cells(const OctreeStore& store, std::span<const CellKey> key
       }
     }
   });
+  pages_skipped += skipped.load();
   return error_page < page_list.size() ? error : Status::ok();
 }
 
@@ -781,7 +804,8 @@ class PageNeighbours {
 // and added to the builder one at a time in page order, so the mesh does not
 // depend on the thread count.
 Status collapse_pass(const OctreeStore& store, std::span<const CellKey> keys, const SimplifyConfig& config,
-                     const SimplifyEstimate& estimate, CollapseBuilder& builder, uint64_t& pages_read) {
+                     const SimplifyEstimate& estimate, CollapseBuilder& builder, uint64_t& pages_read,
+                     uint64_t& pages_skipped) {
   const StoreHeader& h = store.header();
   const CutLookup lookup(h.root_lo, h.root_size, keys);
   builder.reserve(estimate.vertices + estimate.vertices / 4, estimate.triangles);
@@ -794,6 +818,8 @@ Status collapse_pass(const OctreeStore& store, std::span<const CellKey> keys, co
   Status done = ordered_pipeline<PageWork>(
       pages.size(), ntokens,
       [&](PageWork& w, size_t i) -> Status {
+        w.inside_one_cell = page_inside_one_cell(pages[i], lookup);
+        if (w.inside_one_cell) return {};  // its triangles' normals come through the node's sum
         RAYLOD_RETURN_IF_ERROR(store.read_page(i, w.page));
         w.look_up_cells(lookup);
         if (store.header().has_normals) w.decode_needed_normals();
@@ -803,8 +829,13 @@ Status collapse_pass(const OctreeStore& store, std::span<const CellKey> keys, co
         return {};
       },
       [&](PageWork& w, size_t i) -> Status {
-        ++pages_read;
-        builder.add(w.page, w.vertex_cell, w.prepared);
+        if (w.inside_one_cell) {
+          ++pages_skipped;
+          builder.add_inside_cell(pages[i].triangle_count);
+        } else {
+          ++pages_read;
+          builder.add(w.page, w.vertex_cell, w.prepared);
+        }
         if (config.memory_limit && builder.memory_bytes() > config.memory_limit)
           return Status::error("the simplified mesh outgrew the memory limit of " + format_bytes(config.memory_limit) +
                                " after " + std::to_string(builder.triangles()) + " triangles (page " +
@@ -859,8 +890,9 @@ StatusOr<SimplifyResult> simplify(const OctreeStore& store, const Cut& cut, cons
   std::iota(page_list.begin(), page_list.end(), 0u);
   for (int pass = 0; pass < config.fold_passes && !page_list.empty(); ++pass) {
     std::vector<uint8_t> folding;
-    RAYLOD_RETURN_IF_ERROR(mark_folding_cells(store, keys, reps, page_list, folding));
-    result.pages_read += page_list.size();
+    const uint64_t skipped_before = result.pages_skipped;
+    RAYLOD_RETURN_IF_ERROR(mark_folding_cells(store, keys, reps, page_list, folding, result.pages_skipped));
+    result.pages_read += page_list.size() - (result.pages_skipped - skipped_before);
     if (std::find(folding.begin(), folding.end(), uint8_t(1)) == folding.end()) break;
     // Each folding cell gives way to its children (the cut stays an
     // antichain: children of a cut cell are in no other cut cell).
@@ -902,7 +934,7 @@ StatusOr<SimplifyResult> simplify(const OctreeStore& store, const Cut& cut, cons
   result.fold_seconds = seconds_since(fold_start);
   {
     CollapseBuilder builder(reps, h.has_normals, config.crease_angle_deg);
-    RAYLOD_RETURN_IF_ERROR(collapse_pass(store, keys, config, estimate, builder, result.pages_read));
+    RAYLOD_RETURN_IF_ERROR(collapse_pass(store, keys, config, estimate, builder, result.pages_read, result.pages_skipped));
     const auto finish_start = std::chrono::steady_clock::now();
     result.mesh = builder.finish(&result.stats);
     result.finish_seconds = seconds_since(finish_start);

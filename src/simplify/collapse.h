@@ -187,6 +187,9 @@ class CollapseBuilder {
   // representative index of page vertex v or kKeepVertex, prepared by
   // prepare_collapse(page, vertex_cell, representative_positions(), ...).
   void add(const PageMesh& page, std::span<const uint32_t> vertex_cell, const PreparedBatch& prepared);
+  // Counts `triangles` wholly inside one collapsed cell that were not read
+  // (a page inside one cell): they add nothing else.
+  void add_inside_cell(uint64_t triangles);
   std::span<const Vec3> representative_positions() const { return rep_pos_; }
   // Pre-sizes the buffers (avoids rehashing the vertex table while streaming).
   void reserve(uint64_t vertices, uint64_t triangles);
@@ -277,6 +280,7 @@ struct SimplifyResult {
   uint64_t fold_cells_refined = 0;    // cut cells replaced by their children (or kept) for a fold
   bool folds_stopped_by_memory = false;  // a fold pass's refinement was left out: it would not fit memory_limit
   uint64_t pages_read = 0;
+  uint64_t pages_skipped = 0;  // page visits spared: the page lay inside one collapsed cell
   double seconds = 0;          // all of simplify(), of which:
   double fold_seconds = 0;     //   the fold passes' scans
   double finish_seconds = 0;   //   CollapseBuilder::finish (duplicates, normals, output order)
