@@ -211,11 +211,14 @@ ExplicitGrid whole_mesh_grid(const IndexedMesh& mesh) {
   return g;
 }
 
-StatusOr<DracoEncoded> encode_draco_mesh(const std::filesystem::path& path, const IndexedMesh& mesh,
-                                          const DracoOptions& options, IndexedMesh* release,
-                                          const ExplicitGrid* grid = nullptr) {
-  RAYLOD_RETURN_IF_ERROR(check_mesh(path, mesh));
-  const bool normals = !mesh.normals.empty();
+// The position quantisation of a mesh: its bits, the error they were chosen
+// for and the bound they give (DracoWriteReport's fields).
+struct PositionPlan {
+  int bits = 0;
+  double requested_error = 0, max_error = 0;
+};
+StatusOr<PositionPlan> plan_positions(const std::filesystem::path& path, const IndexedMesh& mesh,
+                                      const DracoOptions& options) {
   Bbox box;
   double max_abs = 0;
   for (const Vec3& p : mesh.positions) {
@@ -230,21 +233,46 @@ StatusOr<DracoEncoded> encode_draco_mesh(const std::filesystem::path& path, cons
     std::snprintf(what, sizeof what, ": the mesh spans %g, more than the float range (about 3.4e38) Draco quantises over", extent);
     return Status::error(path.string() + what);
   }
-
-  DracoEncoded encoded;
-  DracoWriteReport& report = encoded.report;
+  PositionPlan plan;
   if (options.position_bits > 0) {
     if (options.position_bits > kMaxDracoBits)
       return Status::error(path.string() + ": position_bits " + std::to_string(options.position_bits) +
                            " is over Draco's limit of 30");
-    report.position_bits = options.position_bits;
+    plan.bits = options.position_bits;
   } else {
     // Without a target, keep the error a millionth of the mesh size.
-    report.requested_position_error =
-        options.max_position_error > 0 ? options.max_position_error : 1e-6 * std::max(extent, 1e-30);
-    report.position_bits = choose_position_bits(extent, max_abs, report.requested_position_error);
+    plan.requested_error = options.max_position_error > 0 ? options.max_position_error : 1e-6 * std::max(extent, 1e-30);
+    plan.bits = choose_position_bits(extent, max_abs, plan.requested_error);
   }
-  report.max_position_error = position_error_bound(extent, max_abs, report.position_bits);
+  plan.max_error = position_error_bound(extent, max_abs, plan.bits);
+  return plan;
+}
+
+// A part file's parts share the whole mesh's quantisation: its grid, bits and bounds.
+struct WholeMeshQuantisation {
+  ExplicitGrid grid;
+  PositionPlan plan;
+};
+
+// Encodes one Draco bitstream. `whole`, for a part of a part file, is the
+// whole mesh's quantisation (the whole mesh was checked; the part is not
+// checked again).
+StatusOr<DracoEncoded> encode_draco_mesh(const std::filesystem::path& path, const IndexedMesh& mesh,
+                                          const DracoOptions& options, IndexedMesh* release,
+                                          const WholeMeshQuantisation* whole = nullptr) {
+  if (!whole) RAYLOD_RETURN_IF_ERROR(check_mesh(path, mesh));
+  const bool normals = !mesh.normals.empty();
+  PositionPlan plan;
+  if (whole) {
+    plan = whole->plan;
+  } else {
+    RAYLOD_ASSIGN_OR_RETURN(plan, plan_positions(path, mesh, options));
+  }
+  DracoEncoded encoded;
+  DracoWriteReport& report = encoded.report;
+  report.position_bits = plan.bits;
+  report.requested_position_error = plan.requested_error;
+  report.max_position_error = plan.max_error;
   if (normals) {
     if (options.normal_bits == 0) {
       if (!(options.max_normal_error > 0))
@@ -271,9 +299,9 @@ StatusOr<DracoEncoded> encode_draco_mesh(const std::filesystem::path& path, cons
   if (release) *release = IndexedMesh{};
 
   draco::Encoder encoder;
-  if (grid)
-    encoder.SetAttributeExplicitQuantization(draco::GeometryAttribute::POSITION, report.position_bits, 3, grid->origin,
-                                             grid->range);
+  if (whole)
+    encoder.SetAttributeExplicitQuantization(draco::GeometryAttribute::POSITION, report.position_bits, 3,
+                                             whole->grid.origin, whole->grid.range);
   else
     encoder.SetAttributeQuantization(draco::GeometryAttribute::POSITION, report.position_bits);
   if (normals) encoder.SetAttributeQuantization(draco::GeometryAttribute::NORMAL, report.normal_bits);
@@ -306,21 +334,9 @@ StatusOr<DracoEncoded> encode_draco_parts(const std::filesystem::path& path, con
   RAYLOD_RETURN_IF_ERROR(check_mesh(path, mesh));
   const size_t triangles = mesh.triangle_count();
   const size_t parts = std::clamp<size_t>(size_t(std::max(options.parts, 1)), 1, std::max<size_t>(triangles, 1));
-  const ExplicitGrid grid = whole_mesh_grid(mesh);
-  // The whole mesh's bits, so the parts share them (a part's own extent is smaller).
-  DracoOptions part_options = options;
-  Bbox box;
-  double max_abs = 0;
-  for (const Vec3& p : mesh.positions) {
-    box.expand(p);
-    max_abs = std::max({max_abs, double(std::abs(p.x)), double(std::abs(p.y)), double(std::abs(p.z))});
-  }
-  const double extent = std::max({box.extent().x, box.extent().y, box.extent().z});
-  double requested = 0;
-  if (options.position_bits <= 0) {
-    requested = options.max_position_error > 0 ? options.max_position_error : 1e-6 * std::max(extent, 1e-30);
-    part_options.position_bits = choose_position_bits(extent, max_abs, requested);
-  }
+  // The whole mesh's grid, bits and bounds (a part's own extent is smaller).
+  WholeMeshQuantisation whole{whole_mesh_grid(mesh), {}};
+  RAYLOD_ASSIGN_OR_RETURN(whole.plan, plan_positions(path, mesh, options));
   std::vector<StatusOr<DracoEncoded>> encoded(parts, Status::error("not encoded"));
   tbb::parallel_for(size_t(0), parts, [&](size_t p) {
     const size_t t0 = triangles * p / parts, t1 = triangles * (p + 1) / parts;
@@ -339,14 +355,12 @@ StatusOr<DracoEncoded> encode_draco_parts(const std::filesystem::path& path, con
       part.indices.push_back(it->second);
     }
     std::unordered_map<uint32_t, uint32_t>().swap(local);
-    encoded[p] = encode_draco_mesh(path, part, part_options, &part, &grid);
+    encoded[p] = encode_draco_mesh(path, part, options, &part, &whole);
   });
   for (auto& e : encoded) RAYLOD_RETURN_IF_ERROR(e.status());  // the first failing part's error
   if (release) *release = IndexedMesh{};
   DracoEncoded out;
-  out.report = encoded[0]->report;  // the bits and the normal bound are every part's
-  out.report.requested_position_error = requested;
-  out.report.max_position_error = position_error_bound(extent, max_abs, out.report.position_bits);
+  out.report = encoded[0]->report;  // every part's: the whole mesh's bounds
   out.position_id = encoded[0]->position_id;
   out.normal_id = encoded[0]->normal_id;
   size_t total = kPartsHeaderBytes + kPartEntryBytes * parts;
@@ -381,26 +395,52 @@ StatusOr<DracoEncoded> encode_draco(const std::filesystem::path& path, IndexedMe
   return encode_draco_mesh(path, mesh, options, &mesh);
 }
 
-StatusOr<std::vector<std::span<const char>>> draco_parts(const char* data, size_t size, const std::string& name) {
-  const std::string where = name + ": ";
-  std::vector<std::span<const char>> out;
-  if (size < 8 || std::memcmp(data, kDracoPartsMagic, 8) != 0) {
-    out.emplace_back(data, size);
-    return out;
-  }
+namespace {
+
+bool is_part_file(const char* data, size_t size) { return size >= 8 && std::memcmp(data, kDracoPartsMagic, 8) == 0; }
+
+// A part file's table (its first bytes, `size` of them, suffice): each
+// part's Draco bytes and triangles.
+struct PartEntry {
+  uint64_t bytes = 0, triangles = 0;
+};
+StatusOr<std::vector<PartEntry>> read_part_table(const char* data, size_t size, const std::string& where) {
   if (size < kPartsHeaderBytes) return Status::error(where + "part file header is truncated");
   const uint64_t version = get_le(data + 8, 4), parts = get_le(data + 12, 4);
   if (version != 1) return Status::error(where + "part file version " + std::to_string(version) + ", this raylod reads 1");
   if (parts == 0 || parts > 256) return Status::error(where + "part file names " + std::to_string(parts) + " parts (1 to 256)");
-  const size_t table_end = kPartsHeaderBytes + kPartEntryBytes * parts;
-  if (size < table_end) return Status::error(where + "part table is truncated");
-  uint64_t offset = table_end;
+  if (size < kPartsHeaderBytes + kPartEntryBytes * parts) return Status::error(where + "part table is truncated");
+  std::vector<PartEntry> table(parts);
   for (uint64_t p = 0; p < parts; ++p) {
-    const uint64_t bytes = get_le(data + kPartsHeaderBytes + kPartEntryBytes * p, 8);
-    if (bytes > size - offset)
-      return Status::error(where + "part " + std::to_string(p) + " of " + std::to_string(parts) + " runs past the end of the file");
-    out.emplace_back(data + offset, size_t(bytes));
-    offset += bytes;
+    const char* entry = data + kPartsHeaderBytes + kPartEntryBytes * p;
+    table[p] = {get_le(entry, 8), get_le(entry + 8, 8)};
+  }
+  return table;
+}
+
+uint64_t total_triangles(std::span<const PartEntry> table) {
+  uint64_t n = 0;
+  for (const PartEntry& e : table) n += e.triangles;
+  return n;
+}
+
+}  // namespace
+
+StatusOr<std::vector<std::span<const char>>> draco_parts(const char* data, size_t size, const std::string& name) {
+  const std::string where = name + ": ";
+  std::vector<std::span<const char>> out;
+  if (!is_part_file(data, size)) {
+    out.emplace_back(data, size);
+    return out;
+  }
+  RAYLOD_ASSIGN_OR_RETURN(const std::vector<PartEntry> table, read_part_table(data, size, where));
+  uint64_t offset = kPartsHeaderBytes + kPartEntryBytes * table.size();
+  for (size_t p = 0; p < table.size(); ++p) {
+    if (table[p].bytes > size - offset)
+      return Status::error(where + "part " + std::to_string(p) + " of " + std::to_string(table.size()) +
+                           " runs past the end of the file");
+    out.emplace_back(data + offset, size_t(table[p].bytes));
+    offset += table[p].bytes;
   }
   if (offset != size) return Status::error(where + std::to_string(size - offset) + " bytes after the last part");
   return out;
@@ -448,11 +488,12 @@ StatusOr<IndexedMesh> read_draco(const std::filesystem::path& path) {
   std::vector<char> data(size_t(std::max<std::streamoff>(0, f.tellg())));
   f.seekg(0);
   if (!f.read(data.data(), std::streamsize(data.size()))) return Status::error(where + "read failed");
-  if (data.size() >= 8 && std::memcmp(data.data(), kDracoPartsMagic, 8) == 0) {
+  if (is_part_file(data.data(), data.size())) {
     // Parts decoded in parallel and appended in order, a few in flight, so
     // that the parts and the whole mesh are not all held at once.
     RAYLOD_ASSIGN_OR_RETURN(const auto parts, draco_parts(data.data(), data.size(), path.string()));
-    RAYLOD_ASSIGN_OR_RETURN(const uint64_t triangles, draco_triangle_count(path));
+    RAYLOD_ASSIGN_OR_RETURN(const auto table, read_part_table(data.data(), data.size(), where));
+    const uint64_t triangles = total_triangles(table);
     IndexedMesh mesh;
     // The table's count, checked below, bounded here by what the bytes can
     // hold (edgebreaker needs more than a bit per triangle): a damaged table
@@ -506,15 +547,11 @@ StatusOr<uint64_t> draco_triangle_count(const std::filesystem::path& path) {
     std::vector<char> head(64 << 10);
     f.read(head.data(), std::streamsize(head.size()));
     head.resize(size_t(f.gcount()));
-    if (head.size() >= kPartsHeaderBytes && std::memcmp(head.data(), kDracoPartsMagic, 8) == 0) {
-      // A part file: the triangle counts are in its table (256 parts at most fit the head).
-      const uint64_t parts = get_le(head.data() + 12, 4);
-      if (get_le(head.data() + 8, 4) == 1 && parts >= 1 && parts <= 256 &&
-          head.size() >= kPartsHeaderBytes + kPartEntryBytes * parts) {
-        uint64_t n = 0;
-        for (uint64_t p = 0; p < parts; ++p) n += get_le(head.data() + kPartsHeaderBytes + kPartEntryBytes * p + 8, 8);
-        return n;
-      }
+    if (is_part_file(head.data(), head.size())) {
+      // A part file: the triangle counts are in its table (256 parts at most
+      // fit the head); a damaged table is reported by the decode below.
+      if (auto table = read_part_table(head.data(), head.size(), path.string() + ": "); table.is_ok())
+        return total_triangles(*table);
     }
     draco::DecoderBuffer buffer;
     buffer.Init(head.data(), head.size());

@@ -66,6 +66,18 @@ TEST(WideMesh, DracoWriterRefusesInsteadOfCrashing) {
   EXPECT_NE(written.status().message().find("wide.drc: the mesh spans 6e+38, more than the float range"),
             std::string::npos) << written.status().message();
   EXPECT_TRUE(fs::is_empty(test::scratch_dir()));
+  // A part file checks the whole mesh, though each part alone (x from -3e38
+  // to 0, and from 0 to 3e38) spans less.
+  IndexedMesh halves;
+  halves.positions = {{-3e38f, 0, 0}, {0, 1, 0}, {-3e38f, 1, 0}, {3e38f, 0, 0}, {3e38f, 1, 0}};
+  halves.indices = {0, 1, 2, 3, 4, 1};
+  DracoOptions parts;
+  parts.parts = 2;
+  written = write_draco(out, halves, parts);
+  ASSERT_FALSE(written.is_ok());
+  EXPECT_NE(written.status().message().find("wide.drc: the mesh spans 6e+38, more than the float range"),
+            std::string::npos) << written.status().message();
+  EXPECT_TRUE(fs::is_empty(test::scratch_dir()));
   // Just inside the range it still encodes.
   m.positions = {{-1.5e38f, 0, 0}, {1.5e38f, 0, 0}, {0, 1e38f, 0}};
   written = write_draco(out, m, DracoOptions{});
