@@ -735,18 +735,11 @@ class PageNeighbours {
   explicit PageNeighbours(const OctreeStore& store) {
     const auto pages = store.pages();
     const StoreHeader& h = store.header();
-    const double cell = h.root_size / double(uint64_t(1) << h.page_level);
-    const uint32_t max_coord = uint32_t((uint64_t(1) << h.page_level) - 1);
-    auto coord = [&](double v, double lo) {
-      const double t = std::floor((v - lo) / cell);
-      return t <= 0 ? 0u : t >= double(max_coord) ? max_coord : uint32_t(t);
-    };
+    // The page-level cells a box covers (the store's binning, clamped to the cube).
     auto for_cells = [&](const Bbox& b, auto&& f) {
       uint32_t lo[3], hi[3];
-      for (int a = 0; a < 3; ++a) {
-        lo[a] = coord(b.lo[a], h.root_lo[a]);
-        hi[a] = coord(b.hi[a], h.root_lo[a]);
-      }
+      morton_decode(store.cell_of(b.lo, h.page_level).code, lo[0], lo[1], lo[2]);
+      morton_decode(store.cell_of(b.hi, h.page_level).code, hi[0], hi[1], hi[2]);
       for (uint32_t x = lo[0]; x <= hi[0]; ++x)
         for (uint32_t y = lo[1]; y <= hi[1]; ++y)
           for (uint32_t z = lo[2]; z <= hi[2]; ++z) f(morton_encode(x, y, z));
