@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cctype>
 #include <chrono>
+#include <filesystem>
 #include <cmath>
 #include <cstdio>
 #include <string>
@@ -105,10 +106,18 @@ int run_simplify(int argc, char** argv) {
   if (!store) return fail("simplify", store.status());
   auto cut = read_cut(cut_path);
   if (!cut) return fail("simplify", cut.status());
-  if (cut->store_hash != store_fingerprint(**store))
-    return fail("simplify", Status::error(cut_path.string() + ": the cut was made for a different store (" +
-                                          cut->store_path + "), not " + store_path.string() +
-                                          "; run raylod probe on this store"));
+  if (cut->store_hash != store_fingerprint(**store)) {
+    // The same file (the path the cut recorded) rebuilt or built from a
+    // changed mesh since, or another store altogether.
+    std::error_code ec;
+    const bool same_file = std::filesystem::equivalent(cut->store_path, store_path, ec);
+    const std::string why =
+        same_file ? "the store " + store_path.string() +
+                        " has changed since the cut was made (rebuilt, or its mesh changed: the mesh's size, time "
+                        "and content hash, and the store's layout, are part of the cut's fingerprint)"
+                  : "the cut was made for a different store (" + cut->store_path + "), not " + store_path.string();
+    return fail("simplify", Status::error(cut_path.string() + ": " + why + "; run raylod probe on this store"));
+  }
 
   // Refuse before any work if the output would not fit.
   const SimplifyEstimate estimate = estimate_simplify(**store, *cut);

@@ -108,6 +108,41 @@ TEST(GltfCli, ExportsAndReadsBackMultiMeshGlb) {
   EXPECT_EQ(triangles(parts.out), triangles(single.out));
 }
 
+// A cut applied to a store it was not made for is refused before any work,
+// and the message says which case it is: another store, or the same store
+// file rebuilt since (here with another --max-depth, which changes the
+// layout the cut's cells refer to).
+TEST(SimplifyCli, ACutForAnotherOrAChangedStoreIsRefusedSayingWhich) {
+  const auto& files = written_glbs();
+  ASSERT_EQ(files.size(), 4u);
+  const fs::path dir = scratch();
+  const std::string cut = (dir / "one.cut").string();
+  CommandResult r = raylod("build " + (dir / "crank2.stl").string() + " -q");
+  ASSERT_EQ(r.status, 0) << r.out;
+  r = raylod("simplify " + (dir / "crank2.stl.raylod").string() + " " + cut + " -q -o " + (dir / "x.drc").string());
+  EXPECT_EQ(r.status, 1) << r.out;
+  EXPECT_NE(r.out.find("one.cut: the cut was made for a different store"), std::string::npos) << r.out;
+  EXPECT_FALSE(fs::exists(dir / "x.drc"));
+
+  raylod::test::ScratchDir own("cut-store");
+  fs::copy_file(dir / "crank.stl", own.path / "c.stl");
+  fs::copy_file(dir / "crank.stl.raylod", own.path / "c.stl.raylod");
+  // The cut names the store by path: point it at the copy by probing the copy.
+  std::ofstream(own.path / "c.json") << std::string(kScene).replace(std::string(kScene).find("OBJECTS"), 7,
+                                                                     R"({"mesh": "c.stl", "material": "steel"})");
+  r = raylod("probe " + (own.path / "c.json").string() + " -o " + (own.path / "c.cut").string());
+  ASSERT_EQ(r.status, 0) << r.out;
+  r = raylod("build " + (own.path / "c.stl").string() + " --max-depth 6 -q");
+  ASSERT_EQ(r.status, 0) << r.out;
+  r = raylod("simplify " + (own.path / "c.stl.raylod").string() + " " + (own.path / "c.cut").string() + " -q -o " +
+             (own.path / "x.drc").string());
+  EXPECT_EQ(r.status, 1) << r.out;
+  EXPECT_NE(r.out.find("c.cut: the store " + (own.path / "c.stl.raylod").string() + " has changed since the cut"),
+            std::string::npos)
+      << r.out;
+  EXPECT_FALSE(fs::exists(own.path / "x.drc"));
+}
+
 TEST(GltfCli, BadGlbFailsNamingTheFile) {
   const fs::path bad = scratch() / "truncated.glb";
   std::ofstream(bad, std::ios::binary) << std::string("glTF\2\0\0\0\x40\0\0\0", 12) << "{}";
