@@ -442,6 +442,7 @@ StatusOr<ProbeConfig> run_probe_config(const RunSession& session, const Scene& s
   probe.criterion = options.criterion;
   probe.tolerance_px = options.tolerance_px;
   probe.angle_tolerance_px = options.angle_tolerance_px;
+  probe.selection_cache = session.selection_cache.get();
   return probe;
 }
 
@@ -466,6 +467,12 @@ void keep_pages_between_views(RunSession& session) {
   session.retained_pages = session.budget.limited() ? working / 8 : 0;
   if (session.budget.limited()) session.memory_limit = std::max<uint64_t>(working - working / 8, 1);
   session.pages = std::make_unique<PageCache>(0);
+  session.selection_cache = std::make_unique<SelectionCache>();
+  std::vector<const OctreeStore*> stores;
+  for (const auto& store : session.stores.stores) stores.push_back(store.get());
+  const uint64_t kept = SelectionCache::bytes_for(stores);
+  if (session.budget.limited())
+    session.memory_limit = std::max<uint64_t>(session.memory_limit - std::min(session.memory_limit, kept), 1);
 }
 
 namespace {

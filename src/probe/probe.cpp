@@ -336,6 +336,37 @@ double distance_to_box(const Vec3d& p, const Bbox& b) {
 
 }  // namespace
 
+SelectionCache::Store SelectionCache::make_entry(const OctreeStore& store) {
+  const int Q = store.header().quadric_depth;
+  Store e;
+  e.codes.resize(size_t(Q) + 1);
+  e.deviation.resize(size_t(Q) + 1);
+  for (int L = 0; L <= Q; ++L) {
+    const auto nodes = store.level(L);
+    e.codes[size_t(L)].resize(nodes.size());
+    for (size_t i = 0; i < nodes.size(); ++i) e.codes[size_t(L)][i] = nodes[i].code;
+    e.deviation[size_t(L)].assign(nodes.size(), CollapseDeviation{-1.0, 0.0});
+  }
+  return e;
+}
+
+SelectionCache::Store& SelectionCache::of(const OctreeStore& store) {
+  std::vector<uint64_t> counts;
+  for (int L = 0; L <= store.header().quadric_depth; ++L) counts.push_back(store.level(L).size());
+  const auto key = std::make_pair(store_fingerprint(store), counts);
+  auto it = by_store_.find(key);
+  if (it == by_store_.end()) it = by_store_.emplace(key, make_entry(store)).first;
+  return it->second;
+}
+
+uint64_t SelectionCache::bytes_for(std::span<const OctreeStore* const> stores) {
+  uint64_t b = 0;
+  for (const OctreeStore* st : stores)
+    for (int L = 0; L <= st->header().quadric_depth; ++L)
+      b += st->level(L).size() * (sizeof(uint64_t) + sizeof(CollapseDeviation));
+  return b;
+}
+
 uint64_t store_fingerprint(const OctreeStore& store) {
   const StoreHeader& h = store.header();
   uint64_t fp = fnv1a64(h.source_path.data(), h.source_path.size());
@@ -596,9 +627,10 @@ struct StoreNeeds {
   bool specular = false;  // a mirror or glass object uses the store: its cells also bound the normal
   // need() and the angular need per level, node by node (probe.h).
   std::vector<std::vector<double>> need, angular;
-  // Each node's collapse deviation, computed by the first selection that
-  // tests the node (position < 0: not yet). Selections run one at a time.
-  std::vector<std::vector<CollapseDeviation>> deviation;
+  // The nodes' codes and collapse deviations (SelectionCache): a shared
+  // cache's entry, or own.
+  SelectionCache::Store* kept = nullptr;
+  SelectionCache::Store own;
   // The store's hits, for the footprints of the marked cells: each hit's
   // footprint (the estimate's factor m applied) and its corners' finest cells.
   struct Hit {
@@ -657,6 +689,13 @@ StatusOr<CutSelection> CutSelection::make(std::span<const ProbeView> views, cons
     const OctreeStore& st = *stores[s].store;
     const int Q = st.header().quadric_depth;
     StoreNeeds& n = state.needs[s];
+    if (config.selection_cache) {
+      n.kept = &config.selection_cache->of(st);
+    } else {
+      n.own = SelectionCache::make_entry(st);
+      n.kept = &n.own;
+    }
+    const std::vector<std::vector<uint64_t>>& codes_at = n.kept->codes;
     // Measured footprints at the finest level, attached to the hit triangles'
     // corner cells, per view.
     struct Measured { double f = kInf; double angular = kInf; uint32_t hits = 0; };
@@ -682,27 +721,48 @@ StatusOr<CutSelection> CutSelection::make(std::span<const ProbeView> views, cons
     n.min_footprint = std::isfinite(min_fp) ? float(min_fp) : 0.0f;
 
     // The policy's estimate for a cell no ray of view `view` reached (probe.h).
-    auto estimate = [&](const ViewFacts& view, const CellKey& key) {
+    // A corner of the cell in world coordinates is x.m * (x, y, z, 1), which
+    // glm evaluates as (m[0] x + m[1] y) + (m[2] z + m[3]); each product takes
+    // one of two values per axis, so the corners are sums of those, the
+    // same values for a quarter of the multiplications.
+    std::vector<const ObjectXf*> on_store;
+    for (const ObjectXf& x : xf)
+      if (x.store == s) on_store.push_back(&x);
+    const bool spec = specular, lit = lights;
+    const double shadow_factor = config.shadow_factor;
+    auto estimate = [&](const ViewFacts& view, const Bbox& b) {
       const PinholeCamera& cam = view.cam;
       const double m = view.m;
-      const Bbox b = st.cell_bounds(key);
       double need = kInf;
-      for (const ObjectXf& x : xf) {
-        if (x.store != s) continue;
+      for (const ObjectXf* xp : on_store) {
+        const glm::dmat4& M = xp->m;
+        const glm::dvec4 px[2] = {M[0] * b.lo.x, M[0] * b.hi.x}, py[2] = {M[1] * b.lo.y, M[1] * b.hi.y};
+        const glm::dvec4 zw[2] = {M[2] * b.lo.z + M[3], M[2] * b.hi.z + M[3]};
         std::array<Vec3d, 8> c;
         Bbox wb;
         for (int i = 0; i < 8; ++i) {
-          c[i] = Vec3d(x.m * glm::dvec4(i & 1 ? b.hi.x : b.lo.x, i & 2 ? b.hi.y : b.lo.y, i & 4 ? b.hi.z : b.lo.z, 1.0));
+          c[i] = Vec3d((px[i & 1] + py[(i >> 1) & 1]) + zw[(i >> 2) & 1]);
           wb.expand(c[i]);
         }
-        double e = view.a_min * distance_to_box(cam.eye, wb) / x.sigma;
-        if (specular || !view.frustum.outside(c)) e *= m;
-        else if (lights) e *= config.shadow_factor;
+        double e = view.a_min * distance_to_box(cam.eye, wb) / xp->sigma;
+        if (spec || !view.frustum.outside(c)) e *= m;
+        else if (lit) e *= shadow_factor;
         else e = kInf;
         need = std::min(need, e);
       }
       return need;
     };
+    // Each view's measured cells in code order, walked alongside the nodes.
+    struct MeasuredCell {
+      uint64_t code;
+      Measured m;
+    };
+    std::vector<std::vector<MeasuredCell>> sorted_measured(views.size());
+    for (size_t v = 0; v < views.size(); ++v) {
+      for (const auto& [code, m] : measured[v]) sorted_measured[v].push_back({code, m});
+      std::sort(sorted_measured[v].begin(), sorted_measured[v].end(),
+                [](const MeasuredCell& a, const MeasuredCell& b) { return a.code < b.code; });
+    }
 
     // Mirror or glass objects on this store: their cells also bound the normal.
     for (const ObjectXf& x : xf)
@@ -715,39 +775,54 @@ StatusOr<CutSelection> CutSelection::make(std::span<const ProbeView> views, cons
     need.resize(size_t(Q) + 1);
     angular.resize(size_t(Q) + 1);
     {
-      const auto nodes = st.level(Q);
+      const std::vector<uint64_t>& nodes = codes_at[size_t(Q)];
       need[size_t(Q)].assign(nodes.size(), kInf);
       if (n.specular) angular[size_t(Q)].assign(nodes.size(), kInf);
+      const bool store_specular = n.specular;
       tbb::parallel_for(tbb::blocked_range<size_t>(0, nodes.size(), 1024), [&](const tbb::blocked_range<size_t>& r) {
+        // Per view, the first measured cell at or after the range's first node.
+        std::vector<size_t> at(views.size());
+        for (size_t v = 0; v < views.size(); ++v)
+          at[v] = size_t(std::lower_bound(sorted_measured[v].begin(), sorted_measured[v].end(), nodes[r.begin()],
+                                          [](const MeasuredCell& c, uint64_t code) { return c.code < code; }) -
+                         sorted_measured[v].begin());
         for (size_t i = r.begin(); i != r.end(); ++i) {
+          const uint64_t code = nodes[i];
           double f = kInf, a = kInf;
+          std::optional<Bbox> box;
           for (size_t v = 0; v < views.size(); ++v) {
-            auto it = measured[v].find(nodes[i].code);
-            f = std::min(f, it != measured[v].end() ? it->second.f : estimate(facts[v], CellKey{uint32_t(Q), nodes[i].code}));
+            const std::vector<MeasuredCell>& sm = sorted_measured[v];
+            while (at[v] < sm.size() && sm[at[v]].code < code) ++at[v];
+            const Measured* hit = at[v] < sm.size() && sm[at[v]].code == code ? &sm[at[v]].m : nullptr;
+            if (hit) {
+              f = std::min(f, hit->f);
+            } else {
+              if (!box) box = st.cell_bounds(CellKey{uint32_t(Q), code});
+              f = std::min(f, estimate(facts[v], *box));
+            }
             // Unreached mirror or glass cells: the pixel angle, as magnified
             // as the most magnified measured paths.
-            if (n.specular) a = std::min(a, it != measured[v].end() ? it->second.angular : facts[v].a_min * facts[v].m);
+            if (store_specular) a = std::min(a, hit ? hit->angular : facts[v].a_min * facts[v].m);
           }
           need[size_t(Q)][i] = f;
-          if (n.specular) angular[size_t(Q)][i] = a;
+          if (store_specular) angular[size_t(Q)][i] = a;
         }
       });
     }
     for (int L = Q - 1; L >= 0; --L) {
-      const auto parents = st.level(L), children = st.level(L + 1);
+      const std::vector<uint64_t>&parents = codes_at[size_t(L)], &children = codes_at[size_t(L) + 1];
       need[size_t(L)].assign(parents.size(), kInf);
       if (n.specular) angular[size_t(L)].assign(parents.size(), kInf);
       size_t j = 0;
       for (size_t i = 0; i < parents.size(); ++i) {
-        while (j < children.size() && (children[j].code >> 3) < parents[i].code) ++j;
-        for (; j < children.size() && (children[j].code >> 3) == parents[i].code; ++j) {
+        while (j < children.size() && (children[j] >> 3) < parents[i]) ++j;
+        for (; j < children.size() && (children[j] >> 3) == parents[i]; ++j) {
           need[size_t(L)][i] = std::min(need[size_t(L)][i], need[size_t(L) + 1][j]);
           if (n.specular) angular[size_t(L)][i] = std::min(angular[size_t(L)][i], angular[size_t(L) + 1][j]);
         }
       }
     }
-    n.deviation.resize(size_t(Q) + 1);
-    for (int L = 0; L <= Q; ++L) n.deviation[size_t(L)].assign(st.level(L).size(), CollapseDeviation{-1.0, 0.0});
+
   }
   state.prepare_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
   return sel;
@@ -806,18 +881,20 @@ StatusOr<ProbeResult> CutSelection::select(const ProbeConfig& config) {
     // they are), by the test that kept them: K, deviation, normal, boundary.
     std::array<uint64_t, 5> finest_kept{};
     std::vector<std::vector<char>> collapsed(size_t(Q) + 1);
+    const std::vector<std::vector<uint64_t>>& codes_at = n.kept->codes;
     for (int L = 0; L <= Q; ++L) {
       const auto nodes = st.level(L);
+      const std::vector<uint64_t>& codes = codes_at[size_t(L)];
       collapsed[size_t(L)].assign(nodes.size(), 0);
       const double diag = st.cell_diagonal(L);
       // 1 = inside a collapsed parent, 0 = to decide.
       std::vector<char> inside(nodes.size(), 0);
       if (L > 0) {
-        const auto parents = st.level(L - 1);
+        const std::vector<uint64_t>& parents = codes_at[size_t(L) - 1];
         size_t j = 0;
         for (size_t i = 0; i < nodes.size(); ++i) {
-          while (j < parents.size() && parents[j].code < (nodes[i].code >> 3)) ++j;
-          inside[i] = j < parents.size() && parents[j].code == (nodes[i].code >> 3) && collapsed[size_t(L) - 1][j];
+          while (j < parents.size() && parents[j] < (codes[i] >> 3)) ++j;
+          inside[i] = j < parents.size() && parents[j] == (codes[i] >> 3) && collapsed[size_t(L) - 1][j];
         }
       }
       // 0 = keep, 1 = collapse, 2 = kept for its deviation, 3 = for its
@@ -829,9 +906,9 @@ StatusOr<ProbeResult> CutSelection::select(const ProbeConfig& config) {
           const double f = n.need[size_t(L)][i];
           if (!(diag < K * f)) continue;
           if (!deviation) { verdict[i] = 1; continue; }
-          CollapseDeviation& dev = n.deviation[size_t(L)][i];
+          CollapseDeviation& dev = n.kept->deviation[size_t(L)][i];
           if (dev.position < 0) {  // not computed by an earlier selection
-            const Bbox cell = st.cell_bounds(CellKey{uint32_t(L), nodes[i].code});
+            const Bbox cell = st.cell_bounds(CellKey{uint32_t(L), codes[i]});
             dev = collapse_deviation(nodes[i], Bbox{cell.lo - origin, cell.hi - origin}, qem);
           }
           if (dev.position > config.tolerance_px * f) { verdict[i] = 2; continue; }
@@ -839,7 +916,7 @@ StatusOr<ProbeResult> CutSelection::select(const ProbeConfig& config) {
           // representative may pull anywhere in the cell: a cell with an
           // open boundary collapses only while the whole cell is within the
           // tolerance.
-          if (!(diag <= config.tolerance_px * f) && st.touches_boundary(CellKey{uint32_t(L), nodes[i].code})) {
+          if (!(diag <= config.tolerance_px * f) && st.touches_boundary(CellKey{uint32_t(L), codes[i]})) {
             verdict[i] = 4;
             continue;
           }
@@ -855,7 +932,7 @@ StatusOr<ProbeResult> CutSelection::select(const ProbeConfig& config) {
         rejected_boundary += verdict[i] == 4;
         if (verdict[i] == 1) {
           collapsed[size_t(L)][i] = 1;
-          cut.cells.push_back({CellKey{uint32_t(L), nodes[i].code}, 0.0f, 0});
+          cut.cells.push_back({CellKey{uint32_t(L), codes[i]}, 0.0f, 0});
         }
       }
     }

@@ -79,6 +79,7 @@
 #include <vector>
 
 #include "core/status.h"
+#include "geometry/collapse_deviation.h"
 #include "probe/page_cache.h"
 #include "geometry/ray_differential.h"
 #include "scene/scene.h"
@@ -115,6 +116,31 @@ inline constexpr double kDefaultTolerancePx = 0.5;
 // than 2.5 dB above.
 inline constexpr double kDefaultAngleTolerancePx = 1.0;
 
+// What cut selections keep of a store between them (a view sequence's
+// views, RunSession::selection): each level's node codes in a compact array
+// (the loops over every node read 8 bytes a node rather than the 144 of its
+// NodeRecord), and each node's collapse deviation
+// (geometry/collapse_deviation.h), computed the first time a selection tests
+// the node. Neither depends on the view, K, the tolerances or the criterion.
+// Stores are told apart by their fingerprint and node counts (a store
+// rebuilt from the same mesh with the same options has the same nodes).
+// Selections that share one run one at a time.
+class SelectionCache {
+ public:
+  struct Store {
+    std::vector<std::vector<uint64_t>> codes;                // per level, in node order
+    std::vector<std::vector<CollapseDeviation>> deviation;  // per level; position < 0: not computed yet
+  };
+  Store& of(const OctreeStore& store);
+  // What a cache for these stores holds: 24 bytes a node.
+  static uint64_t bytes_for(std::span<const OctreeStore* const> stores);
+  // A cache's entry for one selection alone (none shared).
+  static Store make_entry(const OctreeStore& store);
+
+ private:
+  std::map<std::pair<uint64_t, std::vector<uint64_t>>, Store> by_store_;
+};
+
 struct ProbeConfig {
   uint64_t rays = 5000;            // test rays (the paper uses 5,000)
   uint64_t seed = 1;
@@ -128,6 +154,9 @@ struct ProbeConfig {
   // before tracing; none = a cache of the trace's own. The trace's cache
   // counters are then this trace's share. It never changes the result.
   PageCache* pages = nullptr;
+  // What earlier selections kept of the stores (SelectionCache); none = the
+  // selection makes its own. It never changes the result.
+  SelectionCache* selection_cache = nullptr;
   DifferentialLimits limits;
   double calibration_quantile = 0.02;  // of the secondary hits' magnification (policy above)
   double shadow_factor = 4.0;          // unreachable cells in scenes with lights

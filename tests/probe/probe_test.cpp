@@ -784,6 +784,56 @@ TEST(CutSelection, EverySelectionIsSelectCutsExactly) {
   EXPECT_FALSE(selection->select(other).is_ok());
 }
 
+// A SelectionCache shared by the selections of several views and
+// configurations (a view sequence's) changes nothing: every cut equals the
+// one a selection of its own gives, whichever views and configurations
+// filled the cache before; and a cache keeps one entry per store.
+TEST(CutSelection, ASharedSelectionCacheChangesNoCut) {
+  const Built& b = teapot();
+  const OneObject one(b);
+  SelectionCache cache;
+  const std::array<Vec3d, 3> eyes = {kEye, Vec3d(-kEye.x, kEye.y, kEye.z), Vec3d(kEye.z, 0.5 * kEye.y, -kEye.x)};
+  size_t compared = 0;
+  for (MaterialType type : {MaterialType::Glass, MaterialType::Diffuse})
+    for (const Vec3d& eye : eyes)
+      for (auto [k, tol] : {std::pair{64.0, 0.5}, {8.0, 2.0}}) {
+        const Scene scene = make_scene(type, eye, kLook);
+        ProbeConfig c;
+        c.rays = 600;
+        c.seed = 3;
+        c.footprint_scale = k;
+        c.tolerance_px = tol;
+        auto t = trace_probe(scene, one.stores(), one.objects(), c);
+        ASSERT_TRUE(t) << t.status().message();
+        ProbeConfig shared = c;
+        shared.selection_cache = &cache;
+        auto with_cache = select_cuts(*t, scene, one.stores(), one.objects(), shared);
+        auto alone = select_cuts(*t, scene, one.stores(), one.objects(), c);
+        ASSERT_TRUE(with_cache.is_ok() && alone.is_ok());
+        const Cut &a = with_cache->cuts[0], &f = alone->cuts[0];
+        EXPECT_EQ(a.key, f.key);
+        EXPECT_EQ(cells_of(a), cells_of(f)) << k << " " << tol;
+        EXPECT_EQ(a.counters, f.counters);
+        ++compared;
+      }
+  EXPECT_EQ(compared, 12u);
+  const OctreeStore* store = one.stores()[0].store;
+  const SelectionCache::Store& entry = cache.of(*store);
+  EXPECT_EQ(&entry, &cache.of(*store));  // one entry per store
+  ASSERT_EQ(entry.codes.size(), size_t(store->header().quadric_depth) + 1);
+  size_t computed = 0;
+  for (int L = 0; L <= store->header().quadric_depth; ++L) {
+    ASSERT_EQ(entry.codes[size_t(L)].size(), store->level(L).size());
+    for (size_t i = 0; i < store->level(L).size(); ++i) EXPECT_EQ(entry.codes[size_t(L)][i], store->level(L)[i].code);
+    for (const CollapseDeviation& d : entry.deviation[size_t(L)]) computed += d.position >= 0;
+  }
+  EXPECT_GT(computed, 0u);  // the deviations were kept
+  uint64_t nodes = 0;
+  for (int L = 0; L <= store->header().quadric_depth; ++L) nodes += store->level(L).size();
+  const OctreeStore* list[] = {store};
+  EXPECT_EQ(SelectionCache::bytes_for(list), nodes * 24);
+}
+
 // The mirror and glass normal bound has its own tolerance (angle_tolerance_px):
 // it moves the cut on a glass object and only there, every cell the
 // stricter bound collapses stays collapsed under the looser one, and the
