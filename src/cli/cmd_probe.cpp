@@ -8,6 +8,7 @@
 
 #include "cli/cli.h"
 #include "core/cluster.h"
+#include "core/progress.h"
 #include "core/system.h"
 #include "pipeline/pipeline.h"
 #include "probe/probe.h"
@@ -31,7 +32,8 @@ int cmd_probe(int argc, char** argv) {
                   {"--seed", "", "random seed (default: the scene's seed)", true, "S"},
                   cli::threads_option(),
                   {"--memory-limit", "", "memory limit (default: a quarter of physical memory)", true, "SIZE"},
-                  {"--output", "-o", "cut file to write (single-mesh scenes)", true, "CUT"}}));
+                  {"--output", "-o", "cut file to write (single-mesh scenes)", true, "CUT"},
+                  {"--quiet", "-q", "no progress bar or summary lines (errors only)", false, ""}}));
   // Under mpirun the test rays are split across the ranks; rank 0 writes the cut.
   cluster::enlist();
   if (Status s = args.parse(argc, argv); !s) return cli::fail("probe", s);
@@ -51,6 +53,8 @@ int cmd_probe(int argc, char** argv) {
   for (const Status& s : {rays.status(), seed.status(), limit.status()})
     if (!s) return cli::fail("probe", s);
 
+  const bool quiet = args.has("--quiet");
+  if (quiet) Progress::set_enabled(false);
   // One store per distinct mesh, built first if missing or stale (saying so).
   const MemoryBudget budget = *limit;
   StoreOptions store_options;
@@ -60,7 +64,9 @@ int cmd_probe(int argc, char** argv) {
   StatusOr<SceneStores> prepared = Status::error("the stores were not prepared");
   const Status built = cluster::rank0_first([&] {
     prepared = prepare_scene_stores(scene, mesh_override, store_options, default_cache_dir(),
-                                    [](const std::string& m) { std::fprintf(stderr, "raylod probe: %s\n", m.c_str()); });
+                                    [&](const std::string& m) {
+                                      if (!quiet) std::fprintf(stderr, "raylod probe: %s\n", m.c_str());
+                                    });
     return prepared.status();
   });
   if (!built) return cli::fail("probe", built);
@@ -73,7 +79,7 @@ int cmd_probe(int argc, char** argv) {
                                                            std::to_string(meshes.size()) +
                                                            " meshes; omit -o to write one cut beside each store")));
 
-  auto config_or = make_probe_config(scene, uint64_t(*rays), cut_opts->footprint_scale, budget, true);
+  auto config_or = make_probe_config(scene, uint64_t(*rays), cut_opts->footprint_scale, budget, !quiet);
   if (Status s = cluster::agree(config_or.status()); !s) return cli::fail("probe", s);
   ProbeConfig config = *config_or;
   config.seed = uint64_t(*seed);
@@ -87,19 +93,23 @@ int cmd_probe(int argc, char** argv) {
   if (Status s = cluster::agree(result.status()); !s) return cli::fail("probe", s);
   // Every rank has the same cuts; rank 0 writes them, the others wait to
   // learn whether it could.
+  // The summary lines, unless --quiet.
+  auto say = [&](const char* format, auto... values) {
+    if (!quiet) std::printf(format, values...);
+  };
   auto write_cuts = [&]() -> Status {
     const ProbeResult& r = *result;
     auto c = [&](const char* name) {
       auto it = r.counters.find(name);
       return static_cast<unsigned long long>(it == r.counters.end() ? 0 : it->second);
     };
-    std::printf("probe: %llu test rays in %.2f s (+ %.2f s for the cut): %llu primary, %llu reflection, %llu refraction "
+    say("probe: %llu test rays in %.2f s (+ %.2f s for the cut): %llu primary, %llu reflection, %llu refraction "
                 "(%llu total internal reflections)\n",
                 static_cast<unsigned long long>(config.rays), r.trace_seconds, r.cut_seconds, c("rays_primary"),
                 c("rays_reflection"), c("rays_refraction"), c("total_internal_reflections"));
-    std::printf("probe: %llu hits on meshes, %llu on the ground, %llu misses, %llu with dropped differentials\n",
+    say("probe: %llu hits on meshes, %llu on the ground, %llu misses, %llu with dropped differentials\n",
                 c("hits"), c("hits_ground"), c("misses"), c("differentials_dropped"));
-    std::printf("probe: %llu pages read (%s), cache peak %s of %s, magnification m = %.3f, peak memory %s\n",
+    say("probe: %llu pages read (%s), cache peak %s of %s, magnification m = %.3f, peak memory %s\n",
                 c("pages_read"), format_bytes(c("bytes_read")).c_str(), format_bytes(c("cache_peak_bytes")).c_str(),
                 format_bytes(config.cache_bytes).c_str(), r.magnification, format_bytes(peak_rss_bytes()).c_str());
     for (size_t s = 0; s < stores.size(); ++s) {
@@ -112,7 +122,7 @@ int cmd_probe(int argc, char** argv) {
       for (const CollapsedCell& cell : cut.cells) ++per_level[cell.key.level];
       std::string levels;
       for (const auto& [level, n] : per_level) levels += " L" + std::to_string(level) + ":" + std::to_string(n);
-      std::printf("probe: %s: %zu cells marked (%llu with hits;%s), smallest footprint %g\n", out.string().c_str(),
+      say("probe: %s: %zu cells marked (%llu with hits;%s), smallest footprint %g\n", out.string().c_str(),
                   cut.cells.size(), static_cast<unsigned long long>(cut.counters.at("cells_marked_with_hits")),
                   levels.c_str(), double(cut.min_footprint));
       // Why finest cells stay whole: their input triangles are kept as they are.
@@ -121,7 +131,7 @@ int cmd_probe(int argc, char** argv) {
         return static_cast<unsigned long long>(it == cut.counters.end() ? 0 : it->second);
       };
       if (count("finest_cells_kept") > 0)
-        std::printf("probe: %llu finest cells kept whole (for K %llu, deviation %llu, normals %llu, open boundary %llu)\n",
+        say("probe: %llu finest cells kept whole (for K %llu, deviation %llu, normals %llu, open boundary %llu)\n",
                     count("finest_cells_kept"), count("finest_cells_kept_for_k"), count("finest_cells_kept_for_deviation"),
                     count("finest_cells_kept_for_normals"), count("finest_cells_kept_for_boundary"));
     }
