@@ -73,7 +73,7 @@ Session::Session(int& argc, char**& argv) {
   if (!launched_by_mpirun()) return;
   World& w = world();
   // On one node, shared memory (single_node_transport): MPI_Init and
-  // MPI_Finalize 0.32 -> 0.15 s here, a 4K frame over 2 ranks 1.72x -> 1.77x
+  // MPI_Finalize 0.32 -> 0.15 s here, a 4K frame over 2 ranks 1.71x -> 1.78x
   // (README, "Running on a cluster").
   for (const auto& [name, value] : single_node_transport([](const char* v) { return std::getenv(v); }))
     ::setenv(name.c_str(), value.c_str(), 0);

@@ -723,8 +723,8 @@ StatusOr<CutSelection> CutSelection::make(std::span<const ProbeView> views, cons
     // The policy's estimate for a cell no ray of view `view` reached (probe.h).
     // A corner of the cell in world coordinates is x.m * (x, y, z, 1), which
     // glm evaluates as (m[0] x + m[1] y) + (m[2] z + m[3]); each product takes
-    // one of two values per axis, so the corners are sums of those, the
-    // same values for a quarter of the multiplications.
+    // one of two values per axis, so the corners are sums of those: the same
+    // values, with a quarter of the multiplications.
     std::vector<const ObjectXf*> on_store;
     for (const ObjectXf& x : xf)
       if (x.store == s) on_store.push_back(&x);
