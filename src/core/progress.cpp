@@ -62,8 +62,11 @@ void Progress::draw(bool final_line) {
   } else {
     int decile = int(frac * 10);
     bool due = final_line || decile > last_decile_ || now - last_draw_ > std::chrono::seconds(5);
-    if (!due) return;
+    // The closing line only if it says something new: a run that ended on
+    // its 100% line is not reported twice.
+    if (!due || (final_line && done == printed_done_)) return;
     last_decile_ = decile;
+    printed_done_ = done;
     if (total_)
       std::fprintf(stderr, "%s: %.0f%% (%llu/%llu %s, %.1fs%s)\n", label_.c_str(), 100 * frac,
                    (unsigned long long)done, (unsigned long long)total_, unit_.c_str(), seconds, left);

@@ -30,6 +30,7 @@ class Progress {
   std::mutex mutex_;
   std::chrono::steady_clock::time_point start_, last_draw_;
   int last_decile_ = -1;
+  uint64_t printed_done_ = UINT64_MAX;  // the count of the last line written (not on a terminal)
   bool tty_, finished_ = false;
 };
 
