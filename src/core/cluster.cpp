@@ -62,6 +62,15 @@ void wait_lazily(MPI_Request& request) {
   }
 }
 
+// Returns once every rank has called it, waiting lazily (the MPI part of
+// barrier(); broadcast and gather_blocks meet this way before they move
+// their payload in blocking calls).
+void meet_lazily() {
+  MPI_Request request;
+  MPI_Ibarrier(MPI_COMM_WORLD, &request);
+  wait_lazily(request);
+}
+
 // Byte counts and displacements as MPI's ints.
 bool fits_int(uint64_t n) { return n <= uint64_t(INT_MAX); }
 #endif
@@ -273,8 +282,7 @@ void broadcast(std::string& data) {
   if (length == 0) return;
   // Every rank has arrived once a lazy barrier is through; then the payload
   // moves in blocking calls at full speed (as in gather).
-  MPI_Ibarrier(MPI_COMM_WORLD, &request);
-  wait_lazily(request);
+  meet_lazily();
   // In pieces of at most 1 GiB: MPI counts are ints.
   for (uint64_t at = 0; at < length;) {
     const uint64_t n = std::min<uint64_t>(length - at, uint64_t(1) << 30);
@@ -309,9 +317,7 @@ void gather_blocks(void* buffer, size_t element_bytes, const std::function<std::
   if (w.size == 1) return;
   ++w.collectives;
 #if RAYLOD_WITH_MPI
-  MPI_Request meet;
-  MPI_Ibarrier(MPI_COMM_WORLD, &meet);
-  wait_lazily(meet);
+  meet_lazily();
   MPI_Datatype element;
   MPI_Type_contiguous(int(element_bytes), MPI_BYTE, &element);
   MPI_Type_commit(&element);
@@ -365,9 +371,7 @@ void barrier() {
   if (w.size == 1) return;
   ++w.collectives;
 #if RAYLOD_WITH_MPI
-  MPI_Request request;
-  MPI_Ibarrier(MPI_COMM_WORLD, &request);
-  wait_lazily(request);
+  meet_lazily();
 #endif
 }
 
