@@ -424,26 +424,33 @@ uint64_t total_triangles(std::span<const PartEntry> table) {
   return n;
 }
 
+// A whole part file: its table and each part's Draco bytes, checked to
+// fill the file exactly.
+struct PartFile {
+  std::vector<PartEntry> table;
+  std::vector<std::span<const char>> parts;
+};
+StatusOr<PartFile> split_part_file(const char* data, size_t size, const std::string& where) {
+  PartFile file;
+  RAYLOD_ASSIGN_OR_RETURN(file.table, read_part_table(data, size, where));
+  uint64_t offset = kPartsHeaderBytes + kPartEntryBytes * file.table.size();
+  for (size_t p = 0; p < file.table.size(); ++p) {
+    if (file.table[p].bytes > size - offset)
+      return Status::error(where + "part " + std::to_string(p) + " of " + std::to_string(file.table.size()) +
+                           " runs past the end of the file");
+    file.parts.emplace_back(data + offset, size_t(file.table[p].bytes));
+    offset += file.table[p].bytes;
+  }
+  if (offset != size) return Status::error(where + std::to_string(size - offset) + " bytes after the last part");
+  return file;
+}
+
 }  // namespace
 
 StatusOr<std::vector<std::span<const char>>> draco_parts(const char* data, size_t size, const std::string& name) {
-  const std::string where = name + ": ";
-  std::vector<std::span<const char>> out;
-  if (!is_part_file(data, size)) {
-    out.emplace_back(data, size);
-    return out;
-  }
-  RAYLOD_ASSIGN_OR_RETURN(const std::vector<PartEntry> table, read_part_table(data, size, where));
-  uint64_t offset = kPartsHeaderBytes + kPartEntryBytes * table.size();
-  for (size_t p = 0; p < table.size(); ++p) {
-    if (table[p].bytes > size - offset)
-      return Status::error(where + "part " + std::to_string(p) + " of " + std::to_string(table.size()) +
-                           " runs past the end of the file");
-    out.emplace_back(data + offset, size_t(table[p].bytes));
-    offset += table[p].bytes;
-  }
-  if (offset != size) return Status::error(where + std::to_string(size - offset) + " bytes after the last part");
-  return out;
+  if (!is_part_file(data, size)) return std::vector<std::span<const char>>{std::span<const char>(data, size)};
+  RAYLOD_ASSIGN_OR_RETURN(PartFile file, split_part_file(data, size, name + ": "));
+  return std::move(file.parts);
 }
 
 namespace {
@@ -491,9 +498,9 @@ StatusOr<IndexedMesh> read_draco(const std::filesystem::path& path) {
   if (is_part_file(data.data(), data.size())) {
     // Parts decoded in parallel and appended in order, a few in flight, so
     // that the parts and the whole mesh are not all held at once.
-    RAYLOD_ASSIGN_OR_RETURN(const auto parts, draco_parts(data.data(), data.size(), path.string()));
-    RAYLOD_ASSIGN_OR_RETURN(const auto table, read_part_table(data.data(), data.size(), where));
-    const uint64_t triangles = total_triangles(table);
+    RAYLOD_ASSIGN_OR_RETURN(const PartFile file, split_part_file(data.data(), data.size(), where));
+    const std::vector<std::span<const char>>& parts = file.parts;
+    const uint64_t triangles = total_triangles(file.table);
     IndexedMesh mesh;
     // The table's count, checked below, bounded here by what the bytes can
     // hold (edgebreaker needs more than a bit per triangle): a damaged table
