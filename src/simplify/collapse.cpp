@@ -664,7 +664,7 @@ bool page_inside_one_cell(const PageInfo& page, const CutLookup& lookup) {
 // so pages are scanned in parallel (the same marks for any thread count).
 Status mark_folding_cells(const OctreeStore& store, std::span<const CellKey> keys,
                           std::span<const Representative> reps, std::span<const uint32_t> page_list,
-                          std::vector<uint8_t>& folding, uint64_t& pages_skipped) {
+                          std::vector<uint8_t>& folding, uint64_t& pages_read, uint64_t& pages_skipped) {
   const StoreHeader& h = store.header();
   const CutLookup lookup(h.root_lo, h.root_size, keys);
   std::vector<Vec3> rep_pos;
@@ -698,6 +698,7 @@ Status mark_folding_cells(const OctreeStore& store, std::span<const CellKey> key
     }
   });
   pages_skipped += skipped.load();
+  pages_read += page_list.size() - skipped.load();
   return error_page < page_list.size() ? error : Status::ok();
 }
 
@@ -883,9 +884,8 @@ StatusOr<SimplifyResult> simplify(const OctreeStore& store, const Cut& cut, cons
   std::iota(page_list.begin(), page_list.end(), 0u);
   for (int pass = 0; pass < config.fold_passes && !page_list.empty(); ++pass) {
     std::vector<uint8_t> folding;
-    const uint64_t skipped_before = result.pages_skipped;
-    RAYLOD_RETURN_IF_ERROR(mark_folding_cells(store, keys, reps, page_list, folding, result.pages_skipped));
-    result.pages_read += page_list.size() - (result.pages_skipped - skipped_before);
+    RAYLOD_RETURN_IF_ERROR(
+        mark_folding_cells(store, keys, reps, page_list, folding, result.pages_read, result.pages_skipped));
     if (std::find(folding.begin(), folding.end(), uint8_t(1)) == folding.end()) break;
     // Each folding cell gives way to its children (the cut stays an
     // antichain: children of a cut cell are in no other cut cell).
