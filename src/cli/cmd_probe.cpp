@@ -91,12 +91,12 @@ int cmd_probe(int argc, char** argv) {
   if (!traced) return cli::fail("probe", traced.status());
   auto result = select_cuts(*traced, scene, stores, objects, config);
   if (Status s = cluster::agree(result.status()); !s) return cli::fail("probe", s);
-  // Every rank has the same cuts; rank 0 writes them, the others wait to
-  // learn whether it could.
   // The summary lines, unless --quiet.
   auto say = [&](const char* format, auto... values) {
     if (!quiet) std::printf(format, values...);
   };
+  // Every rank has the same cuts; rank 0 writes them, the others wait to
+  // learn whether it could.
   auto write_cuts = [&]() -> Status {
     const ProbeResult& r = *result;
     auto c = [&](const char* name) {
@@ -104,14 +104,14 @@ int cmd_probe(int argc, char** argv) {
       return static_cast<unsigned long long>(it == r.counters.end() ? 0 : it->second);
     };
     say("probe: %llu test rays in %.2f s (+ %.2f s for the cut): %llu primary, %llu reflection, %llu refraction "
-                "(%llu total internal reflections)\n",
-                static_cast<unsigned long long>(config.rays), r.trace_seconds, r.cut_seconds, c("rays_primary"),
-                c("rays_reflection"), c("rays_refraction"), c("total_internal_reflections"));
+        "(%llu total internal reflections)\n",
+        static_cast<unsigned long long>(config.rays), r.trace_seconds, r.cut_seconds, c("rays_primary"),
+        c("rays_reflection"), c("rays_refraction"), c("total_internal_reflections"));
     say("probe: %llu hits on meshes, %llu on the ground, %llu misses, %llu with dropped differentials\n",
-                c("hits"), c("hits_ground"), c("misses"), c("differentials_dropped"));
+        c("hits"), c("hits_ground"), c("misses"), c("differentials_dropped"));
     say("probe: %llu pages read (%s), cache peak %s of %s, magnification m = %.3f, peak memory %s\n",
-                c("pages_read"), format_bytes(c("bytes_read")).c_str(), format_bytes(c("cache_peak_bytes")).c_str(),
-                format_bytes(config.cache_bytes).c_str(), r.magnification, format_bytes(peak_rss_bytes()).c_str());
+        c("pages_read"), format_bytes(c("bytes_read")).c_str(), format_bytes(c("cache_peak_bytes")).c_str(),
+        format_bytes(config.cache_bytes).c_str(), r.magnification, format_bytes(peak_rss_bytes()).c_str());
     for (size_t s = 0; s < stores.size(); ++s) {
       const Cut& cut = r.cuts[s];
       std::filesystem::path out = args.has("--output")
@@ -123,8 +123,8 @@ int cmd_probe(int argc, char** argv) {
       std::string levels;
       for (const auto& [level, n] : per_level) levels += " L" + std::to_string(level) + ":" + std::to_string(n);
       say("probe: %s: %zu cells marked (%llu with hits;%s), smallest footprint %g\n", out.string().c_str(),
-                  cut.cells.size(), static_cast<unsigned long long>(cut.counters.at("cells_marked_with_hits")),
-                  levels.c_str(), double(cut.min_footprint));
+          cut.cells.size(), static_cast<unsigned long long>(cut.counters.at("cells_marked_with_hits")),
+          levels.c_str(), double(cut.min_footprint));
       // Why finest cells stay whole: their input triangles are kept as they are.
       auto count = [&](const char* name) {
         auto it = cut.counters.find(name);
@@ -132,8 +132,8 @@ int cmd_probe(int argc, char** argv) {
       };
       if (count("finest_cells_kept") > 0)
         say("probe: %llu finest cells kept whole (for K %llu, deviation %llu, normals %llu, open boundary %llu)\n",
-                    count("finest_cells_kept"), count("finest_cells_kept_for_k"), count("finest_cells_kept_for_deviation"),
-                    count("finest_cells_kept_for_normals"), count("finest_cells_kept_for_boundary"));
+            count("finest_cells_kept"), count("finest_cells_kept_for_k"), count("finest_cells_kept_for_deviation"),
+            count("finest_cells_kept_for_normals"), count("finest_cells_kept_for_boundary"));
     }
     return {};
   };

@@ -822,7 +822,6 @@ StatusOr<CutSelection> CutSelection::make(std::span<const ProbeView> views, cons
         }
       }
     }
-
   }
   state.prepare_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
   return sel;

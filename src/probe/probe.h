@@ -117,7 +117,7 @@ inline constexpr double kDefaultTolerancePx = 0.5;
 inline constexpr double kDefaultAngleTolerancePx = 1.0;
 
 // What cut selections keep of a store between them (a view sequence's
-// views, RunSession::selection): each level's node codes in a compact array
+// views, RunSession::selection_cache): each level's node codes in a compact array
 // (the loops over every node read 8 bytes a node rather than the 144 of its
 // NodeRecord), and each node's collapse deviation
 // (geometry/collapse_deviation.h), computed the first time a selection tests

@@ -735,6 +735,20 @@ TEST(SharedCut, OneViewIsSelectCutsExactly) {
   EXPECT_EQ(shared->cuts[0].min_footprint, single->cuts[0].min_footprint);
 }
 
+// Two selections of the same cut: the same key, cells, counters, smallest
+// footprint, and each cell's hits and footprint.
+void expect_same_cut(const Cut& a, const Cut& f, const std::string& what) {
+  EXPECT_EQ(a.key, f.key) << what;
+  EXPECT_EQ(cells_of(a), cells_of(f)) << what;
+  EXPECT_EQ(a.counters, f.counters) << what;
+  EXPECT_EQ(a.min_footprint, f.min_footprint) << what;
+  ASSERT_EQ(a.cells.size(), f.cells.size()) << what;
+  for (size_t i = 0; i < a.cells.size(); ++i) {
+    EXPECT_EQ(a.cells[i].hits, f.cells[i].hits) << what;
+    EXPECT_EQ(a.cells[i].min_footprint, f.cells[i].min_footprint) << what;
+  }
+}
+
 // One CutSelection serves many configurations (the memory limit's
 // coarsening): each select() gives exactly what select_cuts gives for that
 // configuration -- cells, key, counters, min footprint -- whatever
@@ -765,17 +779,8 @@ TEST(CutSelection, EverySelectionIsSelectCutsExactly) {
     auto kept = selection->select(cfg);
     auto fresh = select_cuts(*t, scene, one.stores(), one.objects(), cfg);
     ASSERT_TRUE(kept.is_ok() && fresh.is_ok());
-    const Cut &a = kept->cuts[0], &f = fresh->cuts[0];
-    EXPECT_EQ(a.key, f.key);
-    EXPECT_EQ(cells_of(a), cells_of(f)) << k << " " << tol;
-    EXPECT_EQ(a.counters, f.counters);
-    EXPECT_EQ(a.min_footprint, f.min_footprint);
-    ASSERT_EQ(a.cells.size(), f.cells.size());
-    for (size_t i = 0; i < a.cells.size(); ++i) {
-      EXPECT_EQ(a.cells[i].hits, f.cells[i].hits);
-      EXPECT_EQ(a.cells[i].min_footprint, f.cells[i].min_footprint);
-    }
-    distinct += seen.insert(cells_of(a)).second;
+    expect_same_cut(kept->cuts[0], fresh->cuts[0], std::to_string(k) + " " + std::to_string(tol));
+    distinct += seen.insert(cells_of(kept->cuts[0])).second;
   }
   EXPECT_GE(distinct, 4u);  // the configurations select different cuts
   // A selection is for the shadow factor it was made with.
@@ -810,10 +815,7 @@ TEST(CutSelection, ASharedSelectionCacheChangesNoCut) {
         auto with_cache = select_cuts(*t, scene, one.stores(), one.objects(), shared);
         auto alone = select_cuts(*t, scene, one.stores(), one.objects(), c);
         ASSERT_TRUE(with_cache.is_ok() && alone.is_ok());
-        const Cut &a = with_cache->cuts[0], &f = alone->cuts[0];
-        EXPECT_EQ(a.key, f.key);
-        EXPECT_EQ(cells_of(a), cells_of(f)) << k << " " << tol;
-        EXPECT_EQ(a.counters, f.counters);
+        expect_same_cut(with_cache->cuts[0], alone->cuts[0], std::to_string(k) + " " + std::to_string(tol));
         ++compared;
       }
   EXPECT_EQ(compared, 12u);
