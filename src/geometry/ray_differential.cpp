@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 #include "geometry/optics.h"
 
@@ -134,6 +135,8 @@ Refraction refract(const RayDifferential& in, const HitSurface& s, double ior, c
   const double c = glm::dot(d, n);  // <= 0
   const double tn = -std::sqrt(1.0 - eta * eta * std::max(0.0, 1.0 - c * c));  // T.N, as refract() computes it
   const double mu = eta * c - tn;   // Igehy eq. 16
+  result.fresnel = fresnel_dielectric(-c, eta);
+  result.tilt_gain = -tn > 0 ? std::abs(mu) / -tn : std::numeric_limits<double>::infinity();
   RayDifferential& out = result.ray;
   out.ray.origin = in.ray.origin;
   out.ray.direction = t.direction;  // eta D - mu N, normalised

@@ -70,6 +70,16 @@ struct Refraction {
   RayDifferential ray;
   bool total_internal_reflection = false;  // ray is the reflected ray
   bool entering = false;                   // D.N_g < 0: from outside into the medium
+  // The Fresnel reflectance at the refracting normal, as the renderer weighs
+  // the reflected ray (1 under total internal reflection).
+  double fresnel = 1;
+  // How far the transmitted ray turns per radian the normal tilts, at most:
+  // |cos t - eta cos i| / cos t = |mu| / |T.N| (a tilt in the plane of
+  // incidence; out of it the turn is cos t times that). 1/3 entering glass
+  // of index 1.5 head-on, 1/2 leaving it; it grows without bound towards the
+  // critical angle. A mirror turns its ray by 2. 0 under total internal
+  // reflection (no transmitted ray).
+  double tilt_gain = 0;
 };
 // Refraction at the (already transferred) hit s of a dielectric with index
 // `ior` surrounded by vacuum/air (Igehy eqs. 16-18). Entering or leaving is

@@ -91,10 +91,24 @@ struct PathRay {
   int depth = 0;
   Kind kind = kPrimary;
   double path_length = 0;
+  double weight = 1;    // what the renderer weighs the ray's radiance by: the path's throughput, largest channel
   int skip_object = kNoObject;
   TriangleRef skip_ref;
   int32_t parent = -1;  // the mesh hit (index into the ray's hits) this ray leaves, or -1
+  int branch = 0;       // which of the parent's rays it is (its slot in Leaving below)
 };
+
+// A ray leaving a mirror or glass hit, as the renderer weighs it, and how
+// far it turns per radian the normal tilts (2 for a reflection;
+// Refraction::tilt_gain for a transmitted ray).
+struct Leaving {
+  RayDifferential rd;
+  Kind kind = kReflection;
+  double weight = 0;
+  double gain = 2;
+};
+
+float max_channel(const Vec3& c) { return std::max({c.x, c.y, c.z}); }
 
 struct WorldHit {
   double t = kInf;
@@ -149,6 +163,13 @@ class ProbeTracer {
     // The ray's own pixel angle: its beam widens by this per unit of path.
     const double beam = std::min(glm::length(first.rd.dd_dx), glm::length(first.rd.dd_dy));
     std::vector<PathRay> stack{first};
+    // Per mesh hit: its leaving rays' q (below), gains and weights, and
+    // which of its parent's rays led to it.
+    struct Branches {
+      std::array<double, 2> q{kInf, kInf}, gain{0, 0}, weight{0, 0};
+    };
+    std::vector<Branches> branches;
+    std::vector<int8_t> branch_of;
     while (!stack.empty()) {
       PathRay pr = std::move(stack.back());
       stack.pop_back();
@@ -204,52 +225,87 @@ class ProbeTracer {
         }
         h.parent = pr.parent;
         out.hits.push_back(h);
+        branches.emplace_back();
+        branch_of.push_back(int8_t(pr.branch));
       }
 
+      // The rays leaving a mirror or glass surface, in the renderer's order
+      // and with its weights (render/integrator.cpp, scatter_specular).
       const Material& mat = scene_.materials[size_t(material)];
-      if (wh.object != kGround && mat.reflects()) {
-        // How finely the rays leaving this surface resolve directions: a
-        // normal tilt shows once it turns them by more than this.
-        const RayDifferential out_rd = reflect(r, sp, config_.limits);
-        out.hits.back().angular = out_rd.has_differentials
-                                      ? std::max(glm::length(out_rd.dd_dx), glm::length(out_rd.dd_dy))
-                                      : beam;
-      }
-      if (pr.depth >= scene_.max_depth) continue;
-      auto spawn = [&](const RayDifferential& next, Kind kind) {
-        PathRay s;
-        s.rd = next;
-        s.depth = pr.depth + 1;
-        s.kind = kind;
-        s.path_length = path;
-        s.skip_object = wh.object;
-        s.skip_ref = wh.tri.ref;
-        s.parent = wh.object != kGround ? int32_t(out.hits.size() - 1) : pr.parent;
-        stack.push_back(std::move(s));
-      };
+      std::array<Leaving, 2> leaving;
+      int n_leaving = 0;
       if (mat.refracts()) {
-        Refraction rf = refract(r, sp, mat.ior, config_.limits);
+        const Refraction rf = refract(r, sp, mat.ior, config_.limits);
         if (rf.total_internal_reflection) {
           ++out.counters.v[ProbeRayCounters::tir];
-          spawn(rf.ray, kReflection);
+          leaving[n_leaving++] = {rf.ray, kReflection, pr.weight, 2.0};
         } else {
-          spawn(rf.ray, kRefraction);
-          spawn(reflect(r, sp, config_.limits), kReflection);
+          const double tint = rf.entering ? double(max_channel(mat.tint)) : 1.0;
+          leaving[n_leaving++] = {rf.ray, kRefraction, pr.weight * (1.0 - rf.fresnel) * tint, rf.tilt_gain};
+          leaving[n_leaving++] = {reflect(r, sp, config_.limits), kReflection, pr.weight * rf.fresnel, 2.0};
         }
       } else if (mat.reflects()) {
-        spawn(reflect(r, sp, config_.limits), kReflection);
+        leaving[n_leaving++] = {reflect(r, sp, config_.limits), kReflection, pr.weight * double(mat.reflectance), 2.0};
+      }
+      // Each leaving ray's angular spread ||dD|| over its weight: a turn of
+      // its direction shows in the image as that turn over the spread, in
+      // pixels, times what the pixel weighs the ray by.
+      const int32_t at = wh.object != kGround ? int32_t(out.hits.size() - 1) : pr.parent;
+      const int at_branch = wh.object != kGround ? -1 : pr.branch;
+      for (int b = 0; b < n_leaving; ++b) {
+        const RayDifferential& o = leaving[size_t(b)].rd;
+        const double spread = o.has_differentials ? std::max(glm::length(o.dd_dx), glm::length(o.dd_dy)) : beam;
+        const double w = leaving[size_t(b)].weight;
+        const double q = w > 0 ? spread / w : kInf;
+        if (at < 0) continue;
+        // A mirror ground passes its rays on to the mesh hit before it.
+        Branches& br = branches[size_t(at)];
+        const int slot = at_branch >= 0 ? at_branch : b;
+        br.q[size_t(slot)] = std::min(br.q[size_t(slot)], q);
+        if (at_branch < 0) {
+          br.gain[size_t(b)] = leaving[size_t(b)].gain;
+          br.weight[size_t(b)] = w;
+        }
+      }
+      if (pr.depth >= scene_.max_depth) continue;
+      for (int b = 0; b < n_leaving; ++b) {
+        const Leaving& l = leaving[size_t(b)];
+        PathRay s;
+        s.rd = l.rd;
+        s.depth = pr.depth + 1;
+        s.kind = l.kind;
+        s.path_length = path;
+        s.weight = l.weight;
+        s.skip_object = wh.object;
+        s.skip_ref = wh.tri.ref;
+        s.parent = at;
+        s.branch = at_branch >= 0 ? at_branch : b;
+        stack.push_back(std::move(s));
       }
     }
-    // A direction error made at a surface is only resolved as finely as the
-    // narrowest beam along the rest of its path: a later surface can focus
-    // the beam (the two walls of a thin glass shell nearly cancel each
-    // other's spread) while the error stays. Hits come after the hit their
-    // ray left, so one backward pass takes the minimum over each subtree.
-    for (size_t i = out.hits.size(); i-- > 0;)
-      if (out.hits[i].parent >= 0) {
-        double& a = out.hits[size_t(out.hits[i].parent)].angular;
-        a = std::min(a, out.hits[i].angular);
+    // A normal tilt t at a hit turns each ray leaving it by gain * t; the
+    // turn stays as it is along the rest of the path while a later surface
+    // may focus the beam (the two walls of a thin glass shell nearly cancel
+    // each other's spread), so it shows as the largest turn-over-spread,
+    // weighted, along any later ray: the hit tolerates t up to
+    // min over its rays b of q_b / gain_b, q_b the smallest spread / weight
+    // over b and every ray after it. Hits come after the hit their ray left,
+    // so one backward pass carries each subtree's q to its parent.
+    for (size_t i = out.hits.size(); i-- > 0;) {
+      const Branches& br = branches[i];
+      double tilt = kInf, q = kInf;
+      for (size_t b = 0; b < 2; ++b) {
+        if (!(br.weight[b] > 0)) continue;  // a ray the image does not show
+        q = std::min(q, br.q[b]);
+        tilt = std::min(tilt, std::isinf(br.gain[b]) ? 0.0 : br.q[b] / br.gain[b]);
       }
+      ProbeHit& h = out.hits[i];
+      h.tilt = tilt;
+      if (h.parent >= 0) {
+        double& p = branches[size_t(h.parent)].q[size_t(branch_of[i])];
+        p = std::min(p, q);
+      }
+    }
     return out;
   }
 
@@ -411,6 +467,8 @@ std::string probe_key(const Scene& scene, const OctreeStore& store, std::span<co
     const Material& m = scene.materials[size_t(o.material)];
     mix(m.type);
     mix(m.ior);
+    mix(m.reflectance);  // the weights of the tilt allowance
+    mix(m.tint);
   }
   const bool ground = scene.ground.has_value();
   mix(ground);
@@ -625,8 +683,8 @@ namespace {
 
 struct StoreNeeds {
   bool specular = false;  // a mirror or glass object uses the store: its cells also bound the normal
-  // need() and the angular need per level, node by node (probe.h).
-  std::vector<std::vector<double>> need, angular;
+  // need() and the tilt allowance per level, node by node (probe.h).
+  std::vector<std::vector<double>> need, tilt;
   // The nodes' codes and collapse deviations (SelectionCache): a shared
   // cache's entry, or own.
   SelectionCache::Store* kept = nullptr;
@@ -698,7 +756,7 @@ StatusOr<CutSelection> CutSelection::make(std::span<const ProbeView> views, cons
     const std::vector<std::vector<uint64_t>>& codes_at = n.kept->codes;
     // Measured footprints at the finest level, attached to the hit triangles'
     // corner cells, per view.
-    struct Measured { double f = kInf; double angular = kInf; uint32_t hits = 0; };
+    struct Measured { double f = kInf; double tilt = kInf; uint32_t hits = 0; };
     std::vector<std::unordered_map<uint64_t, Measured>> measured(views.size());
     double min_fp = kInf;
     for (size_t v = 0; v < views.size(); ++v)
@@ -714,7 +772,7 @@ StatusOr<CutSelection> CutSelection::make(std::span<const ProbeView> views, cons
           if ((k > 0 && codes[k] == codes[0]) || (k > 1 && codes[k] == codes[1])) continue;
           Measured& e = measured[v][codes[k]];
           e.f = std::min(e.f, f);
-          e.angular = std::min(e.angular, h.angular);
+          e.tilt = std::min(e.tilt, h.tilt);
           ++e.hits;
         }
       }
@@ -768,16 +826,16 @@ StatusOr<CutSelection> CutSelection::make(std::span<const ProbeView> views, cons
     for (const ObjectXf& x : xf)
       if (x.store == s) n.specular |= scene.materials[size_t(x.material)].reflects();
 
-    // need() and the angular need bottom-up: at level Q the finest over the
+    // need() and the tilt allowance bottom-up: at level Q the finest over the
     // views of each view's measured or estimated need, min over children above.
     std::vector<std::vector<double>>& need = n.need;
-    std::vector<std::vector<double>>& angular = n.angular;
+    std::vector<std::vector<double>>& tilt = n.tilt;
     need.resize(size_t(Q) + 1);
-    angular.resize(size_t(Q) + 1);
+    tilt.resize(size_t(Q) + 1);
     {
       const std::vector<uint64_t>& nodes = codes_at[size_t(Q)];
       need[size_t(Q)].assign(nodes.size(), kInf);
-      if (n.specular) angular[size_t(Q)].assign(nodes.size(), kInf);
+      if (n.specular) tilt[size_t(Q)].assign(nodes.size(), kInf);
       const bool store_specular = n.specular;
       tbb::parallel_for(tbb::blocked_range<size_t>(0, nodes.size(), 1024), [&](const tbb::blocked_range<size_t>& r) {
         // Per view, the first measured cell at or after the range's first node.
@@ -801,24 +859,24 @@ StatusOr<CutSelection> CutSelection::make(std::span<const ProbeView> views, cons
               f = std::min(f, estimate(facts[v], *box));
             }
             // Unreached mirror or glass cells: the pixel angle, as magnified
-            // as the most magnified measured paths.
-            if (store_specular) a = std::min(a, hit ? hit->angular : facts[v].a_min * facts[v].m);
+            // as the most magnified measured paths, over a mirror's gain of 2.
+            if (store_specular) a = std::min(a, hit ? hit->tilt : 0.5 * facts[v].a_min * facts[v].m);
           }
           need[size_t(Q)][i] = f;
-          if (store_specular) angular[size_t(Q)][i] = a;
+          if (store_specular) tilt[size_t(Q)][i] = a;
         }
       });
     }
     for (int L = Q - 1; L >= 0; --L) {
       const std::vector<uint64_t>&parents = codes_at[size_t(L)], &children = codes_at[size_t(L) + 1];
       need[size_t(L)].assign(parents.size(), kInf);
-      if (n.specular) angular[size_t(L)].assign(parents.size(), kInf);
+      if (n.specular) tilt[size_t(L)].assign(parents.size(), kInf);
       size_t j = 0;
       for (size_t i = 0; i < parents.size(); ++i) {
         while (j < children.size() && (children[j] >> 3) < parents[i]) ++j;
         for (; j < children.size() && (children[j] >> 3) == parents[i]; ++j) {
           need[size_t(L)][i] = std::min(need[size_t(L)][i], need[size_t(L) + 1][j]);
-          if (n.specular) angular[size_t(L)][i] = std::min(angular[size_t(L)][i], angular[size_t(L) + 1][j]);
+          if (n.specular) tilt[size_t(L)][i] = std::min(tilt[size_t(L)][i], tilt[size_t(L) + 1][j]);
         }
       }
     }
@@ -919,7 +977,7 @@ StatusOr<ProbeResult> CutSelection::select(const ProbeConfig& config) {
             verdict[i] = 4;
             continue;
           }
-          if (bound_normals && 2.0 * dev.normal > config.angle_tolerance_px * n.angular[size_t(L)][i]) { verdict[i] = 3; continue; }
+          if (bound_normals && dev.normal > config.angle_tolerance_px * n.tilt[size_t(L)][i]) { verdict[i] = 3; continue; }
           verdict[i] = 1;
         }
       });

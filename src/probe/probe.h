@@ -47,11 +47,17 @@
 //     corners) is at most tolerance_px * need(cell), i.e. the collapsed
 //     surface stays within tolerance_px pixels of the input wherever a ray
 //     sees it, silhouettes included; AND, on mirror and glass objects, the
-//     reflected ray's turn 2 * normal_deviation is at most angle_tolerance_px times
-//     the angular spread ||dD|| of the rays leaving that surface, taken
-//     as the smallest along the rest of each path (a later surface may focus
-//     the beam while the error stays); the smallest measured at hits in the
-//     cell, else a_min * m for unreached cells; AND, for a cell holding an
+//     normal_deviation is at most angle_tolerance_px times the tilt the
+//     cell's hits tolerate (ProbeHit::tilt): a tilt t turns a reflected ray
+//     by 2t and a transmitted one by Refraction::tilt_gain * t, which shows
+//     in the image as that turn over the ray's angular spread ||dD|| (in
+//     pixels), the spread taken as the smallest along the rest of the path
+//     (a later surface may focus the beam while the error stays), times the
+//     weight the renderer gives the ray (the path's Fresnel terms, mirror
+//     reflectances and tints: a glass surface's faint reflection may turn
+//     far more than its transmitted ray); the smallest over the hits in the
+//     cell, else a_min * m / 2 for unreached cells (a mirror of reflectance
+//     1); AND, for a cell holding an
 //     open boundary vertex (OctreeStore::touches_boundary: a hole's rim, the
 //     edge of an open surface), which a quadric does not see and the
 //     representative may pull anywhere in the cell, diagonal(cell) is at
@@ -106,8 +112,9 @@ StatusOr<CutCriterion> parse_cut_criterion(const std::string& name);
 inline constexpr double kDefaultFootprintScale = 64.0;
 inline constexpr double kDefaultDiagonalFootprintScale = 10.0;
 inline constexpr double kDefaultTolerancePx = 0.5;
-// On mirror and glass objects a collapse may turn a reflected ray (twice the
-// normal's tilt) by at most this many pixels' angular spread ||dD||.
+// On mirror and glass objects a collapse may turn a ray leaving the surface
+// by at most this many pixels' angular spread ||dD||, weighted by what the
+// pixel weighs the ray by (ProbeHit::tilt).
 // Measured on data/glass_scene.json and the paper bottle (README, "Accuracy
 // across meshes"): at 0.5 (the position tolerance, which this bound used
 // before) they stay 4.8 and 6.4 dB above their noise floors (1.8x and 3.1x
@@ -199,9 +206,15 @@ struct ProbeHit {
   std::array<Vec3d, 3> corners{};  // hit triangle's corners, store coordinates
   double footprint = 0;            // ||dP|| in store units; if estimated, without the factor m
   double ratio = -1;               // f / (a_ray * path length) of a measured secondary hit
-  // Mirror/glass hit: the smallest ||dD|| of the rays leaving it and of
-  // every later mirror/glass hit on their paths.
-  double angular = std::numeric_limits<double>::infinity();
+  // Mirror/glass hit: the largest normal tilt (radians) that turns no ray
+  // leaving it, nor any later ray of their paths, by more than one pixel's
+  // spread weighted: min over its rays b of q_b / gain_b, where gain_b is
+  // how far b turns per radian of tilt (2 reflected, Refraction::tilt_gain
+  // transmitted) and q_b the smallest ||dD|| / weight over b and every ray
+  // after it (weight: the renderer's throughput of that ray, Fresnel terms,
+  // mirror reflectance and tint). A mirror of reflectance 1 gets half the
+  // smallest spread along the path. Infinite on other materials.
+  double tilt = std::numeric_limits<double>::infinity();
   int32_t parent = -1;             // index in ProbeTrace::hits of the hit whose ray made this one, or -1
   bool estimated = false;          // differentials dropped: footprint from the beam
 };
@@ -248,7 +261,7 @@ struct ProbeView {
 // over the views, each view contributing what select_cuts would use for it
 // alone (its measured footprints, or for a cell its rays did not reach, the
 // policy's estimate from its own eye, frustum and magnification; likewise the
-// angular need on mirrors and glass). Since every test is monotone in the
+// tilt allowance on mirrors and glass). Since every test is monotone in the
 // need, every cell the shared cut collapses is also collapsed (itself or
 // through an ancestor) by each view's own cut. The result does not depend on
 // the order of the views or on threads. With one view it is select_cuts
@@ -260,7 +273,7 @@ StatusOr<ProbeResult> select_shared_cuts(std::span<const ProbeView> views, const
 // select_shared_cuts in two parts, for selecting several cuts from the same
 // traces (the memory limit's coarsening, K and tolerance sweeps): make()
 // computes what does not depend on the criterion, K or the tolerances
-// (every cell's need and angular need from the traces and the unreached-cell
+// (every cell's need and tilt allowance from the traces and the unreached-cell
 // policy), and each select() decides the cut for one configuration, the
 // nodes' collapse deviations computed once and kept for the next. select(c)
 // gives exactly select_shared_cuts(views, ..., c) (the same cells, key and
