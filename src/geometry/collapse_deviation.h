@@ -29,8 +29,9 @@
 //     has 1 - r = a^2 / 4 and kappa * sagitta = a^2 / 2 = 2 (1 - r); too
 //     large at creases, where the spread is not curvature (and where the
 //     first estimate is 0).
-// A mirror turns a tilt t into a 2t turn of the reflected ray (probe.h
-// compares that with ||dD||).
+// A mirror turns a tilt t into a 2t turn of the reflected ray, glass its
+// transmitted ray by Refraction::tilt_gain * t (probe.h weighs each turn as
+// the renderer weighs the ray and compares it with ||dD||).
 //
 // Not seen by a quadric: open boundaries (a hole's rim in a flat plate has
 // one plane and deviation 0). The store flags the cells that hold a rim
