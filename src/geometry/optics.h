@@ -15,6 +15,12 @@ namespace raylod {
 // normal shades instead.
 inline constexpr double kMinShadingNormalLength = 1e-12;
 
+// Secondary rays whose throughput (largest channel) falls below this are not
+// traced: they cannot change an 8-bit pixel (glass: 4% reflections nest).
+// The renderer's default (IntegratorConfig::min_throughput), and the probe's,
+// so that the probe follows the paths the renderer traces.
+inline constexpr float kMinThroughput = 1e-3f;
+
 // Mirror direction of d about the unit normal n (either orientation).
 Vec3d reflect(const Vec3d& d, const Vec3d& n);
 // Refracts unit d at unit normal n facing against d (d . n < 0), with

@@ -19,6 +19,7 @@
 #include "core/progress.h"
 #include "core/system.h"
 #include "geometry/collapse_deviation.h"
+#include "geometry/optics.h"
 #include "probe/store_tracer.h"
 #include "scene/scene_camera.h"
 
@@ -91,20 +92,20 @@ struct PathRay {
   int depth = 0;
   Kind kind = kPrimary;
   double path_length = 0;
-  double weight = 1;    // what the renderer weighs the ray's radiance by: the path's throughput, largest channel
+  Vec3 throughput{1.0f};  // the renderer's throughput of the path (integrator.cpp, add_specular)
   int skip_object = kNoObject;
   TriangleRef skip_ref;
   int32_t parent = -1;  // the mesh hit (index into the ray's hits) this ray leaves, or -1
   int branch = 0;       // which of the parent's rays it is (its slot in Leaving below)
 };
 
-// A ray leaving a mirror or glass hit, as the renderer weighs it, and how
-// far it turns per radian the normal tilts (2 for a reflection;
+// A ray leaving a mirror or glass hit, the throughput the renderer gives it,
+// and how far it turns per radian the normal tilts (2 for a reflection;
 // Refraction::tilt_gain for a transmitted ray).
 struct Leaving {
   RayDifferential rd;
   Kind kind = kReflection;
-  double weight = 0;
+  Vec3 throughput{0.0f};
   double gain = 2;
 };
 
@@ -163,10 +164,11 @@ class ProbeTracer {
     // The ray's own pixel angle: its beam widens by this per unit of path.
     const double beam = std::min(glm::length(first.rd.dd_dx), glm::length(first.rd.dd_dy));
     std::vector<PathRay> stack{first};
-    // Per mesh hit: its leaving rays' q (below), gains and weights, and
-    // which of its parent's rays led to it.
+    // Per mesh hit: its rendered leaving rays' smallest spread along their
+    // paths and their gains (0: no such ray), and which of its parent's
+    // rays led to it.
     struct Branches {
-      std::array<double, 2> q{kInf, kInf}, gain{0, 0}, weight{0, 0};
+      std::array<double, 2> spread{kInf, kInf}, gain{0, 0};
     };
     std::vector<Branches> branches;
     std::vector<int8_t> branch_of;
@@ -230,7 +232,9 @@ class ProbeTracer {
       }
 
       // The rays leaving a mirror or glass surface, in the renderer's order
-      // and with its weights (render/integrator.cpp, scatter_specular).
+      // and with its weights (render/integrator.cpp, scatter_specular); the
+      // renderer traces those whose throughput reaches kMinThroughput, and
+      // none beyond max_depth.
       const Material& mat = scene_.materials[size_t(material)];
       std::array<Leaving, 2> leaving;
       int n_leaving = 0;
@@ -238,44 +242,39 @@ class ProbeTracer {
         const Refraction rf = refract(r, sp, mat.ior, config_.limits);
         if (rf.total_internal_reflection) {
           ++out.counters.v[ProbeRayCounters::tir];
-          leaving[n_leaving++] = {rf.ray, kReflection, pr.weight, 2.0};
+          leaving[n_leaving++] = {rf.ray, kReflection, pr.throughput, 2.0};
         } else {
-          const double tint = rf.entering ? double(max_channel(mat.tint)) : 1.0;
-          leaving[n_leaving++] = {rf.ray, kRefraction, pr.weight * (1.0 - rf.fresnel) * tint, rf.tilt_gain};
-          leaving[n_leaving++] = {reflect(r, sp, config_.limits), kReflection, pr.weight * rf.fresnel, 2.0};
+          const Vec3 transmitted = float(1.0 - rf.fresnel) * (rf.entering ? mat.tint : Vec3(1.0f));
+          leaving[n_leaving++] = {rf.ray, kRefraction, pr.throughput * transmitted, rf.tilt_gain};
+          leaving[n_leaving++] = {reflect(r, sp, config_.limits), kReflection, pr.throughput * Vec3(float(rf.fresnel)),
+                                  2.0};
         }
       } else if (mat.reflects()) {
-        leaving[n_leaving++] = {reflect(r, sp, config_.limits), kReflection, pr.weight * double(mat.reflectance), 2.0};
+        leaving[n_leaving++] = {reflect(r, sp, config_.limits), kReflection, pr.throughput * Vec3(mat.reflectance), 2.0};
       }
-      // Each leaving ray's angular spread ||dD|| over its weight: a turn of
-      // its direction shows in the image as that turn over the spread, in
-      // pixels, times what the pixel weighs the ray by.
+      if (pr.depth >= scene_.max_depth) continue;
       const int32_t at = wh.object != kGround ? int32_t(out.hits.size() - 1) : pr.parent;
       const int at_branch = wh.object != kGround ? -1 : pr.branch;
       for (int b = 0; b < n_leaving; ++b) {
-        const RayDifferential& o = leaving[size_t(b)].rd;
-        const double spread = o.has_differentials ? std::max(glm::length(o.dd_dx), glm::length(o.dd_dy)) : beam;
-        const double w = leaving[size_t(b)].weight;
-        const double q = w > 0 ? spread / w : kInf;
-        if (at < 0) continue;
-        // A mirror ground passes its rays on to the mesh hit before it.
-        Branches& br = branches[size_t(at)];
-        const int slot = at_branch >= 0 ? at_branch : b;
-        br.q[size_t(slot)] = std::min(br.q[size_t(slot)], q);
-        if (at_branch < 0) {
-          br.gain[size_t(b)] = leaving[size_t(b)].gain;
-          br.weight[size_t(b)] = w;
-        }
-      }
-      if (pr.depth >= scene_.max_depth) continue;
-      for (int b = 0; b < n_leaving; ++b) {
         const Leaving& l = leaving[size_t(b)];
+        if (!(max_channel(l.throughput) >= kMinThroughput)) continue;  // not rendered
+        // The ray's angular spread ||dD||: a turn of its direction shows in
+        // the image as that turn over the spread, in pixels. A mirror ground
+        // passes its rays on to the mesh hit before it.
+        if (at >= 0) {
+          const double spread =
+              l.rd.has_differentials ? std::max(glm::length(l.rd.dd_dx), glm::length(l.rd.dd_dy)) : beam;
+          Branches& br = branches[size_t(at)];
+          const size_t slot = size_t(at_branch >= 0 ? at_branch : b);
+          br.spread[slot] = std::min(br.spread[slot], spread);
+          if (at_branch < 0) br.gain[slot] = l.gain;
+        }
         PathRay s;
         s.rd = l.rd;
         s.depth = pr.depth + 1;
         s.kind = l.kind;
         s.path_length = path;
-        s.weight = l.weight;
+        s.throughput = l.throughput;
         s.skip_object = wh.object;
         s.skip_ref = wh.tri.ref;
         s.parent = at;
@@ -286,24 +285,24 @@ class ProbeTracer {
     // A normal tilt t at a hit turns each ray leaving it by gain * t; the
     // turn stays as it is along the rest of the path while a later surface
     // may focus the beam (the two walls of a thin glass shell nearly cancel
-    // each other's spread), so it shows as the largest turn-over-spread,
-    // weighted, along any later ray: the hit tolerates t up to
-    // min over its rays b of q_b / gain_b, q_b the smallest spread / weight
-    // over b and every ray after it. Hits come after the hit their ray left,
-    // so one backward pass carries each subtree's q to its parent.
+    // each other's spread), so the hit tolerates t up to the smallest
+    // spread / gain over its rays b, the spread of b taken as the smallest
+    // ||dD|| over b and every ray after it. Hits come after the hit their
+    // ray left, so one backward pass carries each subtree's spread to its
+    // parent.
     for (size_t i = out.hits.size(); i-- > 0;) {
       const Branches& br = branches[i];
-      double tilt = kInf, q = kInf;
+      double tilt = kInf, spread = kInf;
       for (size_t b = 0; b < 2; ++b) {
-        if (!(br.weight[b] > 0)) continue;  // a ray the image does not show
-        q = std::min(q, br.q[b]);
-        tilt = std::min(tilt, std::isinf(br.gain[b]) ? 0.0 : br.q[b] / br.gain[b]);
+        if (br.gain[b] == 0) continue;  // no such ray, or not rendered
+        spread = std::min(spread, br.spread[b]);
+        tilt = std::min(tilt, std::isinf(br.gain[b]) ? 0.0 : br.spread[b] / br.gain[b]);
       }
       ProbeHit& h = out.hits[i];
       h.tilt = tilt;
       if (h.parent >= 0) {
-        double& p = branches[size_t(h.parent)].q[size_t(branch_of[i])];
-        p = std::min(p, q);
+        double& p = branches[size_t(h.parent)].spread[size_t(branch_of[i])];
+        p = std::min(p, spread);
       }
     }
     return out;
@@ -467,7 +466,7 @@ std::string probe_key(const Scene& scene, const OctreeStore& store, std::span<co
     const Material& m = scene.materials[size_t(o.material)];
     mix(m.type);
     mix(m.ior);
-    mix(m.reflectance);  // the weights of the tilt allowance
+    mix(m.reflectance);  // which rays the renderer traces (kMinThroughput)
     mix(m.tint);
   }
   const bool ground = scene.ground.has_value();

@@ -52,12 +52,11 @@
 //     by 2t and a transmitted one by Refraction::tilt_gain * t, which shows
 //     in the image as that turn over the ray's angular spread ||dD|| (in
 //     pixels), the spread taken as the smallest along the rest of the path
-//     (a later surface may focus the beam while the error stays), times the
-//     weight the renderer gives the ray (the path's Fresnel terms, mirror
-//     reflectances and tints: a glass surface's faint reflection may turn
-//     far more than its transmitted ray); the smallest over the hits in the
-//     cell, else a_min * m / 2 for unreached cells (a mirror of reflectance
-//     1); AND, for a cell holding an
+//     (a later surface may focus the beam while the error stays); only the
+//     rays the renderer traces count (throughput at least kMinThroughput,
+//     within max_depth), and the test rays follow no others; the smallest
+//     over the hits in the cell, else a_min * m / 2 for unreached cells (a
+//     mirror's turn); AND, for a cell holding an
 //     open boundary vertex (OctreeStore::touches_boundary: a hole's rim, the
 //     edge of an open surface), which a quadric does not see and the
 //     representative may pull anywhere in the cell, diagonal(cell) is at
@@ -113,8 +112,7 @@ inline constexpr double kDefaultFootprintScale = 64.0;
 inline constexpr double kDefaultDiagonalFootprintScale = 10.0;
 inline constexpr double kDefaultTolerancePx = 0.5;
 // On mirror and glass objects a collapse may turn a ray leaving the surface
-// by at most this many pixels' angular spread ||dD||, weighted by what the
-// pixel weighs the ray by (ProbeHit::tilt).
+// by at most this many pixels' angular spread ||dD|| (ProbeHit::tilt).
 // Measured on data/glass_scene.json and the paper bottle (README, "Accuracy
 // across meshes"): at 0.5 (the position tolerance, which this bound used
 // before) they stay 4.8 and 6.4 dB above their noise floors (1.8x and 3.1x
@@ -207,13 +205,12 @@ struct ProbeHit {
   double footprint = 0;            // ||dP|| in store units; if estimated, without the factor m
   double ratio = -1;               // f / (a_ray * path length) of a measured secondary hit
   // Mirror/glass hit: the largest normal tilt (radians) that turns no ray
-  // leaving it, nor any later ray of their paths, by more than one pixel's
-  // spread weighted: min over its rays b of q_b / gain_b, where gain_b is
-  // how far b turns per radian of tilt (2 reflected, Refraction::tilt_gain
-  // transmitted) and q_b the smallest ||dD|| / weight over b and every ray
-  // after it (weight: the renderer's throughput of that ray, Fresnel terms,
-  // mirror reflectance and tint). A mirror of reflectance 1 gets half the
-  // smallest spread along the path. Infinite on other materials.
+  // leaving it by more than one pixel's spread anywhere along its path:
+  // min over its rays b of s_b / gain_b, where gain_b is how far b turns
+  // per radian of tilt (2 reflected, Refraction::tilt_gain transmitted) and
+  // s_b the smallest ||dD|| over b and every ray after it. Rays the renderer
+  // does not trace (throughput below kMinThroughput, beyond max_depth) do
+  // not count. Infinite on other materials and where no ray leaves.
   double tilt = std::numeric_limits<double>::infinity();
   int32_t parent = -1;             // index in ProbeTrace::hits of the hit whose ray made this one, or -1
   bool estimated = false;          // differentials dropped: footprint from the beam

@@ -51,8 +51,8 @@ struct RayCounters {
 struct IntegratorConfig {
   int max_depth = 5;  // secondary bounces after the camera ray
   // Secondary rays whose throughput (largest channel) is below this are not
-  // traced: they cannot change an 8-bit pixel (glass: 4% reflections nest).
-  float min_throughput = 1e-3f;
+  // traced (geometry/optics.h, kMinThroughput).
+  float min_throughput = kMinThroughput;
   // Whitted's ambient term k_a I_a: I_a = ambient * background colour,
   // k_a = the diffuse colour. Stands in for sky light, costs no rays.
   float ambient = 0.15f;
