@@ -231,17 +231,18 @@ class ProbeTracer {
         branch_of.push_back(int8_t(pr.branch));
       }
 
-      // The rays leaving a mirror or glass surface, in the renderer's order
-      // and with its weights (render/integrator.cpp, scatter_specular); the
-      // renderer traces those whose throughput reaches kMinThroughput, and
-      // none beyond max_depth.
+      // The rays leaving a mirror or glass surface, with the renderer's
+      // weights (render/integrator.cpp, scatter_specular): it traces those
+      // whose throughput reaches kMinThroughput, and none beyond max_depth.
+      if (pr.depth >= scene_.max_depth) continue;
       const Material& mat = scene_.materials[size_t(material)];
       std::array<Leaving, 2> leaving;
       int n_leaving = 0;
+      bool tir = false;
       if (mat.refracts()) {
         const Refraction rf = refract(r, sp, mat.ior, config_.limits);
         if (rf.total_internal_reflection) {
-          ++out.counters.v[ProbeRayCounters::tir];
+          tir = true;
           leaving[n_leaving++] = {rf.ray, kReflection, pr.throughput, 2.0};
         } else {
           const Vec3 transmitted = float(1.0 - rf.fresnel) * (rf.entering ? mat.tint : Vec3(1.0f));
@@ -252,12 +253,12 @@ class ProbeTracer {
       } else if (mat.reflects()) {
         leaving[n_leaving++] = {reflect(r, sp, config_.limits), kReflection, pr.throughput * Vec3(mat.reflectance), 2.0};
       }
-      if (pr.depth >= scene_.max_depth) continue;
       const int32_t at = wh.object != kGround ? int32_t(out.hits.size() - 1) : pr.parent;
       const int at_branch = wh.object != kGround ? -1 : pr.branch;
       for (int b = 0; b < n_leaving; ++b) {
         const Leaving& l = leaving[size_t(b)];
         if (!(max_channel(l.throughput) >= kMinThroughput)) continue;  // not rendered
+        if (tir) ++out.counters.v[ProbeRayCounters::tir];
         // The ray's angular spread ||dD||: a turn of its direction shows in
         // the image as that turn over the spread, in pixels. A mirror ground
         // passes its rays on to the mesh hit before it.
