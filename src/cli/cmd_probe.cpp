@@ -11,6 +11,7 @@
 #include "core/progress.h"
 #include "core/system.h"
 #include "pipeline/pipeline.h"
+#include "geometry/optics.h"
 #include "probe/probe.h"
 #include "scene/scene.h"
 #include "streaming/cut_file.h"
@@ -104,9 +105,11 @@ int cmd_probe(int argc, char** argv) {
       return static_cast<unsigned long long>(it == r.counters.end() ? 0 : it->second);
     };
     say("probe: %llu test rays in %.2f s (+ %.2f s for the cut): %llu primary, %llu reflection, %llu refraction "
-        "(%llu total internal reflections)\n",
+        "(%llu total internal reflections; %llu not followed, as the renderer traces no ray of throughput "
+        "below %g)\n",
         static_cast<unsigned long long>(config.rays), r.trace_seconds, r.cut_seconds, c("rays_primary"),
-        c("rays_reflection"), c("rays_refraction"), c("total_internal_reflections"));
+        c("rays_reflection"), c("rays_refraction"), c("total_internal_reflections"), c("rays_pruned"),
+        double(kMinThroughput));
     say("probe: %llu hits on meshes, %llu on the ground, %llu misses, %llu with dropped differentials\n",
         c("hits"), c("hits_ground"), c("misses"), c("differentials_dropped"));
     say("probe: %llu pages read (%s), cache peak %s of %s, magnification m = %.3f, peak memory %s\n",

@@ -74,12 +74,13 @@ enum Kind { kPrimary, kReflection, kRefraction };
 using HitRecord = ProbeHit;
 
 struct ProbeRayCounters {
-  uint64_t v[10] = {};
-  enum { primary, reflection, refraction, tir, hits, hits_ground, misses, dropped, page_visits, triangle_tests };
+  static constexpr int kCount = 11;
+  uint64_t v[kCount] = {};
+  enum { primary, reflection, refraction, tir, hits, hits_ground, misses, dropped, page_visits, triangle_tests, pruned };
 };
-const char* const kCounterNames[10] = {"rays_primary", "rays_reflection", "rays_refraction",
-                                       "total_internal_reflections", "hits", "hits_ground", "misses",
-                                       "differentials_dropped", "page_visits", "triangle_tests"};
+const char* const kCounterNames[ProbeRayCounters::kCount] = {
+    "rays_primary", "rays_reflection", "rays_refraction", "total_internal_reflections", "hits", "hits_ground",
+    "misses", "differentials_dropped", "page_visits", "triangle_tests", "rays_pruned"};
 
 struct RayOutcome {
   std::vector<HitRecord> hits;
@@ -257,7 +258,10 @@ class ProbeTracer {
       const int at_branch = wh.object != kGround ? -1 : pr.branch;
       for (int b = 0; b < n_leaving; ++b) {
         const Leaving& l = leaving[size_t(b)];
-        if (!(max_channel(l.throughput) >= kMinThroughput)) continue;  // not rendered
+        if (!(max_channel(l.throughput) >= kMinThroughput)) {  // not rendered
+          ++out.counters.v[ProbeRayCounters::pruned];
+          continue;
+        }
         if (tir) ++out.counters.v[ProbeRayCounters::tir];
         // The ray's angular spread ||dD||: a turn of its direction shows in
         // the image as that turn over the spread, in pixels. A mirror ground
@@ -574,9 +578,9 @@ StatusOr<ProbeTrace> trace_probe(const Scene& scene, std::span<const ProbeStore>
   ProbeRayCounters total;
   for (const RayOutcome& o : outcomes) {
     if (!o.status) return o.status;
-    for (int k = 0; k < 10; ++k) total.v[k] += o.counters.v[k];
+    for (int k = 0; k < ProbeRayCounters::kCount; ++k) total.v[k] += o.counters.v[k];
   }
-  for (int k = 0; k < 10; ++k) result.counters[kCounterNames[k]] = total.v[k];
+  for (int k = 0; k < ProbeRayCounters::kCount; ++k) result.counters[kCounterNames[k]] = total.v[k];
   const PageCacheCounters cc = cache.counters();
   result.counters["pages_read"] = cc.pages_read - before.pages_read;
   result.counters["bytes_read"] = cc.bytes_read - before.bytes_read;

@@ -428,6 +428,9 @@ TEST(Probe, ProbeFollowsTheRaysTheRendererTraces) {
   for (size_t i = 0; i < a->hits.size(); ++i) fifth += ancestors(*a, i) == 4;
   EXPECT_EQ(q->counters.at("rays_reflection") + fifth, a->counters.at("rays_reflection"));
   EXPECT_EQ(d->counters.at("rays_reflection"), 0u);
+  EXPECT_EQ(d->counters.at("rays_pruned"), d->hits.size());  // each camera ray hit's reflection
+  EXPECT_EQ(q->counters.at("rays_pruned"), fifth);
+  EXPECT_EQ(a->counters.at("rays_pruned"), 0u);
   for (const ProbeHit& x : d->hits) {
     EXPECT_LT(x.parent, 0);
     EXPECT_TRUE(std::isinf(x.tilt));
