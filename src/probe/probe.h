@@ -7,7 +7,9 @@
 // Reflection rays are traced only from mirror and glass surfaces, refraction
 // rays only from glass (Material::reflects / refracts), up to scene.max_depth
 // bounces; glass spawns both, as a Whitted renderer does; total internal
-// reflection is a reflection. The ground plane is traced (it occludes and
+// reflection is a reflection. A ray is followed only if the renderer traces
+// it: its throughput (the path's Fresnel terms, mirror reflectances and
+// tints, as render/integrator.cpp weighs it) is at least kMinThroughput. The ground plane is traced (it occludes and
 // may be a mirror) but never marked: it is not simplified.
 //
 // At every hit the footprint f = ||dP|| (METHOD.md eq. 2, ray_differential.h)
