@@ -7,6 +7,8 @@
 // All vectors are unit length, in double.
 #pragma once
 
+#include <algorithm>
+
 #include "core/math.h"
 
 namespace raylod {
@@ -20,6 +22,8 @@ inline constexpr double kMinShadingNormalLength = 1e-12;
 // The renderer's default (IntegratorConfig::min_throughput), and the probe's,
 // so that the probe follows the paths the renderer traces.
 inline constexpr float kMinThroughput = 1e-3f;
+// A throughput's largest channel: what kMinThroughput is compared with.
+inline float max_channel(const Vec3& c) { return std::max({c.x, c.y, c.z}); }
 
 // Mirror direction of d about the unit normal n (either orientation).
 Vec3d reflect(const Vec3d& d, const Vec3d& n);

@@ -110,8 +110,6 @@ struct Leaving {
   double gain = 2;
 };
 
-float max_channel(const Vec3& c) { return std::max({c.x, c.y, c.z}); }
-
 struct WorldHit {
   double t = kInf;
   int object = kNoObject;
@@ -170,9 +168,9 @@ class ProbeTracer {
     // rays led to it.
     struct Branches {
       std::array<double, 2> spread{kInf, kInf}, gain{0, 0};
+      int from = 0;
     };
     std::vector<Branches> branches;
-    std::vector<int8_t> branch_of;
     while (!stack.empty()) {
       PathRay pr = std::move(stack.back());
       stack.pop_back();
@@ -228,8 +226,7 @@ class ProbeTracer {
         }
         h.parent = pr.parent;
         out.hits.push_back(h);
-        branches.emplace_back();
-        branch_of.push_back(int8_t(pr.branch));
+        branches.emplace_back().from = pr.branch;
       }
 
       // The rays leaving a mirror or glass surface, with the renderer's
@@ -306,7 +303,7 @@ class ProbeTracer {
       ProbeHit& h = out.hits[i];
       h.tilt = tilt;
       if (h.parent >= 0) {
-        double& p = branches[size_t(h.parent)].spread[size_t(branch_of[i])];
+        double& p = branches[size_t(h.parent)].spread[size_t(br.from)];
         p = std::min(p, spread);
       }
     }

@@ -12,7 +12,6 @@ namespace raylod {
 namespace {
 constexpr double kInf = std::numeric_limits<double>::infinity();
 bool nonzero(const Vec3& c) { return c.x > 0 || c.y > 0 || c.z > 0; }
-float max_channel(const Vec3& c) { return std::max({c.x, c.y, c.z}); }
 
 // Starts the shading fetches of a packet's hits at once -- index rows, then
 // the corners' positions and normals -- so that their cache misses overlap

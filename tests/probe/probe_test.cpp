@@ -359,6 +359,15 @@ TEST(Probe, GlassSceneRefractsAndHandlesTir) {
   EXPECT_LE(all, 1000u * 63u);
 }
 
+// Per hit of a trace, how many mesh hits its path met before it (0 for a
+// camera ray's hit): parents come before their children.
+std::vector<int> hits_before(const ProbeTrace& t) {
+  std::vector<int> n(t.hits.size(), 0);
+  for (size_t i = 0; i < t.hits.size(); ++i)
+    if (t.hits[i].parent >= 0) n[i] = n[size_t(t.hits[i].parent)] + 1;
+  return n;
+}
+
 // On a mirror a tilt t turns the reflected ray by 2t, which must stay under
 // the narrowest beam along the rest of its path: a hit's tilt is at most
 // that of each hit its rays lead to, and the path links point backwards.
@@ -371,10 +380,9 @@ TEST(Probe, MirrorTiltIsHalfTheNarrowestBeamAlongThePath) {
   auto t = trace_probe(make_scene(MaterialType::Mirror, kEye, kLook), one.stores(), one.objects(), c);
   ASSERT_TRUE(t) << t.status().message();
   size_t linked = 0, lowered = 0;
-  std::vector<int> depth(t->hits.size(), 0);
+  const std::vector<int> depth = hits_before(*t);
   for (size_t i = 0; i < t->hits.size(); ++i) {
     const ProbeHit& h = t->hits[i];
-    if (h.parent >= 0) depth[i] = depth[size_t(h.parent)] + 1;
     // At the depth limit no ray leaves (the renderer traces none either).
     if (depth[i] < 5) EXPECT_TRUE(std::isfinite(h.tilt) && h.tilt > 0) << "hit " << i;
     else EXPECT_TRUE(std::isinf(h.tilt)) << "hit " << i;
@@ -419,13 +427,8 @@ TEST(Probe, ProbeFollowsTheRaysTheRendererTraces) {
   for (size_t i = 0; i < a->hits.size(); ++i) EXPECT_EQ(h->hits[i].tilt, a->hits[i].tilt) << "hit " << i;
   // Fifth reflections in a row: those of the full mirror's hits with four
   // mesh hits above them.
-  auto ancestors = [](const ProbeTrace& t, size_t i) {
-    int n = 0;
-    for (int32_t p = t.hits[i].parent; p >= 0; p = t.hits[size_t(p)].parent) ++n;
-    return n;
-  };
-  uint64_t fifth = 0;
-  for (size_t i = 0; i < a->hits.size(); ++i) fifth += ancestors(*a, i) == 4;
+  const std::vector<int> before = hits_before(*a);
+  const uint64_t fifth = uint64_t(std::count(before.begin(), before.end(), 4));
   EXPECT_EQ(q->counters.at("rays_reflection") + fifth, a->counters.at("rays_reflection"));
   EXPECT_EQ(d->counters.at("rays_reflection"), 0u);
   EXPECT_EQ(d->counters.at("rays_pruned"), d->hits.size());  // each camera ray hit's reflection
