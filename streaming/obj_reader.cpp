@@ -271,21 +271,8 @@ StatusOr<bool> ObjReader::next(TriangleBatch& batch) {
       // replaced per triangle below.
       if (!unit_normal(poly_nrm_[k])) zero_normal = true;
     }
-    const size_t first = batch.positions.size();
-    for (size_t k = 1; k + 1 < n; ++k) {
-      batch.positions.push_back(poly_pos_[0]);
-      batch.positions.push_back(poly_pos_[k]);
-      batch.positions.push_back(poly_pos_[k + 1]);
-      if (use_normals_) {
-        batch.normals.push_back(poly_nrm_[0]);
-        batch.normals.push_back(poly_nrm_[k]);
-        batch.normals.push_back(poly_nrm_[k + 1]);
-      }
-    }
-    if (zero_normal) {
-      for (size_t c = first; c < batch.positions.size(); c += 3)
-        repaired_normals_ += uint64_t(repair_zero_normals(&batch.positions[c], &batch.normals[c]));
-    }
+    repaired_normals_ += append_polygon_fan(poly_pos_.data(), use_normals_ ? poly_nrm_.data() : nullptr, n,
+                                            zero_normal, batch.positions, batch.normals);
     triangles_ += n - 2;
     ++faces_done_;
   }

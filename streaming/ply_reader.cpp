@@ -490,22 +490,8 @@ Status PlyReader::emit_polygon(const int64_t* index, size_t n, TriangleBatch& ba
       }
     }
   }
-  // Fan around corner 0: (0, k, k+1).
-  const size_t first = batch.positions.size();
-  for (size_t k = 1; k + 1 < n; ++k) {
-    batch.positions.push_back(poly_pos_[0]);
-    batch.positions.push_back(poly_pos_[k]);
-    batch.positions.push_back(poly_pos_[k + 1]);
-    if (has_normals_) {
-      batch.normals.push_back(poly_nrm_[0]);
-      batch.normals.push_back(poly_nrm_[k]);
-      batch.normals.push_back(poly_nrm_[k + 1]);
-    }
-  }
-  if (zero_normal) {
-    for (size_t c = first; c < batch.positions.size(); c += 3)
-      repaired_normals_ += uint64_t(repair_zero_normals(&batch.positions[c], &batch.normals[c]));
-  }
+  repaired_normals_ += append_polygon_fan(poly_pos_.data(), has_normals_ ? poly_nrm_.data() : nullptr, n, zero_normal,
+                                          batch.positions, batch.normals);
   triangles_ += n - 2;
   return Status::ok();
 }

@@ -11,6 +11,7 @@
 #include <cstring>
 #include <limits>
 #include <string>
+#include <vector>
 
 #include "core/math.h"
 
@@ -165,6 +166,29 @@ inline int repair_zero_normals(const Vec3* p, Vec3* n) {
   for (int k = 0; k < 3; ++k)
     if (is_zero(n[k])) n[k] = Vec3(f);
   return zero;
+}
+
+// Appends polygon pos[0..n) as a fan around corner 0, triangles (0, k, k+1),
+// to `positions` (and nrm[0..n) to `normals`, unless nrm is null); with
+// `repair`, the new triangles' zero normals are replaced (repair_zero_normals).
+// Returns how many corners were replaced. Shared by the PLY and OBJ readers.
+inline uint64_t append_polygon_fan(const Vec3* pos, const Vec3* nrm, size_t n, bool repair,
+                                   std::vector<Vec3>& positions, std::vector<Vec3>& normals) {
+  const size_t first = positions.size();
+  for (size_t k = 1; k + 1 < n; ++k) {
+    positions.push_back(pos[0]);
+    positions.push_back(pos[k]);
+    positions.push_back(pos[k + 1]);
+    if (nrm) {
+      normals.push_back(nrm[0]);
+      normals.push_back(nrm[k]);
+      normals.push_back(nrm[k + 1]);
+    }
+  }
+  uint64_t repaired = 0;
+  if (nrm && repair)
+    for (size_t c = first; c < positions.size(); c += 3) repaired += uint64_t(repair_zero_normals(&positions[c], &normals[c]));
+  return repaired;
 }
 
 inline std::string vec_text(const Vec3& v) {
