@@ -366,11 +366,6 @@ class FileStore final : public OctreeStore {
     return read_decoded(i, batch, decode_page, [](const TriangleBatch& b) { return !b.normals.empty(); });
   }
 
-  Status read_page(size_t i, PageCorners& corners) const override {
-    return read_decoded(i, corners, decode_page_corners,
-                        [](const PageCorners& c) { return !c.normal_codes.empty(); });
-  }
-
   Status read_page(size_t i, PageMesh& page) const override {
     return read_decoded(i, page, decode_page_mesh, [](const PageMesh& p) { return !p.normal_codes.empty(); });
   }
@@ -379,7 +374,7 @@ class FileStore final : public OctreeStore {
 
  private:
   // Page i read, checked and decoded into `out` (cleared first) by `decode`
-  // (decode_page, decode_page_corners or decode_page_mesh).
+  // (decode_page or decode_page_mesh).
   template <class Out, class Decode, class HasNormals>
   Status read_decoded(size_t i, Out& out, Decode decode, HasNormals has_normals) const {
     out.clear();

@@ -54,7 +54,6 @@
 
 namespace raylod {
 
-struct PageCorners;  // page_codec.h
 struct PageMesh;     // page_codec.h
 
 // Symmetric 4x4 plane quadric Q = [[A, -b], [-b^T, c]] (eq. 4), A symmetric 3x3.
@@ -155,8 +154,6 @@ class OctreeStore {
   // its checksum does not match, and then records the mismatch beside the
   // store (record_store_corruption) so that the next build rebuilds it.
   virtual Status read_page(size_t i, TriangleBatch& batch) const = 0;
-  // The same into PageCorners (normals as their octahedral codes).
-  virtual Status read_page(size_t i, PageCorners& corners) const = 0;
   // The same indexed, as the page is stored (normals as their codes).
   virtual Status read_page(size_t i, PageMesh& page) const = 0;
   // True once read_page has found a page whose checksum does not match.

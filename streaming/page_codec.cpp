@@ -335,20 +335,6 @@ Status decode_page_mesh(std::span<const uint8_t> bytes, const PageGrid& grid, Pa
   return {};
 }
 
-Status decode_page_corners(std::span<const uint8_t> bytes, const PageGrid& grid, PageCorners& corners) {
-  corners.clear();
-  thread_local GridPage page;
-  thread_local std::vector<Vec3> vpos;
-  RAYLOD_RETURN_IF_ERROR(parse_page_positions(bytes, grid, page, vpos));
-  corners.positions.resize(page.index.size());
-  if (page.has_normals) corners.normal_codes.resize(page.index.size());
-  for (size_t c = 0; c < page.index.size(); ++c) {
-    corners.positions[c] = vpos[page.index[c]];
-    if (page.has_normals) corners.normal_codes[c] = page.codes[page.index[c]];
-  }
-  return {};
-}
-
 Status decode_page_grid(std::span<const uint8_t> bytes, const PageGrid& grid, std::vector<uint32_t>& positions,
                         std::vector<uint32_t>& normals) {
   thread_local GridPage page;

@@ -92,18 +92,6 @@ Bbox encode_page(std::span<const uint32_t> positions, std::span<const uint32_t> 
 // error (a message without the file name), never a read outside them.
 Status decode_page(std::span<const uint8_t> bytes, const PageGrid& grid, TriangleBatch& batch);
 
-// A page's corners as the probe keeps them: positions, and the normals'
-// octahedral codes (a third of the bytes of float normals);
-// decode_octahedral(code) is the normal decode_page gives.
-struct PageCorners {
-  std::vector<Vec3> positions;         // 3 per triangle
-  std::vector<uint32_t> normal_codes;  // one per corner, or empty without normals
-  size_t size() const { return positions.size() / 3; }
-  void clear() { positions.clear(); normal_codes.clear(); }
-};
-// decode_page into PageCorners (cleared first).
-Status decode_page_corners(std::span<const uint8_t> bytes, const PageGrid& grid, PageCorners& corners);
-
 // A page indexed as it is stored: each page vertex once, three vertex
 // indices per triangle. decode_page gives the same triangles as corners
 // (positions[index[c]], and normals); per-vertex work (a cell lookup, a hash,

@@ -7,31 +7,30 @@ namespace raylod {
 
 size_t Page::bytes() const {
   return sizeof(Page) + positions.capacity() * sizeof(Vec3) + normal_codes.capacity() * sizeof(uint32_t) +
-         nodes.capacity() * sizeof(PageNode);
+         index.capacity() * sizeof(uint32_t) + nodes.capacity() * sizeof(PageNode);
 }
 
-Page make_page(const PageCorners& batch, PageScratch& scratch) {
+Page make_page(PageMesh& mesh, PageScratch& scratch) {
   Page page;
-  const bool normals = batch.normal_codes.size() == batch.positions.size();
-  const size_t n = batch.size();
+  const size_t n = mesh.size();
   // With scratch kept from the page before, only the page's own arrays are
   // new memory.
   std::vector<Bbox>& boxes = scratch.boxes;
   Bvh& bvh = scratch.bvh;
   boxes.assign(n, Bbox{});
   for (size_t i = 0; i < n; ++i)
-    for (int k = 0; k < 3; ++k) boxes[i].expand(batch.positions[3 * i + k]);
+    for (int k = 0; k < 3; ++k) boxes[i].expand(mesh.positions[mesh.index[3 * i + size_t(k)]]);
   build_bvh(boxes, 8, bvh, scratch.bvh_scratch);
   // Triangles in leaf order, so that leaves index them directly.
-  page.positions.resize(3 * n);
-  if (normals) page.normal_codes.resize(3 * n);
+  page.index.resize(3 * n);
   for (size_t i = 0; i < n; ++i) {
     const size_t src = bvh.order[i];
-    for (int k = 0; k < 3; ++k) {
-      page.positions[3 * i + k] = batch.positions[3 * src + k];
-      if (normals) page.normal_codes[3 * i + k] = batch.normal_codes[3 * src + k];
-    }
+    for (int k = 0; k < 3; ++k) page.index[3 * i + size_t(k)] = mesh.index[3 * src + size_t(k)];
   }
+  page.positions.swap(mesh.positions);
+  if (mesh.normal_codes.size() == page.positions.size()) page.normal_codes.swap(mesh.normal_codes);
+  page.positions.shrink_to_fit();  // decoded in place: capacity may exceed the count
+  page.normal_codes.shrink_to_fit();
   page.nodes.resize(bvh.nodes.size());
   for (size_t i = 0; i < bvh.nodes.size(); ++i) {
     const BvhNode& b = bvh.nodes[i];
@@ -73,13 +72,13 @@ StatusOr<std::shared_ptr<const Page>> PageCache::get(const OctreeStore& store, u
     result = Status::error("page " + std::to_string(index) + " does not exist");
   } else {
     PageScratch& scratch = scratch_.local();
-    PageCorners& batch = scratch.corners;  // decoded corners, copied into the page in BVH order
-    Status s = store.read_page(index, batch);
+    PageMesh& mesh = scratch.mesh;  // decoded; its vertices move into the page
+    Status s = store.read_page(index, mesh);
     if (!s) {
       result = s;  // names the store file and the page
     } else {
       bytes_read = store.pages()[index].bytes;  // as stored (compact), not as decoded
-      result = std::shared_ptr<const Page>(std::make_shared<Page>(make_page(batch, scratch)));
+      result = std::shared_ptr<const Page>(std::make_shared<Page>(make_page(mesh, scratch)));
     }
   }
 
@@ -120,7 +119,8 @@ void PageCache::release_scratch() { scratch_.clear(); }
 uint64_t PageCache::scratch_bytes() const {
   uint64_t bytes = 0;
   for (const PageScratch& s : scratch_) {
-    bytes += s.corners.positions.capacity() * sizeof(Vec3) + s.corners.normal_codes.capacity() * sizeof(uint32_t) +
+    bytes += s.mesh.positions.capacity() * sizeof(Vec3) + s.mesh.normal_codes.capacity() * sizeof(uint32_t) +
+             s.mesh.index.capacity() * sizeof(uint32_t) +
              s.boxes.capacity() * sizeof(Bbox) + s.bvh.bytes() +
              (s.bvh_scratch.keys.capacity() + s.bvh_scratch.sort_tmp.capacity()) * sizeof(uint32_t) +
              s.bvh_scratch.ranges.capacity() * sizeof(BvhScratch::Range);

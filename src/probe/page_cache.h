@@ -34,30 +34,34 @@ struct PageNode {
   Bbox box() const { return Bbox{Vec3d(lo[0], lo[1], lo[2]), Vec3d(hi[0], hi[1], hi[2])}; }
 };
 
-// One loaded page: triangle corners (3 per triangle, object space), optional
-// vertex normals as their octahedral codes (decode_octahedral gives exactly
-// the store's normals; 4 bytes a corner instead of 12, so more pages fit the
-// cache), both in BVH leaf order, and the BVH over the triangles.
+// One loaded page, indexed as the store holds it: each page vertex once
+// (object space), its normal as an octahedral code (decode_octahedral gives
+// exactly the store's normals; 4 bytes instead of 12), three vertex indices
+// per triangle in BVH leaf order, and the BVH over the triangles. About 30
+// bytes a triangle, where a copy per corner took 56: more pages fit a
+// memory limit, and fewer fresh pages are touched building them.
 struct Page {
-  std::vector<Vec3> positions;
-  std::vector<uint32_t> normal_codes;  // empty if the store has no normals
+  std::vector<Vec3> positions;         // per vertex
+  std::vector<uint32_t> normal_codes;  // per vertex; empty if the store has no normals
+  std::vector<uint32_t> index;         // 3 per triangle, in leaf order
   std::vector<PageNode> nodes;
-  size_t triangle_count() const { return positions.size() / 3; }
+  size_t triangle_count() const { return index.size() / 3; }
   size_t bytes() const;
 };
 
-// What building pages needs besides the pages: the decoded corners, the
+// What building pages needs besides the pages: the decoded page, the
 // triangles' boxes, the BVH and its build arrays. Kept between pages by the
 // cache (one per thread) and freed when a trace ends.
 struct PageScratch {
-  PageCorners corners;
+  PageMesh mesh;
   std::vector<Bbox> boxes;
   Bvh bvh;
   BvhScratch bvh_scratch;
 };
 
-// Builds a Page (with its BVH) from a page's corners, in `scratch`'s arrays.
-Page make_page(const PageCorners& corners, PageScratch& scratch);
+// Builds a Page (with its BVH) from a decoded page; takes over `mesh`'s
+// vertex arrays (left empty) and uses `scratch`'s arrays for the rest.
+Page make_page(PageMesh& mesh, PageScratch& scratch);
 
 struct PageCacheCounters {
   uint64_t pages_read = 0;      // pages read from disk (misses that loaded)

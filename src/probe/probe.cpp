@@ -1005,7 +1005,8 @@ StatusOr<ProbeResult> CutSelection::select(const ProbeConfig& config) {
     std::sort(cut.cells.begin(), cut.cells.end(), [](const CollapsedCell& a, const CollapsedCell& b) { return a.key < b.key; });
     // Footprints and hit counts of the marked cells (each hit counted once per cell).
     std::unordered_map<uint64_t, size_t> cell_index;  // (level << 58 | code) -> index
-    auto pack = [](uint32_t level, uint64_t code) { return (uint64_t(level) << 58) ^ code; };
+    // A marker bit above the code: codes at level L have 3L bits (L <= 21).
+    auto pack = [](uint32_t level, uint64_t code) { return (uint64_t(1) << (3 * level)) | code; };
     for (size_t i = 0; i < cut.cells.size(); ++i) cell_index[pack(cut.cells[i].key.level, cut.cells[i].key.code)] = i;
     uint64_t hit_cells = 0;
     for (const StoreNeeds::Hit& h : n.hits) {

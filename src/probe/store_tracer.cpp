@@ -143,9 +143,10 @@ Status StoreTracer::intersect(const Vec3d& origin, const Vec3d& direction, doubl
           const uint32_t tri = tn.first + i;
           if (skip.page == page_index && skip.triangle == tri) continue;
           if (counters) ++counters->triangle_tests;
-          const Vec3* v = &page->positions[3 * size_t(tri)];
+          const uint32_t* vi = &page->index[3 * size_t(tri)];
           double t, b1, b2;
-          if (watertight(wr, origin, Vec3d(v[0]), Vec3d(v[1]), Vec3d(v[2]), tmin, best, t, b1, b2)) {
+          if (watertight(wr, origin, Vec3d(page->positions[vi[0]]), Vec3d(page->positions[vi[1]]),
+                         Vec3d(page->positions[vi[2]]), tmin, best, t, b1, b2)) {
             // Strictly nearer only: on ties (a shared edge) the first triangle
             // in the traversal order wins, which depends on the ray alone.
             best = t;
@@ -167,13 +168,11 @@ Status StoreTracer::intersect(const Vec3d& origin, const Vec3d& direction, doubl
   hit.t = best;
   hit.b1 = best_b1;
   hit.b2 = best_b2;
-  const Vec3* v = &best_page->positions[3 * size_t(best_tri)];
-  for (int k = 0; k < 3; ++k) hit.p[k] = Vec3d(v[k]);
+  const uint32_t* vi = &best_page->index[3 * size_t(best_tri)];
+  for (int k = 0; k < 3; ++k) hit.p[k] = Vec3d(best_page->positions[vi[k]]);
   hit.has_normals = !best_page->normal_codes.empty();
-  if (hit.has_normals) {
-    const uint32_t* n = &best_page->normal_codes[3 * size_t(best_tri)];
-    for (int k = 0; k < 3; ++k) hit.n[k] = Vec3d(decode_octahedral(n[k]));
-  }
+  if (hit.has_normals)
+    for (int k = 0; k < 3; ++k) hit.n[k] = Vec3d(decode_octahedral(best_page->normal_codes[vi[k]]));
   return {};
 }
 

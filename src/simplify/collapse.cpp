@@ -329,7 +329,11 @@ void prepare_collapse(const PageMesh& page, std::span<const uint32_t> vertex_cel
             out.rep_normals[entry].weight += input.area2;
           } else {
             entry = uint32_t(out.rep_normals.size());
-            out.rep_normals.push_back({c[k], input.area2, glm::normalize(Vec3d(normals[vi[k]]))});
+            // A zero (or non-finite) input normal would put NaN into the
+            // cluster: the face normal stands in for it.
+            const Vec3d n(normals[vi[k]]);
+            const double len = glm::length(n);
+            out.rep_normals.push_back({c[k], input.area2, len > 0 && std::isfinite(len) ? n / len : input.unit});
           }
         } else if (k == 0 || (c[k] != c[0] && (k == 1 || c[k] != c[1]))) {
           // The corners of one cell share the face normal: one entry, weighted by their count.

@@ -496,7 +496,7 @@ TEST(Probe, CutRespectsFinestNeedAndPolicy) {
 TEST(Probe, SameCutOnOneOrTwoThreads) {
   const Scene scene = make_scene(MaterialType::Glass, kEye, kLook);
   auto a = probe(scene, teapot(), 800, 1, 1.0, uint64_t(1) << 30);
-  auto b = probe(scene, teapot(), 800, 2, 1.0, uint64_t(1) << 20);  // and a cache that evicts
+  auto b = probe(scene, teapot(), 800, 2, 1.0, uint64_t(1) << 18);  // and a cache that evicts
   ASSERT_TRUE(a && b);
   EXPECT_EQ(a->counters.at("cache_evictions"), 0u);
   EXPECT_GT(b->counters.at("cache_evictions"), 0u);

@@ -151,6 +151,42 @@ TEST(CollapseBuilder, TrianglesWhollyInsideACellGiveTheirNormalsThroughTheCellsS
   }
 }
 
+TEST(CollapseBuilder, AZeroInputNormalAtARepresentativeTakesItsFaceNormal) {
+  // A cell whose hidden triangles face +z (weight 100 in its normal sum) and
+  // one triangle reaching out of it, tilted 5 degrees. A tiny second
+  // reaching triangle carries a zero normal (a stored zero code, or an API
+  // caller's) at its corner in the cell: it must count as its face normal,
+  // not put NaN into the cluster (which dropped the hidden sum: the
+  // representative then faced 5 degrees off).
+  const Vec3 tilted = glm::normalize(Vec3(0.0872f, 0, 0.9962f));
+  for (const bool with_zero : {false, true}) {
+    std::vector<Representative> reps(1);
+    reps[0].position = Vec3d(0);
+    reps[0].fallback_normal = Vec3d(1, 0, 0);
+    reps[0].normal_sum = Vec3d(0, 0, 100) + Vec3d(tilted);
+    reps[0].has_normal_sum = true;
+    CollapseBuilder b(reps, true, 30.0);
+    TriangleBatch soup;
+    add_tri(soup, {0, 0, 0}, {1, 0, 0}, {0, 1, 0});
+    soup.normals = {tilted, tilted, tilted};
+    std::vector<uint32_t> cell{0, kKeepVertex, kKeepVertex};
+    if (with_zero) {
+      add_tri(soup, {0, 0, 0}, {0, -1e-3f, 0}, {1e-3f, 0, 0});
+      soup.normals.insert(soup.normals.end(), {Vec3(0), Vec3(0, 0, 1), Vec3(0, 0, 1)});
+      cell.insert(cell.end(), {0, kKeepVertex, kKeepVertex});
+    }
+    b.add(soup, cell);
+    CollapseStats st;
+    const IndexedMesh m = b.finish(&st);
+    ASSERT_GE(m.triangle_count(), 1u);
+    const Vec3 n = m.normals[m.indices[0]];  // the representative's corner
+    EXPECT_TRUE(is_finite(n)) << with_zero;
+    EXPECT_EQ(st.normal_fallbacks, 0u) << with_zero;
+    // Mostly the hidden +z sum: within a degree of +z either way.
+    EXPECT_GT(double(n.z), std::cos(M_PI / 180.0)) << with_zero << ": " << n.x << " " << n.y << " " << n.z;
+  }
+}
+
 TEST(CollapseBuilder, ReserveMidStreamKeepsTheVerticesFoundSoFar) {
   const TriangleBatch sphere = test::uv_sphere({0, 0, 0}, 1.0f, 12, 16);
   TriangleBatch first, second;
