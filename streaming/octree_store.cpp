@@ -279,6 +279,7 @@ Status read_header(int fd, const std::filesystem::path& path, StoreHeader& h, La
     nodes += c;
   }
   h.node_table_bytes = nodes * sizeof(NodeRecord);
+  h.node_table_file_bytes = l.node_table_bytes;
   h.page_data_bytes = l.data_bytes;
   if (size < l.file_bytes)
     return Status::error(name + ": truncated store (" + std::to_string(size) + " bytes, header says " +
@@ -676,8 +677,10 @@ Status print_store_info(const std::filesystem::path& path, std::FILE* out) {
   if (!counts.empty())
     std::fprintf(out, "  pages         %zu, triangles per page min %u / median %u / max %u\n", counts.size(),
                  counts.front(), counts[counts.size() / 2], counts.back());
-  std::fprintf(out, "  bytes         %s total: node table %s, page table %s, page data %s\n",
-               format_bytes(h.file_bytes).c_str(), format_bytes(h.node_table_bytes).c_str(),
+  std::fprintf(out, "  bytes         %s total: node table %s (its leaves; %s in memory with the levels above), "
+                    "page table %s, page data %s\n",
+               format_bytes(h.file_bytes).c_str(), format_bytes(h.node_table_file_bytes).c_str(),
+               format_bytes(h.node_table_bytes).c_str(),
                format_bytes(pages.size() * sizeof(PageInfo)).c_str(), format_bytes(h.page_data_bytes).c_str());
   if (h.triangle_count > 0)
     std::fprintf(out, "  page data     %.1f bytes per triangle; positions on a grid of %.6g (2^-%d of the root side, "

@@ -157,6 +157,17 @@ StatusOr<CutOptions> cut_options_from_args(const Args& args) {
   return o;
 }
 
+Status check_stats_json_path(const Args& args) {
+  if (!args.has("--stats-json")) return {};
+  const std::filesystem::path path = args.get("--stats-json");
+  std::error_code ec;
+  if (path.empty()) return Status::error("--stats-json: no file name given");
+  if (std::filesystem::is_directory(path, ec)) return Status::error(path.string() + ": --stats-json names a directory");
+  const std::filesystem::path dir = path.has_parent_path() ? path.parent_path() : std::filesystem::path(".");
+  if (!std::filesystem::is_directory(dir, ec)) return Status::error(path.string() + ": directory does not exist");
+  return {};
+}
+
 StatusOr<Scene> scene_from_args(const Args& args) {
   if (args.positionals().size() > 1) return Status::error("expected at most one SCENE argument");
   RAYLOD_ASSIGN_OR_RETURN(Scene scene, args.positionals().empty() ? default_scene() : load_scene(args.positionals()[0]));

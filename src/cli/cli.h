@@ -79,6 +79,10 @@ struct CutOptions {
 };
 StatusOr<CutOptions> cut_options_from_args(const Args& args);
 
+// --stats-json FILE, if given: checked before any work (its folder exists and
+// it is not a folder), so that a bad path does not fail a finished run.
+Status check_stats_json_path(const Args& args);
+
 // The scene named by the single positional argument, or the embedded default
 // scene when there is none (more than one positional is an error), with
 // --crease-angle applied if the command has it and it was given.

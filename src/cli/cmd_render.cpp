@@ -42,6 +42,7 @@ Status run_render(int argc, char** argv, bool& help) {
   if (!args.has("--output")) return Status::error("missing -o IMAGE (see raylod render --help)");
   const std::filesystem::path output = args.get("--output");
   RAYLOD_RETURN_IF_ERROR(check_output_image(output));
+  RAYLOD_RETURN_IF_ERROR(check_stats_json_path(args));
 
   RenderOptions opts;
   RAYLOD_ASSIGN_OR_RETURN(int64_t spp, args.get_int("--spp", 0, 1, 4096));
@@ -87,7 +88,8 @@ Status run_render(int argc, char** argv, bool& help) {
     RAYLOD_RETURN_IF_ERROR(write_image(output, result.color));
     RAYLOD_ASSIGN_OR_RETURN(auto aovs, write_aovs(output, result));
     const RenderStats& s = result.stats;
-    std::fprintf(stderr,
+    if (!quiet)
+      std::fprintf(stderr,
                  "raylod render: wrote %s (%dx%d, %d spp, %d threads%s)\n"
                  "raylod render: rays: camera %llu, shadow %llu, reflection %llu, refraction %llu; "
                  "total %llu in %.2f s (%.2f Mrays/s)\n"
@@ -99,7 +101,8 @@ Status run_render(int argc, char** argv, bool& help) {
                  (unsigned long long)s.rays.refraction, (unsigned long long)s.rays.total(), s.render_seconds,
                  s.rays_per_second() * 1e-6, s.load_seconds, s.bvh_seconds, format_bytes(s.bvh_bytes).c_str(),
                  format_bytes(s.peak_rss).c_str());
-    for (const auto& p : aovs) std::fprintf(stderr, "raylod render: wrote %s\n", p.string().c_str());
+    if (!quiet)
+      for (const auto& p : aovs) std::fprintf(stderr, "raylod render: wrote %s\n", p.string().c_str());
     if (args.has("--stats-json")) RAYLOD_RETURN_IF_ERROR(write_file_atomic(args.get("--stats-json"), render_stats_json(s) + "\n"));
     return {};
   };

@@ -116,6 +116,7 @@ Status run_run(int argc, char** argv, bool& help) {
   if (cluster::active() && args.has("--compare"))
     return Status::error("--compare runs in one process: run it without mpirun");
   RAYLOD_RETURN_IF_ERROR(check_output_image(sequence ? numbered_image_path(output, 0) : output));
+  RAYLOD_RETURN_IF_ERROR(check_stats_json_path(args));
 
   RunOptions opts;
   RAYLOD_ASSIGN_OR_RETURN(const MemoryBudget budget, memory_budget_from_args(args));

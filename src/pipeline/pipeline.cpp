@@ -212,6 +212,7 @@ StatusOr<SceneStores> prepare_scene_stores(Scene& scene, const std::optional<fs:
   if (mesh_override) {
     // As in `raylod render`: the first object's mesh is replaced.
     std::error_code ec;
+    if (fs::is_directory(*mesh_override, ec)) return Status::error(mesh_override->string() + ": is a directory, not a mesh file");
     if (!fs::is_regular_file(*mesh_override, ec)) return Status::error(mesh_override->string() + ": mesh file not found");
     scene.objects[0].mesh = *mesh_override;
     scene.objects[0].generate.reset();
@@ -596,7 +597,12 @@ StatusOr<FittedCuts> select_fitting_cuts(RunSession& session, std::span<const Pr
     if (!budget.limited() || need <= memory_limit) break;
     // Stop once coarsening no longer helps (the estimate bottoms out at the
     // renderer's fixed overhead) or after max_coarsening_steps doublings.
-    if (fitted.coarsening_steps >= options.max_coarsening_steps || estimate >= previous_estimate)
+    // While no cell collapses yet (every cell finer than K footprints), the
+    // next doubling may still: that is not bottoming out.
+    uint64_t input_triangles = 0;
+    for (const auto& st : stores.stores) input_triangles += st->header().triangle_count;
+    const bool nothing_collapsed = estimate >= input_triangles;
+    if (fitted.coarsening_steps >= options.max_coarsening_steps || (estimate >= previous_estimate && !nothing_collapsed))
       return Status::error("even at footprint scale " + fmt("%g", probe.footprint_scale) + " the simplified mesh (" +
                            std::to_string(estimate) + " triangles, " + format_bytes(need) + ") does not fit in the " +
                            format_bytes(memory_limit) + " the memory limit of " + format_bytes(budget.total) +

@@ -811,6 +811,48 @@ StatusOr<CutSelection> CutSelection::make(std::span<const ProbeView> views, cons
       }
       return need;
     };
+    // Shadows on the ground (probe.h): for each light, the cell's shadow
+    // on the ground plane (its corners moved along the light onto y =
+    // height; corners at or below it stay). If that lands in the view, the
+    // cell's deviation moves the shadow's edge there by up to deviation /
+    // sin(alpha) (alpha: the light's elevation over the ground), times
+    // s_r / s_o for a point light (the shadow's distance from the light
+    // over the cell's), against a footprint of at least m a d at the
+    // shadow's distance d from the eye. Infinite if no shadow reaches the
+    // visible ground, or the ground is a mirror or glass (it shows no
+    // shadows).
+    const bool ground_shadows = lights && scene.ground && !scene.materials[size_t(scene.ground->material)].reflects();
+    auto shadow_estimate = [&](const ViewFacts& view, const Bbox& b) {
+      double need = kInf;
+      if (!ground_shadows) return need;
+      const double h = scene.ground->height;
+      for (const ObjectXf* xp : on_store) {
+        const glm::dmat4& M = xp->m;
+        std::array<Vec3d, 8> c;
+        for (int i = 0; i < 8; ++i)
+          c[i] = Vec3d(M * glm::dvec4(i & 1 ? b.hi.x : b.lo.x, i & 2 ? b.hi.y : b.lo.y, i & 4 ? b.hi.z : b.lo.z, 1.0));
+        for (const Light& l : scene.lights) {
+          std::array<Vec3d, 8> p;
+          double sin_alpha = 1, ratio = 1;
+          bool lands = true;
+          for (int i = 0; i < 8 && lands; ++i) {
+            const Vec3d d = l.type == LightType::Directional ? l.direction : c[i] - l.position;
+            const double len = glm::length(d);
+            if (!(d.y < 0) || !(len > 0)) { lands = false; break; }  // no shadow falls down from here
+            sin_alpha = std::min(sin_alpha, -d.y / len);
+            const double t = c[i].y > h ? (h - c[i].y) / d.y : 0.0;
+            p[i] = c[i] + t * d;
+            p[i].y = h;
+            if (l.type != LightType::Directional) ratio = std::min(ratio, 1.0 / (1.0 + t));
+          }
+          if (!lands || view.frustum.outside(p)) continue;
+          Bbox pb;
+          for (const Vec3d& q : p) pb.expand(q);
+          need = std::min(need, view.m * view.a_min * distance_to_box(view.cam.eye, pb) * sin_alpha * ratio / xp->sigma);
+        }
+      }
+      return need;
+    };
     // Each view's measured cells in code order, walked alongside the nodes.
     struct MeasuredCell {
       uint64_t code;
@@ -853,12 +895,9 @@ StatusOr<CutSelection> CutSelection::make(std::span<const ProbeView> views, cons
             const std::vector<MeasuredCell>& sm = sorted_measured[v];
             while (at[v] < sm.size() && sm[at[v]].code < code) ++at[v];
             const Measured* hit = at[v] < sm.size() && sm[at[v]].code == code ? &sm[at[v]].m : nullptr;
-            if (hit) {
-              f = std::min(f, hit->f);
-            } else {
-              if (!box) box = st.cell_bounds(CellKey{uint32_t(Q), code});
-              f = std::min(f, estimate(facts[v], *box));
-            }
+            if (!box) box = st.cell_bounds(CellKey{uint32_t(Q), code});
+            f = std::min(f, hit ? hit->f : estimate(facts[v], *box));
+            f = std::min(f, shadow_estimate(facts[v], *box));
             // Unreached mirror or glass cells: the pixel angle, as magnified
             // as the most magnified measured paths, over a mirror's gain of 2.
             if (store_specular) a = std::min(a, hit ? hit->tilt : 0.5 * facts[v].a_min * facts[v].m);

@@ -70,6 +70,16 @@
 // matter for shadows: with lights they get shadow_factor times the estimate
 // (their silhouette keeps shadows within a few pixels), without lights they
 // are collapsed hard (need = infinity).
+// Shadows on the ground, for every cell, reached or not: a light casts the
+// cell's shadow onto the ground plane (its corners moved along the light to
+// y = height). Where that shadow lies in a view, a deviation d at the cell
+// moves the shadow's edge on the ground by up to d / sin(alpha) (alpha: the
+// light's elevation above the ground), times s_r / s_o for a point light
+// (how much farther from the light the shadow is than the cell), so need()
+// is at most m * a * (distance from the eye to the shadow) * sin(alpha) *
+// s_o / s_r. This binds cells outside the view whose shadows are seen, and
+// visible cells under a low light, whose shadows stretch. Not for a mirror
+// or glass ground (it shows no shadows), nor for shadows on other objects.
 // Hits whose differentials were dropped (grazing, critical angle, degenerate
 // normals; ray_differential.h) get the same estimate along their own path:
 // m * a_ray * path length.

@@ -1,6 +1,9 @@
 #include "scene/scene.h"
 
+#include <cmath>
 #include <fstream>
+#include <limits>
+#include <set>
 #include <map>
 #include <sstream>
 #include <vector>
@@ -38,6 +41,8 @@ bool Scene::any_refraction() const {
 
 namespace {
 
+constexpr double kMaxEyeDistance = 1e18;
+
 // Parsing helpers report the JSON path of what is wrong ("objects[0].material").
 struct Parser {
   std::string source;
@@ -56,11 +61,21 @@ struct Parser {
     for (int i = 0; i < 3; ++i) RAYLOD_RETURN_IF_ERROR(number(j[i], where + "[" + std::to_string(i) + "]", out[i]));
     return {};
   }
+  // A number held as a float (colours, intensities, material constants):
+  // beyond the float range it would become infinite.
+  Status number_float(const json& j, const std::string& where, float& out) const {
+    double v;
+    RAYLOD_RETURN_IF_ERROR(number(j, where, v));
+    if (std::abs(v) > double(std::numeric_limits<float>::max()))
+      return fail(where, "is beyond the float range (about 3.4e38)");
+    out = float(v);
+    return {};
+  }
   Status color(const json& j, const std::string& where, Vec3& out) const {
-    Vec3d v;
-    RAYLOD_RETURN_IF_ERROR(vec3(j, where, v));
-    if (v.x < 0 || v.y < 0 || v.z < 0) return fail(where, "colour components must be >= 0");
-    out = Vec3(v);
+    if (!j.is_array() || j.size() != 3) return fail(where, "expected an array of 3 numbers");
+    for (int i = 0; i < 3; ++i)
+      RAYLOD_RETURN_IF_ERROR(number_float(j[i], where + "[" + std::to_string(i) + "]", out[i]));
+    if (out.x < 0 || out.y < 0 || out.z < 0) return fail(where, "colour components must be >= 0");
     return {};
   }
   Status integer(const json& j, const std::string& where, int64_t lo, int64_t hi, int64_t& out) const {
@@ -89,6 +104,7 @@ class PathTracker final : public json::json_sax_t {
  public:
   std::string path = "scene";  // where the parse stopped
   std::string token;           // the text it stopped at
+  std::string duplicate;       // the path of a key that appears twice in one object, if any
   bool null() override { return value(); }
   bool boolean(bool) override { return value(); }
   bool number_integer(number_integer_t) override { return value(); }
@@ -102,7 +118,12 @@ class PathTracker final : public json::json_sax_t {
     return true;
   }
   bool key(string_t& k) override {
-    frames_.back().key = k;
+    Frame& f = frames_.back();
+    f.key = k;
+    if (!f.keys.insert(k).second) {  // a repeated key: nlohmann keeps the last silently
+      duplicate = place();
+      return false;
+    }
     return true;
   }
   bool end_object() override {
@@ -120,9 +141,7 @@ class PathTracker final : public json::json_sax_t {
   }
   bool parse_error(std::size_t, const std::string& last_token, const json::exception&) override {
     value();  // the value that failed takes the next place in its array
-    std::string p;
-    for (const Frame& f : frames_) p += f.array ? "[" + std::to_string(f.index) + "]" : (p.empty() ? "" : ".") + f.key;
-    if (!p.empty()) path = p;
+    if (const std::string p = place(); !p.empty()) path = p;
     token = last_token;
     return false;
   }
@@ -132,7 +151,13 @@ class PathTracker final : public json::json_sax_t {
     bool array;
     int64_t index;    // arrays: the element being read
     std::string key;  // objects: the key being read
+    std::set<std::string> keys = {};  // objects: the keys read so far
   };
+  std::string place() const {
+    std::string p;
+    for (const Frame& f : frames_) p += f.array ? "[" + std::to_string(f.index) + "]" : (p.empty() ? "" : ".") + f.key;
+    return p;
+  }
   bool value() {
     if (!frames_.empty() && frames_.back().array) ++frames_.back().index;
     return true;
@@ -155,6 +180,10 @@ Status parse_camera(const Parser& p, const json& j, const std::string& where, Ca
   if (!(cam.fov_y_deg > 0 && cam.fov_y_deg < 180)) return p.fail(at + "fov_y", "must be in (0, 180) degrees");
   Vec3d view = cam.look_at - cam.eye;
   if (glm::length(view) == 0) return p.fail(where, "eye and look_at coincide");
+  // Rays are traced in single precision around the look-at point, and
+  // Embree takes ray origins up to about 1.8e18 from it.
+  if (!(std::max({std::abs(view.x), std::abs(view.y), std::abs(view.z)}) <= kMaxEyeDistance))
+    return p.fail(at + "eye", "is more than 1e18 from look_at (rays are traced in single precision about look_at)");
   if (glm::length(glm::cross(view, cam.up)) <= 1e-9 * glm::length(view) * glm::length(cam.up))
     return p.fail(at + "up", "is zero or parallel to the viewing direction");
   return {};
@@ -176,9 +205,9 @@ Status parse_material(const Parser& p, const std::string& name, const json& j, M
   if (j.contains("specular")) RAYLOD_RETURN_IF_ERROR(p.color(j["specular"], where + ".specular", m.specular));
   if (j.contains("tint")) RAYLOD_RETURN_IF_ERROR(p.color(j["tint"], where + ".tint", m.tint));
   double v;
-  if (j.contains("shininess")) { RAYLOD_RETURN_IF_ERROR(p.number(j["shininess"], where + ".shininess", v)); m.shininess = float(v); }
-  if (j.contains("reflectance")) { RAYLOD_RETURN_IF_ERROR(p.number(j["reflectance"], where + ".reflectance", v)); m.reflectance = float(v); }
-  if (j.contains("ior")) { RAYLOD_RETURN_IF_ERROR(p.number(j["ior"], where + ".ior", v)); m.ior = float(v); }
+  if (j.contains("shininess")) RAYLOD_RETURN_IF_ERROR(p.number_float(j["shininess"], where + ".shininess", m.shininess));
+  if (j.contains("reflectance")) RAYLOD_RETURN_IF_ERROR(p.number_float(j["reflectance"], where + ".reflectance", m.reflectance));
+  if (j.contains("ior")) RAYLOD_RETURN_IF_ERROR(p.number_float(j["ior"], where + ".ior", m.ior));
   if (!(m.shininess >= 0)) return p.fail(where + ".shininess", "must be >= 0");
   if (!(m.reflectance >= 0 && m.reflectance <= 1)) return p.fail(where + ".reflectance", "must be in [0, 1]");
   if (!(m.ior >= 1.0f && m.ior <= 4.0f)) return p.fail(where + ".ior", "must be in [1, 4]");
@@ -194,6 +223,11 @@ Status parse_transform(const Parser& p, const json& j, const std::string& where,
     for (int r = 0; r < 4; ++r)
       for (int c = 0; c < 4; ++c)
         RAYLOD_RETURN_IF_ERROR(p.number(m[r * 4 + c], where + ".matrix", out[c][r]));
+    // Only affine transforms: a last row other than 0 0 0 1 (a column-major
+    // matrix pasted here, say) would otherwise be dropped without a word.
+    if (out[0][3] != 0 || out[1][3] != 0 || out[2][3] != 0 || out[3][3] != 1)
+      return p.fail(where + ".matrix", "the last row must be 0 0 0 1 (an affine transform, row-major: translation in "
+                                       "the 4th, 8th and 12th numbers)");
   } else {
     Vec3d t(0), s(1), rdeg(0);
     if (j.contains("translate")) RAYLOD_RETURN_IF_ERROR(p.vec3(j["translate"], where + ".translate", t));
@@ -208,8 +242,14 @@ Status parse_transform(const Parser& p, const json& j, const std::string& where,
     m = glm::rotate(m, glm::radians(rdeg.x), Vec3d(1, 0, 0));
     out = glm::scale(m, s);
   }
-  double det = glm::determinant(glm::dmat3(out));
-  if (!std::isfinite(det) || std::abs(det) < 1e-18) return p.fail(where, "transform is singular");
+  // Singular relative to its own scale (a uniform scale of 1e-6, micrometres
+  // to metres, is fine): |det| against the product of the column lengths,
+  // which is 1 for a rotation times any scale and 0 for a flat transform.
+  const glm::dmat3 l(out);
+  const double det = glm::determinant(l);
+  const double columns = glm::length(l[0]) * glm::length(l[1]) * glm::length(l[2]);
+  if (!std::isfinite(det) || !std::isfinite(columns) || !(std::abs(det) > 1e-12 * columns))
+    return p.fail(where, "transform is singular");
   return {};
 }
 
@@ -294,11 +334,9 @@ Status parse_light(const Parser& p, const json& j, const std::string& where, Lig
     return p.fail(where + ".type", "expected 'point' or 'directional'");
   }
   if (j.contains("color")) RAYLOD_RETURN_IF_ERROR(p.color(j["color"], where + ".color", l.color));
-  double v;
   if (j.contains("intensity")) {
-    RAYLOD_RETURN_IF_ERROR(p.number(j["intensity"], where + ".intensity", v));
-    if (v < 0) return p.fail(where + ".intensity", "must be >= 0");
-    l.intensity = float(v);
+    RAYLOD_RETURN_IF_ERROR(p.number_float(j["intensity"], where + ".intensity", l.intensity));
+    if (l.intensity < 0) return p.fail(where + ".intensity", "must be >= 0");
   }
   return {};
 }
@@ -320,6 +358,12 @@ Status parse_json(const Parser& p, const std::string& text, const std::string& r
       return p.fail(where.path, "the number " + where.token + " is out of range (beyond the largest double, about 1.8e308)");
     return p.fail(where.path, std::string("cannot be read: ") + e.what());
   }
+  // A key given twice in one object: the DOM keeps the last without a word,
+  // so a SAX pass looks for it (a scene is small).
+  PathTracker keys;
+  (void)json::sax_parse(text, &keys);
+  if (!keys.duplicate.empty())
+    return p.fail(root + (keys.duplicate.front() == '[' ? "" : ".") + keys.duplicate, "is given twice");
   return {};
 }
 

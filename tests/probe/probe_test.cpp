@@ -10,6 +10,7 @@
 #include <fstream>
 #include <iterator>
 #include <random>
+#include <optional>
 #include <set>
 #include <tuple>
 
@@ -440,6 +441,82 @@ TEST(Probe, ProbeFollowsTheRaysTheRendererTraces) {
   }
   // The key tells the materials apart: a cached cut is not reused for another.
   EXPECT_NE(probe_key(full, *b.store, one.objects(), 0, c), probe_key(half, *b.store, one.objects(), 0, c));
+}
+
+// An object outside the view whose shadow falls in it (the camera looks down
+// at the ground beside the teapot, a low light casts the teapot's shadow
+// there): a deviation d at the object moves the shadow's edge by d /
+// sin(elevation), so every cell whose ground shadow is in view stays finer
+// than K times the pixel footprint at that shadow times sin(elevation)
+// (probe.h, "Shadows on the ground"). Before, such cells took the lenient
+// shadow_factor (4) times the pinhole bound at the cell, and the shadow's
+// outline moved by about a pixel (6.7 dB below the noise floor on a CAD part).
+TEST(Probe, CellsWhoseShadowIsInViewAreAsFineAsTheShadowNeeds) {
+  const Built& b = teapot();
+  Scene scene = make_scene(MaterialType::Diffuse, Vec3d(8, 4, 0), Vec3d(8, 0, 0.01));
+  scene.camera.up = Vec3d(0, 0, -1);
+  const Vec3d light_dir = glm::normalize(Vec3d(1, -0.35, 0));
+  Light sun;
+  sun.type = LightType::Directional;
+  sun.direction = light_dir;
+  scene.lights = {sun};
+  const double K = 64.0;  // the default: the deviation bound decides, K caps
+  auto lit = probe(scene, b, 1000, 2, K);
+  scene.lights.clear();
+  auto dark = probe(scene, b, 1000, 2, K);
+  ASSERT_TRUE(lit && dark);
+  const PinholeCamera cam = make_pinhole_camera(scene.camera);
+  double a_min = 1e30;
+  for (double px : {0.0, 0.5 * cam.width, double(cam.width)})
+    for (double py : {0.0, 0.5 * cam.height, double(cam.height)}) {
+      const RayDerivatives d = cam.derivatives(px, py);
+      a_min = std::min({a_min, glm::length(d.dd_dx), glm::length(d.dd_dy)});
+    }
+  const double sin_elevation = -light_dir.y;
+  // The view's footprint on the ground, brute force: where the corner rays
+  // meet y = 0 (the camera looks straight down, so the view is that box).
+  Bbox view;
+  for (double px : {0.0, double(cam.width)})
+    for (double py : {0.0, double(cam.height)}) {
+      const Ray r = cam.generate(px, py);
+      view.expand(r.origin + (-r.origin.y / r.direction.y) * r.direction);
+    }
+  // Per finest cell (the probe's need is theirs, the minimum over them
+  // above): its shadow; if that is in view, its collapsed ancestor (if any)
+  // must be finer than K times the footprint there.
+  const Cut& cut = lit->cuts[0];
+  std::set<CellKey> collapsed;
+  for (const CollapsedCell& c : cut.cells) {
+    EXPECT_EQ(c.hits, 0u);  // no test ray reaches the teapot
+    collapsed.insert(c.key);
+  }
+  const int Q = b.store->header().quadric_depth;
+  size_t in_view = 0;
+  for (const NodeRecord& n : b.store->level(Q)) {
+    const CellKey key{uint32_t(Q), n.code};
+    std::optional<CellKey> ancestor;
+    for (CellKey a = key;; a = a.parent()) {
+      if (collapsed.count(a)) { ancestor = a; break; }
+      if (a.level == 0) break;
+    }
+    if (!ancestor) continue;
+    const Bbox box = b.store->cell_bounds(key);
+    Bbox shadow;
+    for (int i = 0; i < 8; ++i) {
+      const Vec3d p(i & 1 ? box.hi.x : box.lo.x, i & 2 ? box.hi.y : box.lo.y, i & 4 ? box.hi.z : box.lo.z);
+      shadow.expand(p.y > 0 ? p + (-p.y / light_dir.y) * light_dir : Vec3d(p.x, 0, p.z));
+    }
+    const bool seen = shadow.lo.x <= view.hi.x && shadow.hi.x >= view.lo.x && shadow.lo.z <= view.hi.z &&
+                      shadow.hi.z >= view.lo.z;
+    if (!seen) continue;
+    ++in_view;
+    const Vec3d q = glm::max(shadow.lo - cam.eye, glm::max(Vec3d(0), cam.eye - shadow.hi));
+    EXPECT_LT(b.store->cell_diagonal(int(ancestor->level)), K * a_min * glm::length(q) * sin_elevation * (1 + 1e-9))
+        << "level " << ancestor->level;
+  }
+  EXPECT_GT(in_view, 0u);
+  // Without the light nothing is seen of the teapot: it collapses hard.
+  EXPECT_LT(dark->cuts[0].cells.size(), lit->cuts[0].cells.size() / 4);
 }
 
 // Properties of the cut: an antichain within quadric_depth; every marked cell

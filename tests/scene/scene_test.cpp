@@ -80,6 +80,16 @@ TEST(Scene, RelativeMeshPathResolvesAgainstSceneFile) {
   fs::remove_all(temp_dir());
 }
 
+TEST(Scene, AUniformMicrometreScaleIsNotSingular) {
+  // |det| = 1e-18 here: singular only relative to the columns' lengths.
+  std::string text = kMinimal;
+  const std::string from = "\"scale\": 2";
+  text.replace(text.find(from), from.size(), "\"scale\": 1e-6");
+  auto scene = parse_scene(text, ".", "micro.json");
+  ASSERT_TRUE(scene.is_ok()) << scene.status().message();
+  EXPECT_DOUBLE_EQ(scene->objects[0].transform[0][0], 1e-6);
+}
+
 struct BadCase {
   const char* name;
   std::string from, to;  // replace `from` in kMinimal by `to`
@@ -127,7 +137,26 @@ INSTANTIATE_TEST_SUITE_P(
         BadCase{"number_overflow_in_array", "\"translate\": [1, 2, 3]", "\"translate\": [1, -1e999, 3]",
                 "bad.json: objects[0].transform.translate[1]: the number -1e999 is out of range"},
         BadCase{"number_overflow_in_material", "\"ior\": 1.5", "\"ior\": 2e308", "materials.glass.ior: the number 2e308"},
-        BadCase{"number_overflow_at_top_level", "\"seed\": 7", "\"seed\": 1E+400", "bad.json: seed: the number 1E+400"}),
+        BadCase{"number_overflow_at_top_level", "\"seed\": 7", "\"seed\": 1E+400", "bad.json: seed: the number 1E+400"},
+        // Numbers held as floats: beyond the float range they would turn infinite.
+        BadCase{"float_overflow_intensity", "\"intensity\": 10", "\"intensity\": 1e39",
+                "bad.json: lights[0].intensity: is beyond the float range"},
+        BadCase{"float_overflow_color", "[0.8, 0.1, 0.1]", "[0.8, 1e39, 0.1]",
+                "bad.json: materials.red.color[1]: is beyond the float range"},
+        BadCase{"float_overflow_ior", "\"ior\": 1.5", "\"ior\": -1e39", "materials.glass.ior: is beyond the float range"},
+        // nlohmann keeps the last of two equal keys without a word.
+        BadCase{"duplicate_key", "\"spp\": 2,", "\"spp\": 2, \"spp\": 3,", "bad.json: scene.spp: is given twice"},
+        BadCase{"duplicate_nested_key", "\"fov_y\": 40", "\"fov_y\": 40, \"fov_y\": 50",
+                "bad.json: scene.camera.fov_y: is given twice"},
+        BadCase{"duplicate_key_in_array", "\"intensity\": 10", "\"intensity\": 10, \"intensity\": 1",
+                "bad.json: scene.lights[0].intensity: is given twice"},
+        // A column-major matrix pasted by mistake: its translation would be dropped.
+        BadCase{"non_affine_matrix", "\"translate\": [1, 2, 3], \"scale\": 2",
+                "\"matrix\": [1, 0, 0, 0,  0, 1, 0, 0,  0, 0, 1, 0,  0.2, 0, 0, 1]", "the last row must be 0 0 0 1"},
+        BadCase{"flat_transform", "\"scale\": 2", "\"scale\": [1, 1, 0]", "singular"},
+        // Embree refuses ray origins beyond about 1.8e18 (it asserted before).
+        BadCase{"eye_too_far", "\"eye\": [0, 1, 5]", "\"eye\": [2e18, 1, 5]",
+                "camera.eye: is more than 1e18 from look_at"}),
     [](const auto& info) { return std::string(info.param.name); });
 
 TEST(Scene, MissingFileIsAnError) {

@@ -325,7 +325,10 @@ TEST(PlyReaderErrors, AsciiMalformedRecords) {
   EXPECT_READ_ERROR(write_file("nan_text.ply", simple_header() + "0 0 0\n1 zero 0\n0 1 0\n3 0 1 2\n"), "line 11: 'zero' is not a number");
   EXPECT_READ_ERROR(write_file("shortf.ply", simple_header() + "0 0 0\n1 0 0\n0 1 0\n3 0 1\n"), "line 13: face has fewer indices");
   EXPECT_READ_ERROR(write_file("hugef.ply", simple_header() + "0 0 0\n1 0 0\n0 1 0\n4000000000 0 1 2\n"),
-                    "line 13: face has fewer indices than its list length 4000000000");
+                    "line 13: list length 4000000000 does not fit the header's count type (largest 255)");
+  // A uchar count holds at most 255, in text as in binary.
+  EXPECT_READ_ERROR(write_file("ucharf.ply", simple_header() + "0 0 0\n1 0 0\n0 1 0\n300 0 1 2\n"),
+                    "line 13: list length 300 does not fit the header's count type (largest 255)");
   EXPECT_READ_ERROR(write_file("longf.ply", simple_header() + "0 0 0\n1 0 0\n0 1 0\n3 0 1 2 2\n"), "line 13: face has more values");
   EXPECT_READ_ERROR(write_file("badidx.ply", simple_header() + "0 0 0\n1 0 0\n0 1 0\n3 0 1 x\n"), "line 13: vertex index 'x' is not an integer");
 }
