@@ -231,7 +231,7 @@ TriangleMesh make_ground_mesh(const Ground& ground, const Camera& camera) {
                  Vec3(Vec3d(cx + h, y, cz - h))};
   m.indices = {0, 1, 2, 0, 2, 3};
   m.material = ground.material;
-  m.name = "ground";
+  m.name = kGroundMeshName;
   return m;
 }
 

@@ -20,6 +20,9 @@
 namespace raylod {
 
 // A world-space triangle mesh with shared vertices, as Embree consumes it.
+// TriangleMesh::name of the ground plane's mesh (make_ground_mesh).
+inline constexpr const char* kGroundMeshName = "ground";
+
 struct TriangleMesh {
   std::vector<Vec3> positions;    // world space
   std::vector<Vec3> normals;      // empty, or one unit vertex normal per position (world space)

@@ -62,8 +62,8 @@ Effects effects_for(const Scene& scene, std::span<const int> used_materials) {
   return e;
 }
 
-double ray_offset(const Vec3d& p, double offset_scale) {
-  return offset_scale * std::max({1.0, std::abs(p.x), std::abs(p.y), std::abs(p.z)});
+double ray_offset(const Vec3d& p, double offset_scale, double offset_floor) {
+  return offset_scale * std::max({offset_floor, std::abs(p.x), std::abs(p.y), std::abs(p.z)});
 }
 
 SpecularScatter scatter_specular(const Material& m, const Vec3d& dir, const SurfacePoint& sp, double offset) {
@@ -193,7 +193,7 @@ void Integrator::shade_camera_packet(const CameraPacket& packet, CameraSample* o
     }
     record_camera_hit(rays[i], hits[i], sp[i], out[i]);
     const Material& m = material(hits[i]);
-    offset[i] = ray_offset(sp[i].position, config_.offset_scale);
+    offset[i] = ray_offset(sp[i].position, config_.offset_scale, config_.offset_floor);
     out[i].color = ambient(m);
     if (!lit(m)) continue;
     shadow_queries(m, rays[i].direction, sp[i], offset[i], [&](const ShadowQuery& q) {
@@ -261,7 +261,7 @@ bool Integrator::lit(const Material& m) const {
 Vec3 Integrator::shade(const Ray& ray, const Hit& hit, const SurfacePoint& sp, int depth, const Vec3& throughput,
                        RayCounters& counters) const {
   const Material& m = material(hit);
-  const double offset = ray_offset(sp.position, config_.offset_scale);
+  const double offset = ray_offset(sp.position, config_.offset_scale, config_.offset_floor);
   Vec3 result = ambient(m);
   if (lit(m)) {
     Vec3 direct(0.0f);

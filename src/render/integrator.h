@@ -64,6 +64,11 @@ struct IntegratorConfig {
   // well past Embree's intersection error and the float rounding of the
   // origin, and small enough not to bend the path through thin glass.
   double offset_scale = 2e-6;
+  // ...but never relative to less than this (world units): 1, or the scene's
+  // size if it is smaller (render_embree_scene sets it), so that a scene
+  // modelled in metres at micrometre scale shades as the same scene in
+  // millimetres does (an absolute 2e-6 moved contact shadows there).
+  double offset_floor = 1.0;
 };
 
 // What a camera sample saw, with its first hit for the AOVs.
@@ -88,8 +93,8 @@ struct SpecularScatter {
 };
 SpecularScatter scatter_specular(const Material& m, const Vec3d& direction, const SurfacePoint& sp, double offset);
 
-// Spawn offset for a hit point (see IntegratorConfig::offset_scale).
-double ray_offset(const Vec3d& p, double offset_scale);
+// Spawn offset for a hit point (see IntegratorConfig::offset_scale and offset_floor).
+double ray_offset(const Vec3d& p, double offset_scale, double offset_floor = 1.0);
 
 class Integrator {
  public:
