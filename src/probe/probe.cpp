@@ -84,6 +84,7 @@ const char* const kCounterNames[ProbeRayCounters::kCount] = {
 
 struct RayOutcome {
   std::vector<HitRecord> hits;
+  std::vector<Vec3d> ground;  // where the ray's path met the ground (world)
   ProbeRayCounters counters;
   Status status;
 };
@@ -209,6 +210,7 @@ class ProbeTracer {
 
       if (wh.object == kGround) {
         ++out.counters.v[ProbeRayCounters::hits_ground];
+        out.ground.push_back(sp.point);
       } else {
         ++out.counters.v[ProbeRayCounters::hits];
         const ObjectXf& x = xf_[size_t(wh.object)];
@@ -594,6 +596,7 @@ StatusOr<ProbeTrace> trace_probe(const Scene& scene, std::span<const ProbeStore>
       if (h.parent >= 0) h.parent += offset;
       result.hits.push_back(h);
     }
+    result.ground_hits.insert(result.ground_hits.end(), o.ground.begin(), o.ground.end());
   }
   result.rays = config.rays;
   result.seed = config.seed;
@@ -614,6 +617,7 @@ ProbeTrace merge_traces(std::vector<ProbeTrace> shares, const ProbeConfig& confi
       result.hits.push_back(h);
     }
     t.hits = {};
+    result.ground_hits.insert(result.ground_hits.end(), t.ground_hits.begin(), t.ground_hits.end());
     for (const auto& [name, value] : t.counters)
       if (name != "magnification_ppm") result.counters[name] += value;
     result.trace_seconds = std::max(result.trace_seconds, t.trace_seconds);
@@ -655,6 +659,67 @@ StatusOr<ProbeResult> select_cuts(const ProbeTrace& trace, const Scene& scene, s
 
 namespace {
 
+// Where a view's test rays met the ground: a grid over the (x, z) box of
+// those points (about one point a cell, at most 128 x 128), a cell marked
+// if a point lies in it or next to it, with its summed-area table to count
+// marked cells in a box at once.
+class GroundSeen {
+ public:
+  explicit GroundSeen(std::span<const Vec3d> points) {
+    if (points.empty()) return;
+    for (const Vec3d& p : points) {
+      lo_ = glm::min(lo_, Vec2d(p.x, p.z));
+      hi_ = glm::max(hi_, Vec2d(p.x, p.z));
+    }
+    // About one point a cell where they cover the box evenly: finer, and
+    // the gaps between a few thousand points would read as unseen ground.
+    side_ = std::clamp(int(std::sqrt(double(points.size()))), 4, 128);
+    const int kSide = side_;
+    cell_ = glm::max((hi_ - lo_) / double(kSide), Vec2d(1e-12 * (1 + glm::length(hi_) + glm::length(lo_))));
+    std::vector<uint8_t> hit(size_t(kSide) * kSide, 0), marked(hit.size(), 0);
+    for (const Vec3d& p : points) {
+      const auto [i, j] = index(p.x, p.z);
+      hit[size_t(j) * kSide + size_t(i)] = 1;
+    }
+    for (int j = 0; j < kSide; ++j)
+      for (int i = 0; i < kSide; ++i) {
+        if (!hit[size_t(j) * kSide + size_t(i)]) continue;
+        for (int dj = -1; dj <= 1; ++dj)
+          for (int di = -1; di <= 1; ++di) {
+            const int x = i + di, y = j + dj;
+            if (x >= 0 && y >= 0 && x < kSide && y < kSide) marked[size_t(y) * kSide + size_t(x)] = 1;
+          }
+      }
+    sum_.assign(size_t(kSide + 1) * (kSide + 1), 0);
+    for (int j = 0; j < kSide; ++j)
+      for (int i = 0; i < kSide; ++i)
+        at(i + 1, j + 1) = marked[size_t(j) * kSide + size_t(i)] + at(i, j + 1) + at(i + 1, j) - at(i, j);
+  }
+  // Whether a test ray met the ground in or next to the (x, z) box of `b`
+  // (its cells, one cell of margin: the grid is coarse).
+  bool seen(const Bbox& b) const {
+    if (sum_.empty()) return false;
+    if (b.hi.x < lo_.x - cell_.x || b.lo.x > hi_.x + cell_.x || b.hi.z < lo_.y - cell_.y || b.lo.z > hi_.y + cell_.y)
+      return false;
+    const auto [i0, j0] = index(b.lo.x - cell_.x, b.lo.z - cell_.y);
+    const auto [i1, j1] = index(b.hi.x + cell_.x, b.hi.z + cell_.y);
+    return at(i1 + 1, j1 + 1) - at(i0, j1 + 1) - at(i1 + 1, j0) + at(i0, j0) > 0;
+  }
+
+ private:
+  using Vec2d = glm::dvec2;
+  std::pair<int, int> index(double x, double z) const {
+    const double last = double(side_ - 1);
+    const auto clamp_cell = [last](double v) { return int(std::clamp(std::floor(v), 0.0, last)); };
+    return {clamp_cell((x - lo_.x) / cell_.x), clamp_cell((z - lo_.y) / cell_.y)};
+  }
+  uint32_t& at(int i, int j) { return sum_[size_t(j) * size_t(side_ + 1) + size_t(i)]; }
+  uint32_t at(int i, int j) const { return sum_[size_t(j) * size_t(side_ + 1) + size_t(i)]; }
+  int side_ = 1;  // cells per side
+  Vec2d lo_{kInf}, hi_{-kInf}, cell_{1};
+  std::vector<uint32_t> sum_;
+};
+
 // What the unreached-cell policy needs of one view (probe.h).
 struct ViewFacts {
   const ProbeTrace* trace = nullptr;
@@ -662,6 +727,7 @@ struct ViewFacts {
   Frustum frustum;
   double a_min = kInf;  // smallest angle between neighbouring pixels' rays (at the image corners)
   double m = 1;         // the trace's magnification
+  GroundSeen ground{{}};  // where its test rays met the ground
 };
 
 ViewFacts make_view_facts(const ProbeView& v) {
@@ -675,6 +741,7 @@ ViewFacts make_view_facts(const ProbeView& v) {
       f.a_min = std::min({f.a_min, glm::length(d.dd_dx), glm::length(d.dd_dy)});
     }
   f.m = v.trace->magnification;
+  f.ground = GroundSeen(v.trace->ground_hits);
   return f;
 }
 
@@ -848,6 +915,7 @@ StatusOr<CutSelection> CutSelection::make(std::span<const ProbeView> views, cons
           if (!lands || view.frustum.outside(p)) continue;
           Bbox pb;
           for (const Vec3d& q : p) pb.expand(q);
+          if (!view.ground.seen(pb)) continue;  // hidden from this view (behind the object, say)
           need = std::min(need, view.m * view.a_min * distance_to_box(view.cam.eye, pb) * sin_alpha * ratio / xp->sigma);
         }
       }

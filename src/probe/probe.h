@@ -78,8 +78,11 @@
 // (how much farther from the light the shadow is than the cell), so need()
 // is at most m * a * (distance from the eye to the shadow) * sin(alpha) *
 // s_o / s_r. This binds cells outside the view whose shadows are seen, and
-// visible cells under a low light, whose shadows stretch. Not for a mirror
-// or glass ground (it shows no shadows), nor for shadows on other objects.
+// visible cells under a low light, whose shadows stretch. Only where the
+// view's test rays met the ground, on a grid over their ground hits (about
+// one a cell, at most 128 x 128), in or next to a cell one of them hit:
+// ground the object hides from the camera shows no shadow. Not for a mirror or glass ground (it shows no
+// shadows), nor for shadows on other objects.
 // Hits whose differentials were dropped (grazing, critical angle, degenerate
 // normals; ray_differential.h) get the same estimate along their own path:
 // m * a_ray * path length.
@@ -232,6 +235,7 @@ struct ProbeHit {
 // criterion, so sweeps and memory coarsening select cuts from one trace.
 struct ProbeTrace {
   std::vector<ProbeHit> hits;      // every mesh hit, by ray index, then along the path
+  std::vector<Vec3d> ground_hits;  // where paths met the ground plane (world), in the same order
   std::map<std::string, uint64_t> counters;
   double magnification = 1;        // m of the policy
   double trace_seconds = 0;

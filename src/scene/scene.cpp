@@ -363,7 +363,7 @@ Status parse_json(const Parser& p, const std::string& text, const std::string& r
   PathTracker keys;
   (void)json::sax_parse(text, &keys);
   if (!keys.duplicate.empty())
-    return p.fail(root + (keys.duplicate.front() == '[' ? "" : ".") + keys.duplicate, "is given twice");
+    return p.fail(keys.duplicate, "is given twice");
   return {};
 }
 

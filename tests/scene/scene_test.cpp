@@ -145,11 +145,11 @@ INSTANTIATE_TEST_SUITE_P(
                 "bad.json: materials.red.color[1]: is beyond the float range"},
         BadCase{"float_overflow_ior", "\"ior\": 1.5", "\"ior\": -1e39", "materials.glass.ior: is beyond the float range"},
         // nlohmann keeps the last of two equal keys without a word.
-        BadCase{"duplicate_key", "\"spp\": 2,", "\"spp\": 2, \"spp\": 3,", "bad.json: scene.spp: is given twice"},
+        BadCase{"duplicate_key", "\"spp\": 2,", "\"spp\": 2, \"spp\": 3,", "bad.json: spp: is given twice"},
         BadCase{"duplicate_nested_key", "\"fov_y\": 40", "\"fov_y\": 40, \"fov_y\": 50",
-                "bad.json: scene.camera.fov_y: is given twice"},
+                "bad.json: camera.fov_y: is given twice"},
         BadCase{"duplicate_key_in_array", "\"intensity\": 10", "\"intensity\": 10, \"intensity\": 1",
-                "bad.json: scene.lights[0].intensity: is given twice"},
+                "bad.json: lights[0].intensity: is given twice"},
         // A column-major matrix pasted by mistake: its translation would be dropped.
         BadCase{"non_affine_matrix", "\"translate\": [1, 2, 3], \"scale\": 2",
                 "\"matrix\": [1, 0, 0, 0,  0, 1, 0, 0,  0, 0, 1, 0,  0.2, 0, 0, 1]", "the last row must be 0 0 0 1"},
