@@ -482,6 +482,10 @@ std::string probe_key(const Scene& scene, const OctreeStore& store, std::span<co
   }
   const bool lights = !scene.lights.empty();
   mix(lights);
+  for (const Light& l : scene.lights) {  // where shadows fall on the ground (the shadow bound)
+    mix(l.type);
+    mix(l.type == LightType::Directional ? l.direction : l.position);
+  }
   mix(config.rays);
   mix(config.seed);
   mix(config.footprint_scale);
@@ -674,26 +678,26 @@ class GroundSeen {
     // About one point a cell where they cover the box evenly: finer, and
     // the gaps between a few thousand points would read as unseen ground.
     side_ = std::clamp(int(std::sqrt(double(points.size()))), 4, 128);
-    const int kSide = side_;
-    cell_ = glm::max((hi_ - lo_) / double(kSide), Vec2d(1e-12 * (1 + glm::length(hi_) + glm::length(lo_))));
-    std::vector<uint8_t> hit(size_t(kSide) * kSide, 0), marked(hit.size(), 0);
+    const int side = side_;
+    cell_ = glm::max((hi_ - lo_) / double(side), Vec2d(1e-12 * (1 + glm::length(hi_) + glm::length(lo_))));
+    std::vector<uint8_t> hit(size_t(side) * side, 0), marked(hit.size(), 0);
     for (const Vec3d& p : points) {
       const auto [i, j] = index(p.x, p.z);
-      hit[size_t(j) * kSide + size_t(i)] = 1;
+      hit[size_t(j) * side + size_t(i)] = 1;
     }
-    for (int j = 0; j < kSide; ++j)
-      for (int i = 0; i < kSide; ++i) {
-        if (!hit[size_t(j) * kSide + size_t(i)]) continue;
+    for (int j = 0; j < side; ++j)
+      for (int i = 0; i < side; ++i) {
+        if (!hit[size_t(j) * side + size_t(i)]) continue;
         for (int dj = -1; dj <= 1; ++dj)
           for (int di = -1; di <= 1; ++di) {
             const int x = i + di, y = j + dj;
-            if (x >= 0 && y >= 0 && x < kSide && y < kSide) marked[size_t(y) * kSide + size_t(x)] = 1;
+            if (x >= 0 && y >= 0 && x < side && y < side) marked[size_t(y) * side + size_t(x)] = 1;
           }
       }
-    sum_.assign(size_t(kSide + 1) * (kSide + 1), 0);
-    for (int j = 0; j < kSide; ++j)
-      for (int i = 0; i < kSide; ++i)
-        at(i + 1, j + 1) = marked[size_t(j) * kSide + size_t(i)] + at(i, j + 1) + at(i + 1, j) - at(i, j);
+    sum_.assign(size_t(side + 1) * (side + 1), 0);
+    for (int j = 0; j < side; ++j)
+      for (int i = 0; i < side; ++i)
+        at(i + 1, j + 1) = marked[size_t(j) * side + size_t(i)] + at(i, j + 1) + at(i + 1, j) - at(i, j);
   }
   // Whether a test ray met the ground in or next to the (x, z) box of `b`
   // (its cells, one cell of margin: the grid is coarse).
@@ -1111,7 +1115,7 @@ StatusOr<ProbeResult> CutSelection::select(const ProbeConfig& config) {
     cut.counters["finest_cells_kept_for_boundary"] = finest_kept[4];
     std::sort(cut.cells.begin(), cut.cells.end(), [](const CollapsedCell& a, const CollapsedCell& b) { return a.key < b.key; });
     // Footprints and hit counts of the marked cells (each hit counted once per cell).
-    std::unordered_map<uint64_t, size_t> cell_index;  // (level << 58 | code) -> index
+    std::unordered_map<uint64_t, size_t> cell_index;  // pack(level, code) -> index
     // A marker bit above the code: codes at level L have 3L bits (L <= 21).
     auto pack = [](uint32_t level, uint64_t code) { return (uint64_t(1) << (3 * level)) | code; };
     for (size_t i = 0; i < cut.cells.size(); ++i) cell_index[pack(cut.cells[i].key.level, cut.cells[i].key.code)] = i;

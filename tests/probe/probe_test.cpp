@@ -522,6 +522,15 @@ TEST(Probe, CellsWhoseShadowIsInViewAreAsFineAsTheShadowNeeds) {
   EXPECT_GT(in_view, 0u);
   // Without the light nothing is seen of the teapot: it collapses hard.
   EXPECT_LT(dark->cuts[0].cells.size(), lit->cuts[0].cells.size() / 4);
+  // Where the light stands decides the cut, so it is part of the cut's key:
+  // a cached cut is not reused under another light.
+  const OneObject one(b);
+  ProbeConfig c;
+  Scene low = scene, high = scene;
+  low.lights = {sun};
+  high.lights = {sun};
+  high.lights[0].direction = Vec3d(0, -1, 0);
+  EXPECT_NE(probe_key(low, *b.store, one.objects(), 0, c), probe_key(high, *b.store, one.objects(), 0, c));
 }
 
 // ...but only where the view sees the ground: here the teapot fills the view,
