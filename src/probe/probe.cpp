@@ -701,6 +701,7 @@ class GroundSeen {
   }
   // Whether a test ray met the ground in or next to the (x, z) box of `b`
   // (its cells, one cell of margin: the grid is coarse).
+  bool empty() const { return sum_.empty(); }
   bool seen(const Bbox& b) const {
     if (sum_.empty()) return false;
     if (b.hi.x < lo_.x - cell_.x || b.lo.x > hi_.x + cell_.x || b.hi.z < lo_.y - cell_.y || b.lo.z > hi_.y + cell_.y)
@@ -893,33 +894,62 @@ StatusOr<CutSelection> CutSelection::make(std::span<const ProbeView> views, cons
     // visible ground, or the ground is a mirror or glass (it shows no
     // shadows).
     const bool ground_shadows = lights && scene.ground && !scene.materials[size_t(scene.ground->material)].reflects();
+    // Per light, what does not depend on the cell: a directional light's
+    // slope (the shadow of (x, y, z) is (x - (y - h) dx/dy, h, z - (y - h)
+    // dz/dy)) and its sin(alpha).
+    struct ShadowLight {
+      bool directional;
+      Vec3d at;             // point light: its position
+      double kx = 0, kz = 0, sin_alpha = 0;
+      bool casts = true;    // a directional light pointing down
+    };
+    std::vector<ShadowLight> shadow_lights;
+    for (const Light& l : scene.lights) {
+      ShadowLight sl{l.type == LightType::Directional, l.position};
+      if (sl.directional) {
+        const Vec3d d = glm::normalize(l.direction);
+        sl.casts = d.y < 0;
+        if (sl.casts) {
+          sl.kx = d.x / d.y;
+          sl.kz = d.z / d.y;
+          sl.sin_alpha = -d.y;
+        }
+      }
+      shadow_lights.push_back(sl);
+    }
     auto shadow_estimate = [&](const ViewFacts& view, const Bbox& b) {
       double need = kInf;
-      if (!ground_shadows) return need;
+      if (!ground_shadows || view.ground.empty()) return need;
       const double h = scene.ground->height;
       for (const ObjectXf* xp : on_store) {
         const glm::dmat4& M = xp->m;
+        const glm::dvec4 px[2] = {M[0] * b.lo.x, M[0] * b.hi.x}, py[2] = {M[1] * b.lo.y, M[1] * b.hi.y};
+        const glm::dvec4 zw[2] = {M[2] * b.lo.z + M[3], M[2] * b.hi.z + M[3]};
         std::array<Vec3d, 8> c;
-        for (int i = 0; i < 8; ++i)
-          c[i] = Vec3d(M * glm::dvec4(i & 1 ? b.hi.x : b.lo.x, i & 2 ? b.hi.y : b.lo.y, i & 4 ? b.hi.z : b.lo.z, 1.0));
-        for (const Light& l : scene.lights) {
-          std::array<Vec3d, 8> p;
-          double sin_alpha = 1, ratio = 1;
+        for (int i = 0; i < 8; ++i) c[i] = Vec3d((px[i & 1] + py[(i >> 1) & 1]) + zw[(i >> 2) & 1]);
+        for (const ShadowLight& l : shadow_lights) {
+          if (!l.casts) continue;
+          Bbox pb;  // the shadow's box on the ground
+          double sin_alpha = l.directional ? l.sin_alpha : 1.0, ratio = 1;
           bool lands = true;
           for (int i = 0; i < 8 && lands; ++i) {
-            const Vec3d d = l.type == LightType::Directional ? l.direction : c[i] - l.position;
+            const double above = std::max(0.0, c[i].y - h);  // corners at or below the ground stay
+            if (l.directional) {
+              pb.expand(Vec3d(c[i].x - above * l.kx, h, c[i].z - above * l.kz));
+              continue;
+            }
+            const Vec3d d = c[i] - l.at;
             const double len = glm::length(d);
             if (!(d.y < 0) || !(len > 0)) { lands = false; break; }  // no shadow falls down from here
             sin_alpha = std::min(sin_alpha, -d.y / len);
-            const double t = c[i].y > h ? (h - c[i].y) / d.y : 0.0;
-            p[i] = c[i] + t * d;
-            p[i].y = h;
-            if (l.type != LightType::Directional) ratio = std::min(ratio, 1.0 / (1.0 + t));
+            const double t = above / -d.y;
+            pb.expand(Vec3d(c[i].x + t * d.x, h, c[i].z + t * d.z));
+            ratio = std::min(ratio, 1.0 / (1.0 + t));
           }
-          if (!lands || view.frustum.outside(p)) continue;
-          Bbox pb;
-          for (const Vec3d& q : p) pb.expand(q);
-          if (!view.ground.seen(pb)) continue;  // hidden from this view (behind the object, say)
+          // Ground the view's test rays met, directly or through mirrors and
+          // glass; elsewhere (outside the view, hidden behind the object) no
+          // shadow shows.
+          if (!lands || !view.ground.seen(pb)) continue;
           need = std::min(need, view.m * view.a_min * distance_to_box(view.cam.eye, pb) * sin_alpha * ratio / xp->sigma);
         }
       }
