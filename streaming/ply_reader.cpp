@@ -32,19 +32,6 @@ struct PlyProperty {
   ScalarType count_type = ScalarType::UInt8;
 };
 
-// The largest list length a count of this type can hold (a float count
-// type is refused when the header is read).
-int64_t largest_count(ScalarType t) {
-  switch (t) {
-    case ScalarType::Int8: return 127;
-    case ScalarType::UInt8: return 255;
-    case ScalarType::Int16: return 32767;
-    case ScalarType::UInt16: return 65535;
-    case ScalarType::Int32: return 2147483647;
-    default: return 4294967295;
-  }
-}
-
 struct PlyElement {
   std::string name;
   uint64_t count = 0;
@@ -692,9 +679,9 @@ StatusOr<bool> PlyReader::next_ascii(TriangleBatch& batch) {
       if (!p.is_list) continue;
       int64_t len = 0;
       if (!text::parse_number(t, len) || len < 0) return bad("bad list length '" + std::string(text::clip(t)) + "'");
-      if (len > largest_count(p.count_type))
+      if (len > largest_integer(p.count_type))
         return bad("list length " + std::to_string(len) + " does not fit the header's count type (largest " +
-                   std::to_string(largest_count(p.count_type)) + ")");
+                   std::to_string(largest_integer(p.count_type)) + ")");
       // Each value takes at least 2 characters: a bound before allocating.
       if (uint64_t(len) > tok.rest.size() / 2 + 1)
         return bad("face has fewer indices than its list length " + std::to_string(len));

@@ -29,6 +29,17 @@ inline size_t scalar_size(ScalarType t) {
   return 0;
 }
 inline bool is_integer(ScalarType t) { return t != ScalarType::Float32 && t != ScalarType::Float64; }
+// The largest value an integer type holds (a PLY list's count type bounds its length).
+inline int64_t largest_integer(ScalarType t) {
+  switch (t) {
+    case ScalarType::Int8: return std::numeric_limits<int8_t>::max();
+    case ScalarType::UInt8: return std::numeric_limits<uint8_t>::max();
+    case ScalarType::Int16: return std::numeric_limits<int16_t>::max();
+    case ScalarType::UInt16: return std::numeric_limits<uint16_t>::max();
+    case ScalarType::Int32: return std::numeric_limits<int32_t>::max();
+    default: return std::numeric_limits<uint32_t>::max();
+  }
+}
 
 template <class T>
 inline T load_raw(const uint8_t* p, bool swap) {

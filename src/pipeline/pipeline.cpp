@@ -582,6 +582,8 @@ StatusOr<FittedCuts> select_fitting_cuts(RunSession& session, std::span<const Pr
   const uint64_t memory_limit = session.memory_limit;
   FittedCuts fitted;
   uint64_t previous_estimate = UINT64_MAX;
+  uint64_t input_triangles = 0;
+  for (const auto& st : stores.stores) input_triangles += st->header().triangle_count;
   // The cells' needs are computed once; each coarsening step only decides.
   RAYLOD_ASSIGN_OR_RETURN(CutSelection selection,
                           CutSelection::make(views, scene, stores.probe_stores, stores.objects, probe));
@@ -606,8 +608,6 @@ StatusOr<FittedCuts> select_fitting_cuts(RunSession& session, std::span<const Pr
     // renderer's fixed overhead) or after max_coarsening_steps doublings.
     // While no cell collapses yet (every cell finer than K footprints), the
     // next doubling may still: that is not bottoming out.
-    uint64_t input_triangles = 0;
-    for (const auto& st : stores.stores) input_triangles += st->header().triangle_count;
     const bool nothing_collapsed = estimate >= input_triangles;
     if (fitted.coarsening_steps >= options.max_coarsening_steps || (estimate >= previous_estimate && !nothing_collapsed))
       return Status::error("even at footprint scale " + fmt("%g", probe.footprint_scale) + " the simplified mesh (" +

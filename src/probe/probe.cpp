@@ -725,6 +725,19 @@ class GroundSeen {
   std::vector<uint32_t> sum_;
 };
 
+// The corners of box b under the transform M, corner i taking hi on axis k
+// where bit k of i is set. M * (x, y, z, 1) is (M[0] x + M[1] y) + (M[2] z +
+// M[3]) as glm evaluates it; each product takes one of two values per axis,
+// so the corners are sums of those: the same values, with a quarter of the
+// multiplications.
+std::array<Vec3d, 8> world_corners(const glm::dmat4& M, const Bbox& b) {
+  const glm::dvec4 px[2] = {M[0] * b.lo.x, M[0] * b.hi.x}, py[2] = {M[1] * b.lo.y, M[1] * b.hi.y};
+  const glm::dvec4 zw[2] = {M[2] * b.lo.z + M[3], M[2] * b.hi.z + M[3]};
+  std::array<Vec3d, 8> c;
+  for (int i = 0; i < 8; ++i) c[i] = Vec3d((px[i & 1] + py[(i >> 1) & 1]) + zw[(i >> 2) & 1]);
+  return c;
+}
+
 // What the unreached-cell policy needs of one view (probe.h).
 struct ViewFacts {
   const ProbeTrace* trace = nullptr;
@@ -852,10 +865,6 @@ StatusOr<CutSelection> CutSelection::make(std::span<const ProbeView> views, cons
     n.min_footprint = std::isfinite(min_fp) ? float(min_fp) : 0.0f;
 
     // The policy's estimate for a cell no ray of view `view` reached (probe.h).
-    // A corner of the cell in world coordinates is x.m * (x, y, z, 1), which
-    // glm evaluates as (m[0] x + m[1] y) + (m[2] z + m[3]); each product takes
-    // one of two values per axis, so the corners are sums of those: the same
-    // values, with a quarter of the multiplications.
     std::vector<const ObjectXf*> on_store;
     for (const ObjectXf& x : xf)
       if (x.store == s) on_store.push_back(&x);
@@ -866,15 +875,9 @@ StatusOr<CutSelection> CutSelection::make(std::span<const ProbeView> views, cons
       const double m = view.m;
       double need = kInf;
       for (const ObjectXf* xp : on_store) {
-        const glm::dmat4& M = xp->m;
-        const glm::dvec4 px[2] = {M[0] * b.lo.x, M[0] * b.hi.x}, py[2] = {M[1] * b.lo.y, M[1] * b.hi.y};
-        const glm::dvec4 zw[2] = {M[2] * b.lo.z + M[3], M[2] * b.hi.z + M[3]};
-        std::array<Vec3d, 8> c;
+        const std::array<Vec3d, 8> c = world_corners(xp->m, b);
         Bbox wb;
-        for (int i = 0; i < 8; ++i) {
-          c[i] = Vec3d((px[i & 1] + py[(i >> 1) & 1]) + zw[(i >> 2) & 1]);
-          wb.expand(c[i]);
-        }
+        for (const Vec3d& q : c) wb.expand(q);
         double e = view.a_min * distance_to_box(cam.eye, wb) / xp->sigma;
         if (spec || !view.frustum.outside(c)) e *= m;
         else if (lit) e *= shadow_factor;
@@ -922,11 +925,7 @@ StatusOr<CutSelection> CutSelection::make(std::span<const ProbeView> views, cons
       if (!ground_shadows || view.ground.empty()) return need;
       const double h = scene.ground->height;
       for (const ObjectXf* xp : on_store) {
-        const glm::dmat4& M = xp->m;
-        const glm::dvec4 px[2] = {M[0] * b.lo.x, M[0] * b.hi.x}, py[2] = {M[1] * b.lo.y, M[1] * b.hi.y};
-        const glm::dvec4 zw[2] = {M[2] * b.lo.z + M[3], M[2] * b.hi.z + M[3]};
-        std::array<Vec3d, 8> c;
-        for (int i = 0; i < 8; ++i) c[i] = Vec3d((px[i & 1] + py[(i >> 1) & 1]) + zw[(i >> 2) & 1]);
+        const std::array<Vec3d, 8> c = world_corners(xp->m, b);
         for (const ShadowLight& l : shadow_lights) {
           if (!l.casts) continue;
           Bbox pb;  // the shadow's box on the ground

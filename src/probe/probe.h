@@ -79,9 +79,10 @@
 // is at most m * a * (distance from the eye to the shadow) * sin(alpha) *
 // s_o / s_r. This binds cells outside the view whose shadows are seen, and
 // visible cells under a low light, whose shadows stretch. Only where the
-// view's test rays met the ground (directly or through mirrors and glass), on a grid over their ground hits (about
-// one a cell, at most 128 x 128), in or next to a cell one of them hit:
-// ground the object hides from the camera shows no shadow. Not for a mirror or glass ground (it shows no
+// view's test rays met the ground (directly or through mirrors and glass),
+// on a grid over their ground hits (about one a cell, at most 128 x 128), in
+// or next to a cell one of them hit: ground the object hides from the
+// camera shows no shadow. Not for a mirror or glass ground (it shows no
 // shadows), nor for shadows on other objects.
 // Hits whose differentials were dropped (grazing, critical angle, degenerate
 // normals; ray_differential.h) get the same estimate along their own path:

@@ -279,6 +279,8 @@ StatusOr<std::unique_ptr<EmbreeScene>> EmbreeScene::build(std::vector<TriangleMe
       return Status::error(m.name + ": normal count differs from vertex count");
     for (uint32_t idx : m.indices)
       if (idx >= m.positions.size()) return Status::error(m.name + ": vertex index out of range");
+    if (m.name != kGroundMeshName)
+      for (const Vec3& p : m.positions) info.object_bounds.expand(Vec3d(p));
     s->first_triangle_.push_back(info.triangles);
     info.triangles += m.triangle_count();
     info.vertices += m.positions.size();

@@ -19,10 +19,10 @@
 
 namespace raylod {
 
-// A world-space triangle mesh with shared vertices, as Embree consumes it.
 // TriangleMesh::name of the ground plane's mesh (make_ground_mesh).
 inline constexpr const char* kGroundMeshName = "ground";
 
+// A world-space triangle mesh with shared vertices, as Embree consumes it.
 struct TriangleMesh {
   std::vector<Vec3> positions;    // world space
   std::vector<Vec3> normals;      // empty, or one unit vertex normal per position (world space)
@@ -106,6 +106,7 @@ struct BvhInfo {
   double build_seconds = 0;
   std::string quality;             // "high", "medium", "low", with "+compact"
   Bbox bounds;
+  Bbox object_bounds;              // of every mesh but the ground's
 };
 
 // A closest hit: distance along the ray, geometry (mesh index) and triangle,

@@ -16,7 +16,6 @@
 #include <OpenImageIO/imageio.h>
 #include <nlohmann/json.hpp>
 #include <tbb/blocked_range.h>
-#include <tbb/parallel_reduce.h>
 #include <tbb/parallel_for.h>
 #include <glm/gtc/matrix_transform.hpp>
 
@@ -310,31 +309,6 @@ StatusOr<std::vector<TriangleMesh>> load_scene_meshes(const Scene& world_scene, 
   return meshes;
 }
 
-namespace {
-
-// The largest side of the box around every mesh but the ground's.
-double objects_size(const EmbreeScene& geometry) {
-  Bbox all;
-  for (const TriangleMesh& m : geometry.meshes()) {
-    if (m.name == kGroundMeshName) continue;
-    all.expand(tbb::parallel_reduce(
-        tbb::blocked_range<size_t>(0, m.positions.size(), 1 << 16), Bbox{},
-        [&](const tbb::blocked_range<size_t>& r, Bbox b) {
-          for (size_t i = r.begin(); i != r.end(); ++i) b.expand(Vec3d(m.positions[i]));
-          return b;
-        },
-        [](Bbox a, const Bbox& b) {
-          a.expand(b);
-          return a;
-        }));
-  }
-  if (all.empty()) return 0;
-  const Vec3d e = all.extent();
-  return std::max({e.x, e.y, e.z});
-}
-
-}  // namespace
-
 RenderResult render_embree_scene(const EmbreeScene& geometry, const Scene& world_scene, const RenderOptions& options) {
   const auto start = std::chrono::steady_clock::now();
   const Scene scene = in_render_frame(world_scene);
@@ -348,8 +322,11 @@ RenderResult render_embree_scene(const EmbreeScene& geometry, const Scene& world
   config.max_depth = scene.max_depth;
   // Offsets scale with objects smaller than a unit (IntegratorConfig::offset_floor);
   // the ground plane, as large as the scene file says, does not count.
-  const double size = objects_size(geometry);
-  if (size > 0 && size < config.offset_floor) config.offset_floor = size;
+  if (const Bbox& objects = geometry.info().object_bounds; !objects.empty()) {
+    const Vec3d e = objects.extent();
+    const double size = std::max({e.x, e.y, e.z});
+    if (size > 0 && size < config.offset_floor) config.offset_floor = size;
+  }
   config.wireframe = options.wireframe;
   const Integrator integrator(geometry, scene, camera, effects, config);
   const int spp = options.spp > 0 ? options.spp : scene.spp;

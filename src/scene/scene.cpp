@@ -204,7 +204,6 @@ Status parse_material(const Parser& p, const std::string& name, const json& j, M
   if (j.contains("color")) RAYLOD_RETURN_IF_ERROR(p.color(j["color"], where + ".color", m.color));
   if (j.contains("specular")) RAYLOD_RETURN_IF_ERROR(p.color(j["specular"], where + ".specular", m.specular));
   if (j.contains("tint")) RAYLOD_RETURN_IF_ERROR(p.color(j["tint"], where + ".tint", m.tint));
-  double v;
   if (j.contains("shininess")) RAYLOD_RETURN_IF_ERROR(p.number_float(j["shininess"], where + ".shininess", m.shininess));
   if (j.contains("reflectance")) RAYLOD_RETURN_IF_ERROR(p.number_float(j["reflectance"], where + ".reflectance", m.reflectance));
   if (j.contains("ior")) RAYLOD_RETURN_IF_ERROR(p.number_float(j["ior"], where + ".ior", m.ior));
