@@ -135,7 +135,7 @@ Status ObjReader::parse_face(text::Tokens& tok, uint64_t line, uint64_t v_seen, 
 Status ObjReader::first_pass() {
   RAYLOD_ASSIGN_OR_RETURN(v_spill_, SpillFile::create(path_.string() + " vertex table"));
   RAYLOD_ASSIGN_OR_RETURN(vn_spill_, SpillFile::create(path_.string() + " normal table"));
-  ObjLines lines(file_.text(), 0, 1);
+  ObjLines lines(file_.text(), text::utf8_bom_bytes(file_.text()), 1);
   std::string_view line, kw, t;
   uint64_t ln = 0, nv = 0, nn = 0, faces = 0, faces_with_normals = 0, triangles = 0;
   size_t line_start = 0;

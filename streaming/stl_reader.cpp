@@ -165,7 +165,8 @@ StatusOr<std::unique_ptr<MeshReader>> StlReader::open(const std::filesystem::pat
     size_matches = kHeaderBytes + kRecordBytes * declared == size;
   }
   // "solid" as the first word, and no NUL byte in the first 512 bytes (text).
-  std::string_view head = r->file_.text().substr(0, 512);
+  const size_t bom = text::utf8_bom_bytes(r->file_.text());
+  std::string_view head = r->file_.text().substr(bom, 512);
   size_t i = 0;
   while (i < head.size() && (text::is_space(head[i]) || head[i] == '\n')) ++i;
   const bool says_solid = head.size() >= i + 5 && text::iequals(head.substr(i, 5), "solid") &&
@@ -187,7 +188,7 @@ StatusOr<std::unique_ptr<MeshReader>> StlReader::open(const std::filesystem::pat
     h.encoding = "ascii";
     // A validating pass counts the facets, so that errors surface on open and
     // the header's counts are exact.
-    StlCursor c{reinterpret_cast<const char*>(d), reinterpret_cast<const char*>(d) + size, 1};
+    StlCursor c{reinterpret_cast<const char*>(d) + bom, reinterpret_cast<const char*>(d) + size, 1};
     bool in_solid = false, have = true;
     Vec3 v[3];
     uint64_t n = 0;
@@ -198,7 +199,7 @@ StatusOr<std::unique_ptr<MeshReader>> StlReader::open(const std::filesystem::pat
     }
     if (n == 0) return r->error("empty mesh: the ASCII STL file has no facets");
     r->count_ = n;
-    r->cursor_ = StlCursor{reinterpret_cast<const char*>(d), reinterpret_cast<const char*>(d) + size, 1};
+    r->cursor_ = StlCursor{reinterpret_cast<const char*>(d) + bom, reinterpret_cast<const char*>(d) + size, 1};
   } else if (size < kHeaderBytes) {
     return r->error("not an STL file: too short for a binary STL header (" + std::to_string(size) +
                     " bytes, need 84) and not ASCII STL (no leading 'solid')");

@@ -138,6 +138,13 @@ inline FloatParse parse_float(std::string_view tok, float& out) {
   return FloatParse::Ok;
 }
 
+// Bytes of a UTF-8 byte order mark at the start of a text file (3), or 0.
+// Editors on Windows write one; the readers skip it rather than read it as
+// part of the first keyword.
+inline size_t utf8_bom_bytes(std::string_view text) {
+  return text.size() >= 3 && text[0] == '\xEF' && text[1] == '\xBB' && text[2] == '\xBF' ? 3 : 0;
+}
+
 inline bool iequals(std::string_view a, std::string_view b) {
   if (a.size() != b.size()) return false;
   for (size_t i = 0; i < a.size(); ++i) {

@@ -168,6 +168,15 @@ Status check_stats_json_path(const Args& args) {
   return {};
 }
 
+std::vector<FileRole> scene_input_files(const Args& args, const Scene& scene) {
+  std::vector<FileRole> files;
+  if (!args.positionals().empty()) files.push_back({args.positionals()[0], "the scene file"});
+  if (args.has("--mesh")) files.push_back({args.get("--mesh"), "the --mesh file"});
+  for (size_t i = 0; i < scene.objects.size(); ++i)
+    files.push_back({scene.objects[i].mesh, "the mesh of objects[" + std::to_string(i) + "]"});
+  return files;
+}
+
 StatusOr<Scene> scene_from_args(const Args& args) {
   if (args.positionals().size() > 1) return Status::error("expected at most one SCENE argument");
   RAYLOD_ASSIGN_OR_RETURN(Scene scene, args.positionals().empty() ? default_scene() : load_scene(args.positionals()[0]));

@@ -80,6 +80,12 @@ int cmd_probe(int argc, char** argv) {
                                                            std::to_string(meshes.size()) +
                                                            " meshes; omit -o to write one cut beside each store")));
 
+  if (args.has("--output")) {
+    std::vector<FileRole> inputs = cli::scene_input_files(args, scene);
+    for (const auto& store : ss.store_paths) inputs.push_back({store, "the store " + store.string()});
+    if (Status s = cluster::agree(check_outputs_apart({{args.get("--output"), "the cut (-o)"}}, inputs)); !s)
+      return cli::fail("probe", s);
+  }
   auto config_or = make_probe_config(scene, uint64_t(*rays), cut_opts->footprint_scale, budget, !quiet);
   if (Status s = cluster::agree(config_or.status()); !s) return cli::fail("probe", s);
   ProbeConfig config = *config_or;
@@ -134,9 +140,11 @@ int cmd_probe(int argc, char** argv) {
         return static_cast<unsigned long long>(it == cut.counters.end() ? 0 : it->second);
       };
       if (count("finest_cells_kept") > 0)
-        say("probe: %llu finest cells kept whole (for K %llu, deviation %llu, normals %llu, open boundary %llu)\n",
+        say("probe: %llu finest cells kept whole (for K %llu, deviation %llu, normals %llu, open boundary %llu, "
+            "fold %llu)\n",
             count("finest_cells_kept"), count("finest_cells_kept_for_k"), count("finest_cells_kept_for_deviation"),
-            count("finest_cells_kept_for_normals"), count("finest_cells_kept_for_boundary"));
+            count("finest_cells_kept_for_normals"), count("finest_cells_kept_for_boundary"),
+            count("finest_cells_kept_for_fold"));
     }
     return {};
   };

@@ -66,6 +66,14 @@ Status run_render(int argc, char** argv, bool& help) {
   }
 
   RAYLOD_ASSIGN_OR_RETURN(Scene scene, scene_from_args(args));
+  {
+    std::vector<FileRole> outputs = {{output, "the image (-o)"}};
+    if (args.has("--stats-json")) outputs.push_back({args.get("--stats-json"), "--stats-json"});
+    if (opts.aov_depth) outputs.push_back({aov_path(output, "depth"), "the depth AOV"});
+    if (opts.aov_normal) outputs.push_back({aov_path(output, "normal"), "the normal AOV"});
+    if (opts.aov_triangle_id) outputs.push_back({aov_path(output, "triangle-id"), "the triangle-id AOV"});
+    RAYLOD_RETURN_IF_ERROR(check_outputs_apart(outputs, scene_input_files(args, scene)));
+  }
   RAYLOD_ASSIGN_OR_RETURN(int64_t width, args.get_int("--width", scene.camera.width, 1, 32768));
   RAYLOD_ASSIGN_OR_RETURN(int64_t height, args.get_int("--height", scene.camera.height, 1, 32768));
   scene.camera.width = int(width);

@@ -148,6 +148,14 @@ Status run_run(int argc, char** argv, bool& help) {
   if (!quiet) log = [](const std::string& m) { std::fprintf(stderr, "raylod run: %s\n", m.c_str()); };
 
   RAYLOD_ASSIGN_OR_RETURN(Scene scene, scene_from_args(args));
+  {
+    std::vector<FileRole> outputs = {{sequence ? numbered_image_path(output, 0) : output, "the image (-o)"}};
+    if (args.has("--stats-json")) outputs.push_back({args.get("--stats-json"), "--stats-json"});
+    if (!opts.export_mesh.empty()) outputs.push_back({opts.export_mesh, "--export-mesh"});
+    std::vector<FileRole> inputs = scene_input_files(args, scene);
+    if (args.has("--views")) inputs.push_back({args.get("--views"), "the --views file"});
+    RAYLOD_RETURN_IF_ERROR(check_outputs_apart(outputs, inputs));
+  }
   if (sequence) {
     // The cameras are read (and checked) before anything is built or written.
     std::vector<Camera> cameras;

@@ -119,6 +119,12 @@ int run_simplify(int argc, char** argv) {
     return fail("simplify", Status::error(cut_path.string() + ": " + why + "; run raylod probe on this store"));
   }
 
+  if (Status st = check_outputs_apart({{out_path, "the simplified mesh (-o)"}},
+                                      {{store_path, "the store"},
+                                       {cut_path, "the cut"},
+                                       {(*store)->header().source_path, "the store's mesh"}});
+      !st)
+    return fail("simplify", st);
   // Refuse before any work if the output would not fit.
   const SimplifyEstimate estimate = estimate_simplify(**store, *cut);
   if (estimate.bytes > limit->total)

@@ -183,6 +183,38 @@ bool pid_prefix_is_dead(const std::string& rest) {
 
 }  // namespace
 
+namespace {
+
+// Whether a and b name one file: the same device and inode if both exist,
+// else the same absolute, normalised path.
+bool same_file(const std::filesystem::path& a, const std::filesystem::path& b) {
+  std::error_code ec;
+  if (std::filesystem::exists(a, ec) && std::filesystem::exists(b, ec)) {
+    const bool same = std::filesystem::equivalent(a, b, ec);
+    if (!ec) return same;
+  }
+  const auto absolute_a = std::filesystem::weakly_canonical(std::filesystem::absolute(a, ec), ec);
+  const auto absolute_b = std::filesystem::weakly_canonical(std::filesystem::absolute(b, ec), ec);
+  return absolute_a == absolute_b;
+}
+
+}  // namespace
+
+Status check_outputs_apart(const std::vector<FileRole>& outputs, const std::vector<FileRole>& inputs) {
+  for (size_t i = 0; i < outputs.size(); ++i) {
+    const FileRole& out = outputs[i];
+    if (out.path.empty()) continue;
+    for (const FileRole& in : inputs)
+      if (!in.path.empty() && same_file(out.path, in.path))
+        return Status::error(out.path.string() + ": " + out.role + " would replace " + in.role +
+                             "; choose another output");
+    for (size_t j = i + 1; j < outputs.size(); ++j)
+      if (!outputs[j].path.empty() && same_file(out.path, outputs[j].path))
+        return Status::error(out.path.string() + ": given as both " + out.role + " and " + outputs[j].role);
+  }
+  return {};
+}
+
 const std::string& process_tag() {
   static const std::string tag = std::to_string(getpid()) + "@" + host_tag();
   return tag;
@@ -322,10 +354,14 @@ std::filesystem::path default_cache_dir() {
 Status write_file_atomic(const std::filesystem::path& path, const std::string& text) {
   AtomicOutput out(path);
   {
+    errno = 0;
     std::ofstream f(out.temp_path(), std::ios::binary);
-    if (!f) return Status::write_failed(path.string(), path.string() + ": cannot open for writing", errno);
+    if (!f)
+      return Status::write_failed(path.string(), path.string() + ": cannot open for writing: " + std::strerror(errno),
+                                  errno);
     f << text;
-    if (!f.flush()) return Status::write_failed(path.string(), path.string() + ": write failed (disk full?)", errno);
+    if (!f.flush())
+      return Status::write_failed(path.string(), path.string() + ": write failed: " + std::strerror(errno), errno);
   }
   return out.commit();
 }

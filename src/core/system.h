@@ -4,6 +4,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <string>
+#include <vector>
 
 #include "core/status.h"
 
@@ -55,6 +56,19 @@ Status check_regular_file(const std::filesystem::path& path);
 // What a file of this st_mode is, for the messages above: "is a directory,
 // not a regular file", ...; empty for a regular file.
 std::string not_regular_file_text(unsigned mode);
+
+// A file a command reads or writes, and what it is to the command ("the
+// scene file", "-o", "--stats-json"), for check_outputs_apart.
+struct FileRole {
+  std::filesystem::path path;
+  std::string role;
+};
+// Refuses outputs that would replace one of the inputs or each other: the
+// same file (device and inode, through links and other spellings of the
+// path) or, for files that do not exist yet, the same absolute path. An
+// atomic write would otherwise rename its result over the input it is
+// still reading, e.g. `raylod build MESH -o MESH`.
+Status check_outputs_apart(const std::vector<FileRole>& outputs, const std::vector<FileRole>& inputs);
 
 // Output written atomically: write to a temporary sibling, fsync, rename over
 // the destination on commit(). Destroying without commit() removes the

@@ -5,6 +5,13 @@
 #include <cmath>
 
 namespace raylod {
+namespace {
+
+// One-sided normals give |s.e| >= lambda (collapse_deviation.h); below this
+// fraction of lambda, part of the cell faces the other way.
+constexpr double kFoldMargin = 0.9;
+
+}  // namespace
 
 CollapseDeviation collapse_deviation(const NodeRecord& node, const Bbox& cell, const QemSolveConfig& config) {
   CollapseDeviation d;
@@ -25,6 +32,10 @@ CollapseDeviation collapse_deviation(const NodeRecord& node, const Bbox& cell, c
   const double resultant = std::min(1.0, glm::length(node.normal_sum) / weight);
   const double from_spread = 2.0 * (1.0 - resultant);
   d.normal = std::min({M_PI, from_side, from_spread});
+  if (s.rank <= 1) {
+    const SymmetricEigen3 e = symmetric_eigen(q);
+    d.folded = std::abs(glm::dot(node.normal_sum, e.vectors[0])) < kFoldMargin * e.values[0];
+  }
   return d;
 }
 

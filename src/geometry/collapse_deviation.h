@@ -37,6 +37,20 @@
 // one plane and deviation 0). The store flags the cells that hold a rim
 // vertex (OctreeStore::touches_boundary), and the cut lets such a cell
 // collapse only while the whole cell is within the tolerance (probe.h).
+//
+// Nor folds: sheets facing opposite ways that the solve takes for one plane
+// (rank 1), such as a knife edge (two faces meeting at a 0-degree dihedral)
+// or a plate thinner than the cell. The representative then lies anywhere
+// along that plane (at the mean of the cell's corners), so the fold's edge
+// moves inwards by up to the cell's size while the quadric reports no
+// deviation across it. `folded` says so, and the cut treats such a cell as
+// it treats a rim. The test, from the sums the store keeps: with A = sum w n
+// n^T, its largest eigenpair (lambda, e) and s = sum w n, normals all on
+// one side of the plane (n.e >= 0) give s.e = sum w (n.e) >= sum w (n.e)^2 =
+// lambda, since |n.e| <= 1; so |s.e| < lambda means that some of the cell's
+// area faces the other way. A margin of 10% of lambda keeps smooth input
+// normals (summed in s, where A has the face normals) from flagging a
+// one-sided patch.
 #pragma once
 
 #include "core/math.h"
@@ -48,6 +62,7 @@ namespace raylod {
 struct CollapseDeviation {
   double position = 0;  // same units as the cell (store units)
   double normal = 0;    // radians
+  bool folded = false;  // opposite-facing sheets solved as one plane (above)
 };
 
 // `cell` in the quadric's frame (relative to StoreHeader::origin for store

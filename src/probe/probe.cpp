@@ -1074,10 +1074,10 @@ StatusOr<ProbeResult> CutSelection::select(const ProbeConfig& config) {
     // inside an accepted one is collapsed with it).
     const QemSolveConfig qem;
     const Vec3d origin = st.header().origin;
-    uint64_t rejected_deviation = 0, rejected_normal = 0, rejected_boundary = 0;
+    uint64_t rejected_deviation = 0, rejected_normal = 0, rejected_boundary = 0, rejected_fold = 0;
     // The finest cells left uncollapsed (their input triangles are kept as
     // they are), by the test that kept them: K, deviation, normal, boundary.
-    std::array<uint64_t, 5> finest_kept{};
+    std::array<uint64_t, 6> finest_kept{};
     std::vector<std::vector<char>> collapsed(size_t(Q) + 1);
     const std::vector<std::vector<uint64_t>>& codes_at = n.kept->codes;
     for (int L = 0; L <= Q; ++L) {
@@ -1096,7 +1096,7 @@ StatusOr<ProbeResult> CutSelection::select(const ProbeConfig& config) {
         }
       }
       // 0 = keep, 1 = collapse, 2 = kept for its deviation, 3 = for its
-      // normal, 4 = for an open boundary in it.
+      // normal, 4 = for an open boundary in it, 5 = for a fold in it.
       std::vector<char> verdict(nodes.size(), 0);
       tbb::parallel_for(tbb::blocked_range<size_t>(0, nodes.size(), 256), [&](const tbb::blocked_range<size_t>& r) {
         for (size_t i = r.begin(); i != r.end(); ++i) {
@@ -1118,6 +1118,12 @@ StatusOr<ProbeResult> CutSelection::select(const ProbeConfig& config) {
             verdict[i] = 4;
             continue;
           }
+          // Nor a fold (a knife edge, a plate thinner than the cell), whose
+          // edge the representative may pull as far in: the same rule.
+          if (!(diag <= config.tolerance_px * f) && dev.folded) {
+            verdict[i] = 5;
+            continue;
+          }
           if (bound_normals && dev.normal > config.angle_tolerance_px * n.tilt[size_t(L)][i]) { verdict[i] = 3; continue; }
           verdict[i] = 1;
         }
@@ -1128,6 +1134,7 @@ StatusOr<ProbeResult> CutSelection::select(const ProbeConfig& config) {
         rejected_deviation += verdict[i] == 2;
         rejected_normal += verdict[i] == 3;
         rejected_boundary += verdict[i] == 4;
+        rejected_fold += verdict[i] == 5;
         if (verdict[i] == 1) {
           collapsed[size_t(L)][i] = 1;
           cut.cells.push_back({CellKey{uint32_t(L), codes[i]}, 0.0f, 0});
@@ -1137,11 +1144,14 @@ StatusOr<ProbeResult> CutSelection::select(const ProbeConfig& config) {
     cut.counters["cells_kept_for_deviation"] = rejected_deviation;
     cut.counters["cells_kept_for_normals"] = rejected_normal;
     cut.counters["cells_kept_for_boundary"] = rejected_boundary;
-    cut.counters["finest_cells_kept"] = finest_kept[0] + finest_kept[2] + finest_kept[3] + finest_kept[4];
+    cut.counters["cells_kept_for_fold"] = rejected_fold;
+    cut.counters["finest_cells_kept"] =
+        finest_kept[0] + finest_kept[2] + finest_kept[3] + finest_kept[4] + finest_kept[5];
     cut.counters["finest_cells_kept_for_k"] = finest_kept[0];
     cut.counters["finest_cells_kept_for_deviation"] = finest_kept[2];
     cut.counters["finest_cells_kept_for_normals"] = finest_kept[3];
     cut.counters["finest_cells_kept_for_boundary"] = finest_kept[4];
+    cut.counters["finest_cells_kept_for_fold"] = finest_kept[5];
     std::sort(cut.cells.begin(), cut.cells.end(), [](const CollapsedCell& a, const CollapsedCell& b) { return a.key < b.key; });
     // Footprints and hit counts of the marked cells (each hit counted once per cell).
     std::unordered_map<uint64_t, size_t> cell_index;  // pack(level, code) -> index

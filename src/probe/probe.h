@@ -153,7 +153,8 @@ class SelectionCache {
     std::vector<std::vector<CollapseDeviation>> deviation;  // per level; position < 0: not computed yet
   };
   Store& of(const OctreeStore& store);
-  // What a cache for these stores holds: 24 bytes a node.
+  // What a cache for these stores holds: 32 bytes a node (a code and a
+  // CollapseDeviation).
   static uint64_t bytes_for(std::span<const OctreeStore* const> stores);
   // A cache's entry for one selection alone (none shared).
   static Store make_entry(const OctreeStore& store);

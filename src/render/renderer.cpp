@@ -94,10 +94,15 @@ Status write_pixels(const std::filesystem::path& path, const OIIO::ImageSpec& sp
     if (!wrote || !closed)
       return Status::error(path.string() + ": write failed (disk full?): " + out->geterror());
     if (in_memory) {
+      errno = 0;
       std::ofstream f(atomic.temp_path(), std::ios::binary | std::ios::trunc);
+      if (!f)
+        return Status::write_failed(path.string(), path.string() + ": cannot open for writing: " + std::strerror(errno),
+                                    errno);
       f.write(reinterpret_cast<const char*>(encoded.data()), std::streamsize(encoded.size()));
       f.close();
-      if (!f) return Status::error(path.string() + ": write failed (disk full?)");
+      if (!f)
+        return Status::write_failed(path.string(), path.string() + ": write failed: " + std::strerror(errno), errno);
       // Every byte went through the checked write above; the file must hold
       // all of them (commit's fsync then reports what the disk refuses).
       std::error_code ec;

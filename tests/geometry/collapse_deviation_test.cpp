@@ -90,5 +90,47 @@ TEST(CollapseDeviation, ThinWallIsItsThickness) {
   EXPECT_LE(d.position, 2 * t);
 }
 
+TEST(CollapseDeviation, FoldsAreFlaggedOneSidedSurfacesAreNot) {
+  const Bbox cell{Vec3d(-1), Vec3d(1)};
+  // A knife edge: two faces meeting at a 0-degree dihedral along x = 1 (the
+  // lower one tilted by 0.02 rad, facing down). The solve sees one plane
+  // and puts the representative at the corners' mean, well inside the
+  // edge, while the quadric's deviation stays near zero.
+  NodeRecord knife;
+  add_triangle(knife, {-1, 0, -1}, {-1, 0, 1}, {1, 0, 1});
+  add_triangle(knife, {-1, 0, -1}, {1, 0, 1}, {1, 0, -1});
+  add_triangle(knife, {-1, -0.04, -1}, {1, 0, 1}, {-1, -0.04, 1});
+  add_triangle(knife, {-1, -0.04, -1}, {1, 0, -1}, {1, 0, 1});
+  const CollapseDeviation k = collapse_deviation(knife, cell);
+  EXPECT_TRUE(k.folded);
+  EXPECT_LT(k.position, 0.05);
+  // A thin wall (two sheets facing away from each other) is a fold too.
+  NodeRecord wall;
+  add_triangle(wall, {-1, 0, -1}, {1, 0, 1}, {-1, 0, 1});
+  add_triangle(wall, {-1, 0.001, -1}, {-1, 0.001, 1}, {1, 0.001, 1});
+  EXPECT_TRUE(collapse_deviation(wall, cell).folded);
+  // One-sided surfaces are not: a plane, a crease, a box corner, a
+  // spherical cap, a 30-degree wedge (two planes the solve keeps apart: its
+  // ridge pins the representative).
+  NodeRecord flat;
+  add_triangle(flat, {-1, 0, -1}, {-1, 0, 1}, {1, 0, 1});
+  add_triangle(flat, {-1, 0, -1}, {1, 0, 1}, {1, 0, -1});
+  EXPECT_FALSE(collapse_deviation(flat, cell).folded);
+  NodeRecord crease = flat;
+  add_triangle(crease, {0.2, 0, -1}, {0.2, 1, -1}, {0.2, 1, 1});
+  add_triangle(crease, {0.2, 0, -1}, {0.2, 1, 1}, {0.2, 0, 1});
+  EXPECT_FALSE(collapse_deviation(crease, cell).folded);
+  NodeRecord corner = crease;
+  add_triangle(corner, {0.2, 0, 0.3}, {0.2, 1, 0.3}, {-1, 1, 0.3});
+  EXPECT_FALSE(collapse_deviation(corner, cell).folded);
+  for (double alpha : {0.05, 0.3, 1.0})
+    EXPECT_FALSE(collapse_deviation(cap(1.0, alpha), Bbox{Vec3d(-2), Vec3d(2)}).folded) << "alpha " << alpha;
+  NodeRecord wedge = flat;
+  const double s = std::tan(M_PI / 6);
+  add_triangle(wedge, {-1, -2 * s, -1}, {1, 0, 1}, {-1, -2 * s, 1});
+  add_triangle(wedge, {-1, -2 * s, -1}, {1, 0, -1}, {1, 0, 1});
+  EXPECT_FALSE(collapse_deviation(wedge, cell).folded);
+}
+
 }  // namespace
 }  // namespace raylod

@@ -106,9 +106,9 @@ TEST(Run, OtherViewsReuseOrRebuildByTheRule) {
     std::string out;
     EXPECT_EQ(raylod("run '" + write_scene(scene, tag == "near" ? 0.5 : tag == "far" ? 3.0 : 1.0).string() +
                      "' --rays 800 --footprint-scale 4 --cache '" + cache.string() + "' -o '" +
-                     (work_dir() / (tag + ".png")).string() + "' --stats-json '" + (work_dir() / (tag + ".json")).string() +
-                     "'", &out), 0) << out;
-    return stats(work_dir() / (tag + ".json"));
+                     (work_dir() / (tag + ".png")).string() + "' --stats-json '" +
+                     (work_dir() / (tag + ".stats.json")).string() + "'", &out), 0) << out;
+    return stats(work_dir() / (tag + ".stats.json"));
   };
   auto mid = run("mid.json", "mid");
   EXPECT_FALSE(mid["cache_hit"].get<bool>());

@@ -791,6 +791,58 @@ TEST(ProbeDeviation, FlatPlaneCollapsesAsCoarselyAsKAllows) {
   }
 }
 
+// A knife edge: a face and its underside meeting at a 0-degree dihedral
+// along x = 2 (the underside drops 0.08 over the 4 units back), seen side on.
+const Built& knife() {
+  static Built b = [] {
+    test::TestMesh m;
+    const int n = 64;
+    auto top = [&](int i, int j) { return Vec3d(-2.0 + 4.0 * i / n, 1.0, -2.0 + 4.0 * j / n); };
+    auto bottom = [&](int i, int j) { return top(i, j) - Vec3d(0, 0.08 * (n - i) / n, 0); };
+    const Vec3d up(0, 1, 0), down = glm::normalize(Vec3d(0.02, -1, 0));
+    for (int i = 0; i < n; ++i)
+      for (int j = 0; j < n; ++j) {
+        for (const Vec3d& p : {top(i, j), top(i, j + 1), top(i + 1, j + 1), top(i, j), top(i + 1, j + 1), top(i + 1, j)}) {
+          m.p.push_back(p);
+          m.n.push_back(up);
+        }
+        for (const Vec3d& p :
+             {bottom(i, j), bottom(i + 1, j + 1), bottom(i, j + 1), bottom(i, j), bottom(i + 1, j), bottom(i + 1, j + 1)}) {
+          m.p.push_back(p);
+          m.n.push_back(down);
+        }
+      }
+    return build("knife", m);
+  }();
+  return b;
+}
+
+TEST(ProbeDeviation, FoldsCollapseOnlyWithinTheTolerance) {
+  // The quadric of a knife edge's cell is one plane, so its deviation is
+  // about zero; the representative would sit at the corners' mean, pulling
+  // the edge in by up to the cell's size (found on an ABC CAD plate, whose
+  // end showed the underside where the lit face had been). Such a cell
+  // collapses only while the whole cell is within the tolerance, as a rim.
+  const Scene scene = make_scene(MaterialType::Diffuse, Vec3d(20, 6, 12), Vec3d(2, 1, 0));
+  const Built& b = knife();
+  const OctreeStore& st = *b.store;
+  const Vec3d origin = st.header().origin;
+  const double tol = 0.5;
+  auto r = probe_with(scene, b, CutCriterion::Deviation, 64, tol);
+  ASSERT_TRUE(r);
+  const Cut& cut = r->cuts[0];
+  EXPECT_GT(cut.counters.at("cells_kept_for_fold"), 0u);
+  size_t folded = 0;
+  for (const CollapsedCell& c : cut.cells) {
+    const Bbox cell = st.cell_bounds(c.key);
+    const CollapseDeviation d = collapse_deviation(*st.find(c.key), Bbox{cell.lo - origin, cell.hi - origin});
+    if (!d.folded || c.hits == 0) continue;
+    ++folded;
+    EXPECT_LE(st.cell_diagonal(int(c.key.level)), tol * c.min_footprint * (1 + 1e-6)) << "level " << c.key.level;
+  }
+  EXPECT_GT(folded, 0u);
+}
+
 TEST(ProbeDeviation, CurvedCellsKeepTheirDeviationBelowTheTolerance) {
   const Built& b = teapot();
   const Scene scene = make_scene(MaterialType::Diffuse, kEye, kLook);
@@ -1004,7 +1056,7 @@ TEST(CutSelection, ASharedSelectionCacheChangesNoCut) {
   uint64_t nodes = 0;
   for (int L = 0; L <= store->header().quadric_depth; ++L) nodes += store->level(L).size();
   const OctreeStore* list[] = {store};
-  EXPECT_EQ(SelectionCache::bytes_for(list), nodes * 24);
+  EXPECT_EQ(SelectionCache::bytes_for(list), nodes * (sizeof(uint64_t) + sizeof(CollapseDeviation)));
 }
 
 // The mirror and glass normal bound has its own tolerance (angle_tolerance_px):

@@ -79,6 +79,18 @@ TEST(ObjReader, CrlfAndForwardReferences) {
   EXPECT_EQ(r.positions[2], Vec3(0, 1, 0));
 }
 
+TEST(ObjReader, ByteOrderMarkIsSkipped) {
+  // A UTF-8 byte order mark before the first 'v' used to hide that vertex
+  // (the line's keyword read as "\xEF\xBB\xBFv"), shifting every index.
+  const std::string bom = "\xEF\xBB\xBF";
+  auto plain = read_all(write_file("plain.obj", "v 5 5 5\n" + kSquare + "f 1 2 3\n"));
+  auto marked = read_all(write_file("bom.obj", bom + "v 5 5 5\n" + kSquare + "f 1 2 3\n"));
+  ASSERT_TRUE(plain.status.is_ok() && marked.status.is_ok()) << marked.status.message();
+  EXPECT_EQ(marked.positions, plain.positions);
+  EXPECT_EQ(marked.positions[0], Vec3(5, 5, 5));
+  EXPECT_EQ(marked.header.vertex_count, 5u);
+}
+
 TEST(ObjReader, BatchBoundaries) {
   std::string s;
   const int n = 12;

@@ -55,6 +55,15 @@ TEST(StlReader, AsciiExact) {
   EXPECT_FALSE(r.header.has_normals);
 }
 
+TEST(StlReader, AsciiWithAByteOrderMark) {
+  // Read as ASCII, not as a binary file with a wrong triangle count.
+  auto plain = read_all(write_file("plain.stl", ascii_stl(kTwo)));
+  auto marked = read_all(write_file("bom.stl", "\xEF\xBB\xBF" + ascii_stl(kTwo)));
+  ASSERT_TRUE(marked.status.is_ok()) << marked.status.message();
+  EXPECT_EQ(marked.positions, plain.positions);
+  EXPECT_EQ(marked.header.encoding, "ascii");
+}
+
 TEST(StlReader, BinaryEqualsAscii) {
   auto b = read_all(write_file("two_bin.stl", binary_stl(kTwo)));
   ASSERT_TRUE(b.status.is_ok()) << b.status.message();

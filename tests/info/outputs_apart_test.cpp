@@ -1,0 +1,99 @@
+// Outputs never replace inputs (core/system.h, check_outputs_apart): the
+// check itself, and the commands that write files refusing before they
+// write anything.
+#include <gtest/gtest.h>
+
+#include <unistd.h>
+
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+
+#include "core/system.h"
+#include "run_command.h"
+#include "test_tmp.h"
+
+namespace raylod {
+namespace {
+
+std::string read_all(const std::filesystem::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  std::stringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+TEST(OutputsApart, TheSameFileByAnyNameIsRefused) {
+  const std::filesystem::path dir = test::scratch_dir("outputs-apart");
+  std::ofstream(dir / "mesh.ply") << "ply\n";
+  std::filesystem::create_directories(dir / "sub");
+  std::filesystem::create_hard_link(dir / "mesh.ply", dir / "hard.ply");
+  std::filesystem::create_symlink(dir / "mesh.ply", dir / "soft.ply");
+  const std::vector<FileRole> inputs = {{dir / "mesh.ply", "the mesh"}};
+  for (const std::filesystem::path& out :
+       {dir / "mesh.ply", dir / "sub" / ".." / "mesh.ply", dir / "hard.ply", dir / "soft.ply"}) {
+    const Status st = check_outputs_apart({{out, "-o"}}, inputs);
+    EXPECT_FALSE(st) << out;
+    EXPECT_NE(st.message().find("would replace the mesh"), std::string::npos) << st.message();
+    EXPECT_NE(st.message().find(out.string()), std::string::npos) << st.message();
+  }
+  // Another file, and outputs that do not exist yet, pass; two outputs on
+  // one new path do not.
+  EXPECT_TRUE(check_outputs_apart({{dir / "mesh.ply.raylod", "-o"}}, inputs));
+  EXPECT_TRUE(check_outputs_apart({{dir / "a.png", "-o"}, {dir / "a.json", "--stats-json"}}, inputs));
+  const Status both = check_outputs_apart({{dir / "a.png", "-o"}, {dir / "sub/../a.png", "--stats-json"}}, inputs);
+  EXPECT_FALSE(both);
+  EXPECT_NE(both.message().find("given as both -o and --stats-json"), std::string::npos) << both.message();
+  // Empty paths (an option not given) are left out.
+  EXPECT_TRUE(check_outputs_apart({{"", "-o"}}, {{"", "the mesh"}}));
+}
+
+TEST(OutputsApart, CommandsRefuseToWriteOverTheirInputs) {
+  const std::filesystem::path dir = test::scratch_dir("outputs-apart-cli");
+  const std::filesystem::path mesh = dir / "tetra.ply", scene = dir / "scene.json";
+  std::ofstream(mesh) << "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\n"
+                         "property float z\nelement face 4\nproperty list uchar int vertex_indices\n"
+                         "end_header\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n3 0 2 1\n3 0 1 3\n3 0 3 2\n3 1 2 3\n";
+  std::ofstream(scene) << R"({"camera": {"eye": [2, 1.5, 3], "look_at": [0.3, 0.3, 0.3], "fov_y": 40, "width": 64, "height": 48},
+       "materials": {"m": {"type": "diffuse", "color": [0.8, 0.3, 0.2]}},
+       "objects": [{"mesh": "tetra.ply", "material": "m"}],
+       "lights": [{"type": "point", "position": [3, 4, 2], "intensity": 30}], "spp": 1})";
+  const std::string mesh_bytes = read_all(mesh), scene_bytes = read_all(scene);
+  const std::string m = "'" + mesh.string() + "'", s = "'" + scene.string() + "'";
+  const std::string cache = " --cache '" + (dir / "cache").string() + "'";
+  struct Case {
+    std::string args, expect;
+  };
+  const Case cases[] = {
+      // `build MESH -o MESH` used to replace the mesh with the store.
+      {"build " + m + " -o " + m + " -q", "the store (-o) would replace the mesh"},
+      {"probe " + s + " -o " + s + " -q", "the cut (-o) would replace the scene file"},
+      {"probe " + s + " -o " + m + " -q", "the cut (-o) would replace the mesh of objects[0]"},
+      {"render " + s + " -o out.png --stats-json " + s + " -q", "--stats-json would replace the scene file"},
+      {"render " + s + " -o out.png --stats-json out.png -q", "given as both the image (-o) and --stats-json"},
+      {"run " + s + " -o out.png --stats-json " + m + " -q" + cache, "--stats-json would replace the mesh"},
+  };
+  for (const Case& c : cases) {
+    const test::CommandResult r =
+        test::run_command("cd '" + dir.string() + "' && '" + std::string(RAYLOD_EXE) + "' " + c.args);
+    EXPECT_NE(r.status, 0) << c.args << "\n" << r.out;
+    EXPECT_NE(r.out.find(c.expect), std::string::npos) << c.args << "\n" << r.out;
+    EXPECT_EQ(read_all(mesh), mesh_bytes) << c.args;
+    EXPECT_EQ(read_all(scene), scene_bytes) << c.args;
+    EXPECT_FALSE(std::filesystem::exists(dir / "out.png")) << c.args;
+  }
+  // simplify -o naming the mesh its store was built from.
+  std::string out;
+  ASSERT_EQ(test::run_raylod("build " + m + " -q", out), 0) << out;
+  ASSERT_EQ(test::run_raylod("probe " + s + " -o '" + (dir / "t.cut").string() + "' -q", out), 0) << out;
+  const test::CommandResult r = test::run_command("'" + std::string(RAYLOD_EXE) + "' simplify '" + mesh.string() +
+                                                  ".raylod' '" + (dir / "t.cut").string() + "' -o " + m + " -q");
+  EXPECT_NE(r.status, 0) << r.out;
+  EXPECT_NE(r.out.find("would replace the store's mesh"), std::string::npos) << r.out;
+  EXPECT_EQ(read_all(mesh), mesh_bytes);
+  std::filesystem::remove_all(dir);
+}
+
+}  // namespace
+}  // namespace raylod
