@@ -3,6 +3,8 @@
 // differentials must be the exact derivatives of this mapping, Igehy 1999).
 #pragma once
 
+#include <span>
+
 #include "core/math.h"
 #include "geometry/ray.h"
 
@@ -44,6 +46,23 @@ struct PinholeCamera {
   // the footprint of a pixel at distance t is about t * pixel_angle().
   double pixel_angle() const { return 2.0 * tan_half_y / height; }
 };
+
+// The smallest angle between neighbouring pixels' rays, |dD/dx| or |dD/dy|,
+// over the pixels the points project to (their image-plane bounding box,
+// clamped to the image); 0 if a point lies at or behind the eye's plane.
+// A pixel's angle shrinks away from the image centre: at the image-plane
+// point (s_x, s_y) = (d.u, d.v) / (d.w), |dD/dx|^2 = k^2 (1 + s_y^2) / (1 +
+// s_x^2 + s_y^2)^2 with k = 2 tan_half_x / width (likewise dD/dy), which
+// falls as |s_x| grows and, along s_y, is least at an end of the range; so
+// the four corners of the box's |s_x| x |s_y| range hold the minimum. In a
+// wide view a mesh near the centre is then bounded by its own pixels, not
+// by the image's corners (at fov_y 150, cos^2(75 deg) = 0.07 of the centre's).
+double smallest_pixel_angle_over(const PinholeCamera& cam, std::span<const Vec3d> points);
+// The same over a ball (centre, radius), from a range of |s_x| and |s_y|
+// that holds every point of it (a little wider than the ball's image):
+// cheaper, for the probe's many cells; never larger than the points' bound
+// for points inside the ball.
+double smallest_pixel_angle_over_ball(const PinholeCamera& cam, const Vec3d& centre, double radius);
 
 // Builds the camera looking from eye towards look_at, with up the rough up
 // direction and fov_y_deg the vertical field of view in degrees, for an image

@@ -763,6 +763,14 @@ ViewFacts make_view_facts(const ProbeView& v) {
   return f;
 }
 
+// The smallest angle between neighbouring pixels' rays over the pixels a
+// world box covers (pinhole_camera.h, over its bounding ball); a_min if the
+// ball reaches the eye's plane.
+double pixel_angle_over(const ViewFacts& view, const Bbox& b) {
+  const double a = smallest_pixel_angle_over_ball(view.cam, 0.5 * (b.lo + b.hi), 0.5 * glm::length(b.hi - b.lo));
+  return a > 0 ? std::max(a, view.a_min) : view.a_min;
+}
+
 }  // namespace
 
 namespace {
@@ -878,8 +886,11 @@ StatusOr<CutSelection> CutSelection::make(std::span<const ProbeView> views, cons
         const std::array<Vec3d, 8> c = world_corners(xp->m, b);
         Bbox wb;
         for (const Vec3d& q : c) wb.expand(q);
-        double e = view.a_min * distance_to_box(cam.eye, wb) / xp->sigma;
-        if (spec || !view.frustum.outside(c)) e *= m;
+        const double d = distance_to_box(cam.eye, wb) / xp->sigma;
+        double e = view.a_min * d;
+        if (spec) e *= m;
+        // Seen directly only: the pixels it covers bound it.
+        else if (!view.frustum.outside(c)) e = pixel_angle_over(view, wb) * d * m;
         else if (lit) e *= shadow_factor;
         else e = kInf;
         need = std::min(need, e);
@@ -920,8 +931,9 @@ StatusOr<CutSelection> CutSelection::make(std::span<const ProbeView> views, cons
       }
       shadow_lights.push_back(sl);
     }
-    auto shadow_estimate = [&](const ViewFacts& view, const Bbox& b) {
-      double need = kInf;
+    // `need`: what binds the cell so far (a shadow that needs no less is not
+    // looked at closely).
+    auto shadow_estimate = [&](const ViewFacts& view, const Bbox& b, double need) {
       if (!ground_shadows || view.ground.empty()) return need;
       const double h = scene.ground->height;
       for (const ObjectXf* xp : on_store) {
@@ -949,7 +961,11 @@ StatusOr<CutSelection> CutSelection::make(std::span<const ProbeView> views, cons
           // glass; elsewhere (outside the view, hidden behind the object) no
           // shadow shows.
           if (!lands || !view.ground.seen(pb)) continue;
-          need = std::min(need, view.m * view.a_min * distance_to_box(view.cam.eye, pb) * sin_alpha * ratio / xp->sigma);
+          // Seen directly only (no mirror or glass): the pixels it covers,
+          // whose angle is at least a_min (so only when that could bind).
+          const double base = view.m * distance_to_box(view.cam.eye, pb) * sin_alpha * ratio / xp->sigma;
+          if (!(view.a_min * base < need)) continue;
+          need = std::min(need, (spec ? view.a_min : pixel_angle_over(view, pb)) * base);
         }
       }
       return need;
@@ -998,7 +1014,7 @@ StatusOr<CutSelection> CutSelection::make(std::span<const ProbeView> views, cons
             const Measured* hit = at[v] < sm.size() && sm[at[v]].code == code ? &sm[at[v]].m : nullptr;
             if (!box) box = st.cell_bounds(CellKey{uint32_t(Q), code});
             f = std::min(f, hit ? hit->f : estimate(facts[v], *box));
-            f = std::min(f, shadow_estimate(facts[v], *box));
+            f = shadow_estimate(facts[v], *box, f);
             // Unreached mirror or glass cells: the pixel angle, as magnified
             // as the most magnified measured paths, over a mirror's gain of 2.
             if (store_specular) a = std::min(a, hit ? hit->tilt : 0.5 * facts[v].a_min * facts[v].m);

@@ -516,7 +516,14 @@ TEST(Probe, CellsWhoseShadowIsInViewAreAsFineAsTheShadowNeeds) {
     if (!seen) continue;
     ++in_view;
     const Vec3d q = glm::max(shadow.lo - cam.eye, glm::max(Vec3d(0), cam.eye - shadow.hi));
-    EXPECT_LT(b.store->cell_diagonal(int(ancestor->level)), K * a_min * glm::length(q) * sin_elevation * (1 + 1e-9))
+    // The angle of the pixels the shadow covers (no mirror or glass shows
+    // it elsewhere; checked against every pixel in the camera's tests), at
+    // least the image's smallest.
+    std::array<Vec3d, 4> shadow_corners;
+    for (int i = 0; i < 4; ++i)
+      shadow_corners[size_t(i)] = Vec3d(i & 1 ? shadow.hi.x : shadow.lo.x, 0, i & 2 ? shadow.hi.z : shadow.lo.z);
+    const double a = std::max(a_min, smallest_pixel_angle_over(cam, shadow_corners));
+    EXPECT_LT(b.store->cell_diagonal(int(ancestor->level)), K * a * glm::length(q) * sin_elevation * (1 + 1e-9))
         << "level " << ancestor->level;
   }
   EXPECT_GT(in_view, 0u);
@@ -841,6 +848,29 @@ TEST(ProbeDeviation, FoldsCollapseOnlyWithinTheTolerance) {
     EXPECT_LE(st.cell_diagonal(int(c.key.level)), tol * c.min_footprint * (1 + 1e-6)) << "level " << c.key.level;
   }
   EXPECT_GT(folded, 0u);
+}
+
+TEST(ProbeDeviation, AWideViewBoundsCellsByThePixelsTheyCover) {
+  // The teapot at the centre of a 150-degree view, as many pixels wide as
+  // in the 40-degree one (the eye 0.0976 times as far: tan 20 / tan 75).
+  // Cells no ray reached are bounded by the angle of the pixels they cover,
+  // not by the image's corners, where a pixel subtends cos^2(75 deg) = 0.07
+  // of the centre's. The wide view sees the near side of the teapot larger
+  // and keeps 2.4 times the narrow view's corners (13,974 against 5,928);
+  // bounded by the corners' pixels it kept 3.2 times (26,124 against 8,046).
+  const Built& b = teapot();
+  auto corners_kept = [&](const Scene& scene) {
+    auto r = probe_with(scene, b, CutCriterion::Deviation, 64, 0.5);
+    EXPECT_TRUE(r);
+    uint64_t collapsed = 0;
+    for (const CollapsedCell& c : r->cuts[0].cells) collapsed += b.store->find(c.key)->corner_count;
+    return 3 * b.store->header().triangle_count - collapsed;
+  };
+  const uint64_t narrow = corners_kept(make_scene(MaterialType::Diffuse, kEye, kLook));
+  Scene wide = make_scene(MaterialType::Diffuse, kLook + (kEye - kLook) * (std::tan(M_PI / 9) / std::tan(5 * M_PI / 12)), kLook);
+  wide.camera.fov_y_deg = 150;
+  const uint64_t kept_wide = corners_kept(wide);
+  EXPECT_LT(double(kept_wide), 2.8 * double(narrow)) << "narrow " << narrow;
 }
 
 TEST(ProbeDeviation, CurvedCellsKeepTheirDeviationBelowTheTolerance) {
