@@ -1092,7 +1092,8 @@ StatusOr<ProbeResult> CutSelection::select(const ProbeConfig& config) {
     const Vec3d origin = st.header().origin;
     uint64_t rejected_deviation = 0, rejected_normal = 0, rejected_boundary = 0, rejected_fold = 0;
     // The finest cells left uncollapsed (their input triangles are kept as
-    // they are), by the test that kept them: K, deviation, normal, boundary.
+    // they are), by the test that kept them: K, deviation, normal, boundary,
+    // fold.
     std::array<uint64_t, 6> finest_kept{};
     std::vector<std::vector<char>> collapsed(size_t(Q) + 1);
     const std::vector<std::vector<uint64_t>>& codes_at = n.kept->codes;

@@ -33,7 +33,11 @@
 // width (distance * pixel angle) and its footprint on any surface is at least
 // that (a slanted surface only stretches it by 1/cos). With
 //   d = distance from the eye to the cell's box (0 if the eye is inside),
-//   a = the smallest angle between neighbouring pixels' rays in the image,
+//   a = the smallest angle between neighbouring pixels' rays in the image
+//       (at its corners); in a scene without mirrors or glass, where a cell
+//       is seen directly only, the smallest over the pixels its bounding
+//       ball projects to (geometry/pinhole_camera.h), which in a wide view
+//       is far larger near the centre than at the corners,
 //   m = min(1, the calibration_quantile of f / (a_ray * path length) over
 //       all measured secondary hits),
 // the estimate is m * a * d. m < 1 only where measured reflection/refraction
@@ -62,8 +66,10 @@
 //     open boundary vertex (OctreeStore::touches_boundary: a hole's rim, the
 //     edge of an open surface), which a quadric does not see and the
 //     representative may pull anywhere in the cell, diagonal(cell) is at
-//     most tolerance_px * need(cell). K then only caps how large a cell may
-//     get relative to the footprint.
+//     most tolerance_px * need(cell); the same for a cell holding a fold
+//     (collapse_deviation.h: a knife edge or a plate thinner than the cell,
+//     opposite-facing sheets its quadric takes for one plane). K then only
+//     caps how large a cell may get relative to the footprint.
 //
 // Cells that no ray path can reach -- outside the view frustum in a scene
 // with no mirror or glass (so no secondary ray can turn towards them) -- only
@@ -77,7 +83,8 @@
 // light's elevation above the ground), times s_r / s_o for a point light
 // (how much farther from the light the shadow is than the cell), so need()
 // is at most m * a * (distance from the eye to the shadow) * sin(alpha) *
-// s_o / s_r. This binds cells outside the view whose shadows are seen, and
+// s_o / s_r (a over the shadow's pixels without mirrors or glass, as
+// above). This binds cells outside the view whose shadows are seen, and
 // visible cells under a low light, whose shadows stretch. Only where the
 // view's test rays met the ground (directly or through mirrors and glass),
 // on a grid over their ground hits (about one a cell, at most 128 x 128), in
