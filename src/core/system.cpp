@@ -351,18 +351,20 @@ std::filesystem::path default_cache_dir() {
   return std::filesystem::temp_directory_path() / "raylod-cache";
 }
 
+Status write_temporary(const AtomicOutput& out, std::string_view bytes) {
+  const std::string dest = out.destination().string();
+  errno = 0;
+  std::ofstream f(out.temp_path(), std::ios::binary);
+  if (!f) return Status::write_failed(dest, dest + ": cannot open for writing: " + std::strerror(errno), errno);
+  f.write(bytes.data(), std::streamsize(bytes.size()));
+  f.close();
+  if (!f) return Status::write_failed(dest, dest + ": write failed: " + std::strerror(errno), errno);
+  return {};
+}
+
 Status write_file_atomic(const std::filesystem::path& path, const std::string& text) {
   AtomicOutput out(path);
-  {
-    errno = 0;
-    std::ofstream f(out.temp_path(), std::ios::binary);
-    if (!f)
-      return Status::write_failed(path.string(), path.string() + ": cannot open for writing: " + std::strerror(errno),
-                                  errno);
-    f << text;
-    if (!f.flush())
-      return Status::write_failed(path.string(), path.string() + ": write failed: " + std::strerror(errno), errno);
-  }
+  RAYLOD_RETURN_IF_ERROR(write_temporary(out, text));
   return out.commit();
 }
 

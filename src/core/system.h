@@ -4,6 +4,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "core/status.h"
@@ -115,6 +116,10 @@ class AtomicOutput {
 // else ~/.cache/raylod (created on demand by the callers).
 std::filesystem::path default_cache_dir();
 
+// Writes bytes to out's temporary (created or truncated) and closes it; a
+// failure is a write_failed status naming the destination and the system's
+// reason. The caller commits.
+Status write_temporary(const AtomicOutput& out, std::string_view bytes);
 // Writes text to path atomically (AtomicOutput).
 Status write_file_atomic(const std::filesystem::path& path, const std::string& text);
 

@@ -7,8 +7,6 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
-#include <cstring>
-#include <fstream>
 #include <mutex>
 #include <optional>
 
@@ -94,15 +92,8 @@ Status write_pixels(const std::filesystem::path& path, const OIIO::ImageSpec& sp
     if (!wrote || !closed)
       return Status::error(path.string() + ": write failed (disk full?): " + out->geterror());
     if (in_memory) {
-      errno = 0;
-      std::ofstream f(atomic.temp_path(), std::ios::binary | std::ios::trunc);
-      if (!f)
-        return Status::write_failed(path.string(), path.string() + ": cannot open for writing: " + std::strerror(errno),
-                                    errno);
-      f.write(reinterpret_cast<const char*>(encoded.data()), std::streamsize(encoded.size()));
-      f.close();
-      if (!f)
-        return Status::write_failed(path.string(), path.string() + ": write failed: " + std::strerror(errno), errno);
+      RAYLOD_RETURN_IF_ERROR(
+          write_temporary(atomic, std::string_view(reinterpret_cast<const char*>(encoded.data()), encoded.size())));
       // Every byte went through the checked write above; the file must hold
       // all of them (commit's fsync then reports what the disk refuses).
       std::error_code ec;
