@@ -101,14 +101,7 @@ Status write_cut(const std::filesystem::path& path, const Cut& cut) {
   std::error_code ec;
   if (path.has_parent_path()) std::filesystem::create_directories(path.parent_path(), ec);
   AtomicOutput out(path);
-  {
-    std::ofstream f(out.temp_path(), std::ios::binary | std::ios::trunc);
-    if (!f) return Status::error(path.string() + ": cannot create cut file");
-    f.write(h.bytes.data(), std::streamsize(h.bytes.size()));
-    f.write(w.bytes.data(), std::streamsize(w.bytes.size()));
-    f.flush();
-    if (!f) return Status::error(path.string() + ": write failed (disk full?)");
-  }
+  RAYLOD_RETURN_IF_ERROR(write_temporary(out, {std::string_view(h.bytes), std::string_view(w.bytes)}));
   fault_point("cut.before_rename");
   return out.commit().with_context(path.string());
 }

@@ -457,18 +457,11 @@ namespace {
 
 Status write_encoded(const std::filesystem::path& path, const std::vector<char>& buffer) {
   AtomicOutput out(path);
-  {
-    std::ofstream f(out.temp_path(), std::ios::binary);
-    if (!f) return Status::write_failed(path.string(), path.string() + ": cannot create output file", errno);
-    // In two halves, with a fault point between them (core/fault_point.h).
-    const size_t half = buffer.size() / 2;
-    f.write(buffer.data(), std::streamsize(half));
-    f.flush();
-    fault_point("draco.partial");
-    f.write(buffer.data() + half, std::streamsize(buffer.size() - half));
-    f.flush();
-    if (!f) return Status::write_failed(path.string(), path.string() + ": write failed (disk full?)", errno);
-  }
+  // In two halves, with a fault point between them (core/fault_point.h).
+  const size_t half = buffer.size() / 2;
+  RAYLOD_RETURN_IF_ERROR(write_temporary(
+      out, {std::string_view(buffer.data(), half), std::string_view(buffer.data() + half, buffer.size() - half)},
+      [](size_t) { fault_point("draco.partial"); }));
   return out.commit();
 }
 

@@ -149,13 +149,7 @@ StatusOr<uint64_t> write_glb(const std::filesystem::path& path, const std::vecto
   out += bin;
 
   AtomicOutput file(path);
-  {
-    std::ofstream f(file.temp_path(), std::ios::binary);
-    if (!f) return Status::error(name + ": cannot create output file");
-    f.write(out.data(), std::streamsize(out.size()));
-    f.flush();
-    if (!f) return Status::error(name + ": write failed (disk full?)");
-  }
+  RAYLOD_RETURN_IF_ERROR(write_temporary(file, out));
   RAYLOD_RETURN_IF_ERROR(file.commit());
   return uint64_t(out.size());
 }

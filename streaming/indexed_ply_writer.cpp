@@ -86,7 +86,7 @@ Status IndexedPlyWriter::flush_staging() {
   if (staging_.empty()) return Status::ok();
   const size_t n = staging_.size();
   if (std::fwrite(staging_.data(), 1, n, file_) != n)
-    return fail(std::string("write failed (disk full?): ") + std::strerror(errno));
+    return fail(std::string("write failed: ") + std::strerror(errno));
   staging_.clear();
   return Status::ok();
 }

@@ -88,6 +88,7 @@ class PlyReader final : public MeshReader {
   StatusOr<bool> next_binary_generic(TriangleBatch& batch);
   StatusOr<bool> next_ascii(TriangleBatch& batch);
   Status corner_error(int64_t index, uint64_t face, uint64_t line) const;
+  std::string vertex_count_hint() const;
   Status emit_polygon(const int64_t* index, size_t n, TriangleBatch& batch, uint64_t face, uint64_t line);
   StatusOr<bool> end_of_faces();
   Status truncated_faces() const {
@@ -447,11 +448,37 @@ StatusOr<std::unique_ptr<MeshReader>> PlyReader::open(const std::filesystem::pat
   return std::unique_ptr<MeshReader>(std::move(r));
 }
 
+// For a binary file whose face records read as nonsense: a header that
+// declares the wrong number of vertices shifts every face record. If the
+// file's size fits another vertex count exactly (every face a triangle, the
+// faces the last element), say so; else nothing.
+std::string PlyReader::vertex_count_hint() const {
+  if (encoding_ == PlyEncoding::Ascii || face_el_ != int(elements_.size()) - 1) return "";
+  const PlyElement& fe = elements_[size_t(face_el_)];
+  const PlyElement& ve = elements_[size_t(vertex_el_)];
+  if (fe.props.size() != 1 || !fe.props[0].is_list || ve.record_size == 0) return "";
+  uint64_t fixed = data_offset_;  // the header and the other elements before the faces
+  for (int i = 0; i < face_el_; ++i) {
+    if (i == vertex_el_) continue;
+    if (elements_[size_t(i)].record_size == 0 && !elements_[size_t(i)].props.empty()) return "";
+    fixed += elements_[size_t(i)].count * elements_[size_t(i)].record_size;
+  }
+  const uint64_t triangle_bytes = scalar_size(fe.props[0].count_type) + 3 * scalar_size(fe.props[0].type);
+  if (fe.count > (file_.size() - std::min<uint64_t>(fixed, file_.size())) / triangle_bytes) return "";
+  const uint64_t vertex_bytes = file_.size() - fixed - fe.count * triangle_bytes;
+  if (vertex_bytes % ve.record_size != 0 || vertex_bytes / ve.record_size == ve.count) return "";
+  return "the header declares " + std::to_string(ve.count) + " vertices, but with " + std::to_string(fe.count) +
+         " triangles the file's size fits " + std::to_string(vertex_bytes / ve.record_size) +
+         ": is the header's vertex count wrong?";
+}
+
 Status PlyReader::corner_error(int64_t index, uint64_t face, uint64_t line) const {
   const std::string at = where(face, line) + ": ";
-  if (index < 0 || uint64_t(index) >= pos_.count)
-    return error(at + "vertex index " + std::to_string(index) + " is out of range (the file has " +
-                 std::to_string(pos_.count) + " vertices)");
+  if (index < 0 || uint64_t(index) >= pos_.count) {
+    const std::string hint = vertex_count_hint();
+    return error(at + "vertex index " + std::to_string(index) + " is out of range (" +
+                 (hint.empty() ? "the file has " + std::to_string(pos_.count) + " vertices" : hint) + ")");
+  }
   const std::string vertex = "vertex " + std::to_string(index);
   const Vec3 p = pos_.load(uint64_t(index));
   if (!is_finite(p)) {
@@ -472,8 +499,11 @@ Status PlyReader::corner_error(int64_t index, uint64_t face, uint64_t line) cons
 }
 
 Status PlyReader::emit_polygon(const int64_t* index, size_t n, TriangleBatch& batch, uint64_t face, uint64_t line) {
-  if (n < 3)
-    return error(where(face, line) + ": a face has " + std::to_string(n) + " corners; at least 3 are needed");
+  if (n < 3) {
+    const std::string hint = vertex_count_hint();
+    return error(where(face, line) + ": a face has " + std::to_string(n) + " corners; at least 3 are needed" +
+                 (hint.empty() ? "" : " (" + hint + ")"));
+  }
   poly_pos_.resize(n);
   if (has_normals_) poly_nrm_.resize(n);
   bool zero_normal = false;

@@ -3,6 +3,7 @@
 // parsing with std::from_chars (locale-independent, no allocation).
 #pragma once
 
+#include <algorithm>
 #include <charconv>
 #include <cmath>
 #include <cstdint>
@@ -14,16 +15,25 @@ namespace raylod::text {
 inline bool is_space(char c) { return c == ' ' || c == '\t' || c == '\r' || c == '\f' || c == '\v'; }
 
 // Iterates physical lines of `text` from `offset`, stripping "\n" / "\r\n".
+// Text in classic Mac OS's convention ends its lines with "\r" alone: one
+// whose first 64 KiB (from `offset`) hold a "\r" and no "\n" is split at
+// "\r" instead.
 class LineCursor {
  public:
   LineCursor() = default;
   LineCursor(std::string_view text, size_t offset = 0, uint64_t first_line = 1)
-      : text_(text), pos_(offset), next_line_(first_line) {}
+      : text_(text), pos_(offset), next_line_(first_line) {
+    if (pos_ < text_.size()) {
+      const size_t window = std::min<size_t>(text_.size() - pos_, size_t(1) << 16);
+      if (!std::memchr(text_.data() + pos_, '\n', window) && std::memchr(text_.data() + pos_, '\r', window))
+        end_ = '\r';
+    }
+  }
   // False at the end of the text.
   bool next(std::string_view& line) {
     if (pos_ >= text_.size()) return false;
     const char* begin = text_.data() + pos_;
-    const void* nl = std::memchr(begin, '\n', text_.size() - pos_);
+    const void* nl = std::memchr(begin, end_, text_.size() - pos_);
     size_t len = nl ? size_t(static_cast<const char*>(nl) - begin) : text_.size() - pos_;
     pos_ += len + (nl ? 1 : 0);
     if (len > 0 && begin[len - 1] == '\r') --len;
@@ -39,6 +49,7 @@ class LineCursor {
   std::string_view text_;
   size_t pos_ = 0;
   uint64_t next_line_ = 1, line_ = 0;
+  char end_ = '\n';  // the line terminator
 };
 
 // Whitespace-separated tokens of one line.

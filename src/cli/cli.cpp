@@ -179,7 +179,7 @@ std::vector<FileRole> scene_input_files(const Args& args, const Scene& scene) {
 
 StatusOr<Scene> scene_from_args(const Args& args) {
   if (args.positionals().size() > 1) return Status::error("expected at most one SCENE argument");
-  RAYLOD_ASSIGN_OR_RETURN(Scene scene, args.positionals().empty() ? default_scene() : load_scene(args.positionals()[0]));
+  RAYLOD_ASSIGN_OR_RETURN(Scene scene, args.positionals().empty() ? default_scene() : load_scene(args.positionals()[0], args.has("--mesh")));
   RAYLOD_ASSIGN_OR_RETURN(scene.crease_angle_deg, crease_angle_from_args(args, scene.crease_angle_deg));
   return scene;
 }

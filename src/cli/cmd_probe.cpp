@@ -28,7 +28,7 @@ int cmd_probe(int argc, char** argv) {
                  "marks the octree cells whose collapse no ray can resolve (--criterion). Writes the cut\n"
                  "beside the store as MESH.<key>.cut (key: store, camera, options). Without SCENE, the embedded\n"
                  "default scene is used.",
-                 cli::with_cut_options({{"--mesh", "", "use FILE in place of the scene's meshes", true, "FILE"},
+                 cli::with_cut_options({{"--mesh", "", "use FILE in place of the scene's first object's mesh", true, "FILE"},
                   {"--rays", "", "test rays (default 5000)", true, "N"},
                   {"--seed", "", "random seed (default: the scene's seed)", true, "S"},
                   cli::threads_option(),

@@ -351,16 +351,26 @@ std::filesystem::path default_cache_dir() {
   return std::filesystem::temp_directory_path() / "raylod-cache";
 }
 
-Status write_temporary(const AtomicOutput& out, std::string_view bytes) {
+Status write_temporary(const AtomicOutput& out, std::initializer_list<std::string_view> pieces,
+                       void (*between)(size_t)) {
   const std::string dest = out.destination().string();
   errno = 0;
   std::ofstream f(out.temp_path(), std::ios::binary);
   if (!f) return Status::write_failed(dest, dest + ": cannot open for writing: " + std::strerror(errno), errno);
-  f.write(bytes.data(), std::streamsize(bytes.size()));
+  size_t i = 0;
+  for (std::string_view piece : pieces) {
+    f.write(piece.data(), std::streamsize(piece.size()));
+    if (between && ++i < pieces.size()) {
+      f.flush();
+      between(i - 1);
+    }
+  }
   f.close();
   if (!f) return Status::write_failed(dest, dest + ": write failed: " + std::strerror(errno), errno);
   return {};
 }
+
+Status write_temporary(const AtomicOutput& out, std::string_view bytes) { return write_temporary(out, {bytes}); }
 
 Status write_file_atomic(const std::filesystem::path& path, const std::string& text) {
   AtomicOutput out(path);

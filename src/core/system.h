@@ -3,6 +3,7 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <initializer_list>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -120,6 +121,10 @@ std::filesystem::path default_cache_dir();
 // failure is a write_failed status naming the destination and the system's
 // reason. The caller commits.
 Status write_temporary(const AtomicOutput& out, std::string_view bytes);
+// The same for bytes in pieces, written in order; between(i), if given, runs
+// once piece i is flushed to the file (a fault point, core/fault_point.h).
+Status write_temporary(const AtomicOutput& out, std::initializer_list<std::string_view> pieces,
+                       void (*between)(size_t) = nullptr);
 // Writes text to path atomically (AtomicOutput).
 Status write_file_atomic(const std::filesystem::path& path, const std::string& text);
 

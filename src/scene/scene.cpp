@@ -369,7 +369,7 @@ Status parse_json(const Parser& p, const std::string& text, const std::string& r
 }  // namespace
 
 StatusOr<Scene> parse_scene(const std::string& text, const std::filesystem::path& base_dir,
-                            const std::string& source_name) {
+                            const std::string& source_name, bool first_mesh_replaced) {
   Parser p{source_name};
   json j;
   RAYLOD_RETURN_IF_ERROR(parse_json(p, text, "scene", j));
@@ -409,8 +409,11 @@ StatusOr<Scene> parse_scene(const std::string& text, const std::filesystem::path
     if (jm.is_string()) {
       std::filesystem::path mp = jm.get<std::string>();
       if (mp.is_relative()) mp = base_dir / mp;
-      if (Status st = check_regular_file(parse_mesh_ref(mp).file); !st) {
-        std::error_code ec;
+      std::error_code ec;
+      if (i == 0 && first_mesh_replaced && !std::filesystem::exists(parse_mesh_ref(mp).file, ec)) {
+        // Replaced by the command's --mesh: never read, so it need not exist.
+        obj.mesh = mp;
+      } else if (Status st = check_regular_file(parse_mesh_ref(mp).file); !st) {
         if (!std::filesystem::exists(parse_mesh_ref(mp).file, ec)) return p.fail(where + ".mesh", "file not found: " + mp.string());
         return p.fail(where + ".mesh", st.message());  // "m.ply: is a named pipe (FIFO), not a regular file"
       }
@@ -431,7 +434,8 @@ StatusOr<Scene> parse_scene(const std::string& text, const std::filesystem::path
     if (!jo.contains("material")) return p.fail(where, "missing 'material'");
     RAYLOD_RETURN_IF_ERROR(lookup_material(jo["material"], where + ".material", obj.material));
     if (jo.contains("transform")) RAYLOD_RETURN_IF_ERROR(parse_transform(p, jo["transform"], where + ".transform", obj.transform));
-    if (!obj.mesh.empty() && is_whole_gltf(obj.mesh)) {
+    std::error_code ec;
+    if (!obj.mesh.empty() && is_whole_gltf(obj.mesh) && std::filesystem::exists(obj.mesh, ec)) {
       RAYLOD_RETURN_IF_ERROR(expand_gltf_object(p, obj, where, scene.materials, gltf_materials, scene.objects));
       continue;
     }
@@ -473,14 +477,14 @@ StatusOr<Scene> parse_scene(const std::string& text, const std::filesystem::path
   return scene;
 }
 
-StatusOr<Scene> load_scene(const std::filesystem::path& path) {
+StatusOr<Scene> load_scene(const std::filesystem::path& path, bool first_mesh_replaced) {
   if (Status st = check_regular_file(path); !st) return st;  // a FIFO would block the read
   std::ifstream in(path, std::ios::binary);
   if (!in) return Status::error(path.string() + ": cannot open scene file");
   std::stringstream ss;
   ss << in.rdbuf();
   auto dir = path.parent_path();
-  auto scene = parse_scene(ss.str(), dir.empty() ? std::filesystem::path(".") : dir, path.string());
+  auto scene = parse_scene(ss.str(), dir.empty() ? std::filesystem::path(".") : dir, path.string(), first_mesh_replaced);
   if (scene) scene->source = path;
   return scene;
 }

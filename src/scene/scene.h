@@ -111,10 +111,13 @@ struct Scene {
 };
 
 // Parses a scene from JSON text; base_dir resolves relative mesh paths and
-// source_name is used in error messages. Checks referenced mesh files exist.
+// source_name is used in error messages. Checks referenced mesh files exist,
+// except the first object's when first_mesh_replaced (a command's --mesh
+// stands in for it): a scene whose own mesh is not on this machine can then
+// still be rendered with another.
 StatusOr<Scene> parse_scene(const std::string& json_text, const std::filesystem::path& base_dir,
-                            const std::string& source_name);
-StatusOr<Scene> load_scene(const std::filesystem::path& path);
+                            const std::string& source_name, bool first_mesh_replaced = false);
+StatusOr<Scene> load_scene(const std::filesystem::path& path, bool first_mesh_replaced = false);
 // A views file (`raylod run --views`): a JSON array of cameras with the
 // scene's camera fields; the fields an element leaves out (up, fov_y, width,
 // height) are taken from `defaults` (the scene's camera). Errors name the

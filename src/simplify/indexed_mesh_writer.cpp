@@ -1,6 +1,8 @@
 #include "simplify/indexed_mesh_writer.h"
 
+#include <cerrno>
 #include <cstdio>
+#include <cstring>
 #include <fstream>
 #include <string>
 #include <vector>
@@ -22,9 +24,10 @@ IndexedPlyLayout layout_of(const IndexedMesh& mesh) {
 }
 
 Status finish(std::ofstream& f, AtomicOutput& out) {
-  f.flush();
-  if (!f) return Status::error(out.destination().string() + ": write failed (disk full?)");
+  const std::string dest = out.destination().string();
+  errno = 0;
   f.close();
+  if (!f) return Status::write_failed(dest, dest + ": write failed: " + std::strerror(errno), errno);
   return out.commit();
 }
 
@@ -41,8 +44,9 @@ Status write_indexed_ply(const std::filesystem::path& path, const IndexedMesh& m
 
 Status write_indexed_obj(const std::filesystem::path& path, const IndexedMesh& mesh) {
   AtomicOutput out(path);
+  errno = 0;
   std::ofstream f(out.temp_path());
-  if (!f) return Status::error(path.string() + ": cannot create output file");
+  if (!f) return Status::write_failed(path.string(), path.string() + ": cannot open for writing: " + std::strerror(errno), errno);
   f << "# raylod simplified mesh: " << mesh.positions.size() << " vertices, " << mesh.triangle_count() << " triangles\n";
   char line[160];
   // Far from zero (mesh.origin), enough digits for the detail a float

@@ -367,6 +367,39 @@ TEST(Run, MeshInAReadOnlyFolderGetsItsStoreInTheCache) {
   EXPECT_TRUE(fs::exists(writable / "x.png"));
 }
 
+TEST(Run, MeshOptionStandsInForAMeshThatIsNotHere) {
+  // A scene written elsewhere names a mesh this machine does not have; the
+  // commands' --mesh replaces it, so nothing needs the missing file.
+  std::string out;
+  const fs::path mesh = work_dir() / "stand-in.ply";
+  ASSERT_EQ(raylod("gen teapot --triangles 2000 -q -o '" + mesh.string() + "'", &out), 0) << out;
+  const fs::path scene = work_dir() / "elsewhere.json";
+  std::string text = read(write_scene("elsewhere.json", 1.0, 48, 36));
+  const std::string generated = R"({"generate": "teapot", "triangles": 20000})";
+  text.replace(text.find(generated), generated.size(), R"("/nowhere/on/this/machine.ply")");
+  std::ofstream(scene) << text;
+  EXPECT_EQ(raylod("render '" + scene.string() + "' -o '" + (work_dir() / "x.png").string() + "'", &out), 1);
+  EXPECT_NE(out.find("objects[0].mesh: file not found: /nowhere/on/this/machine.ply"), std::string::npos) << out;
+  EXPECT_EQ(raylod("render '" + scene.string() + "' --mesh '" + mesh.string() + "' -o '" +
+                       (work_dir() / "stand-in-render.png").string() + "'",
+                   &out),
+            0)
+      << out;
+  EXPECT_EQ(raylod("run '" + scene.string() + "' --mesh '" + mesh.string() + "' --rays 200 --no-cache -q -o '" +
+                       (work_dir() / "stand-in-run.png").string() + "'",
+                   &out),
+            0)
+      << out;
+  EXPECT_EQ(raylod("probe '" + scene.string() + "' --mesh '" + mesh.string() + "' --rays 200 -q -o '" +
+                       (work_dir() / "stand-in.cut").string() + "'",
+                   &out),
+            0)
+      << out;
+  EXPECT_TRUE(fs::exists(work_dir() / "stand-in-render.png"));
+  EXPECT_TRUE(fs::exists(work_dir() / "stand-in-run.png"));
+  EXPECT_TRUE(fs::exists(work_dir() / "stand-in.cut"));
+}
+
 TEST(Run, BadSceneIsAClearError) {
   fs::path bad = work_dir() / "bad.json";
   std::ofstream(bad) << "{\"camera\": 3}";

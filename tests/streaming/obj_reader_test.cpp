@@ -91,6 +91,23 @@ TEST(ObjReader, ByteOrderMarkIsSkipped) {
   EXPECT_EQ(marked.header.vertex_count, 5u);
 }
 
+TEST(ObjReader, ClassicMacLineEndings) {
+  // Lines ended by "\r" alone (classic Mac OS) read as lines, not as one
+  // line with no faces; the line numbers in messages count them.
+  auto cr = [](std::string text) {
+    for (char& c : text)
+      if (c == '\n') c = '\r';
+    return text;
+  };
+  const std::string obj = "v 5 5 5\n" + kSquare + "f 1 2 3\nf 2 3 4\n";
+  auto unix_style = read_all(write_file("lf.obj", obj));
+  auto mac_style = read_all(write_file("cr.obj", cr(obj)));
+  ASSERT_TRUE(unix_style.status.is_ok() && mac_style.status.is_ok()) << mac_style.status.message();
+  EXPECT_EQ(mac_style.positions, unix_style.positions);
+  EXPECT_EQ(mac_style.triangles(), 2u);
+  EXPECT_READ_ERROR(write_file("cr_bad.obj", cr("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 9\n")), "line 4");
+}
+
 TEST(ObjReader, BatchBoundaries) {
   std::string s;
   const int n = 12;

@@ -251,6 +251,16 @@ std::string simple_header(const std::string& format = "ascii", int nv = 3, int n
 }
 const std::string kTri = "0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n";
 
+TEST(PlyReader, ClassicMacLineEndings) {
+  std::string text = simple_header() + kTri;
+  for (char& c : text)
+    if (c == '\n') c = '\r';
+  auto r = test::read_all(write_file("cr.ply", text));
+  ASSERT_TRUE(r.status.is_ok()) << r.status.message();
+  EXPECT_EQ(r.triangles(), 1u);
+  EXPECT_EQ(r.positions, test::read_all(write_file("lf.ply", simple_header() + kTri)).positions);
+}
+
 TEST(PlyReaderErrors, EmptyFile) { EXPECT_READ_ERROR(write_file("empty.ply", ""), "empty file"); }
 
 TEST(PlyReaderErrors, NotAPlyFile) {
@@ -351,6 +361,34 @@ TEST(PlyReaderErrors, FaceWithTooFewCorners) {
   for (float c : {0.f, 0.f, 0.f, 1.f, 0.f, 0.f, 0.f, 1.f, 0.f}) b.put<float>(c);
   b.put<uint8_t>(0);
   EXPECT_READ_ERROR(write_file("zero_bin.ply", b.data), "face 0: a face has 0 corners");
+}
+
+// A binary header that declares the wrong number of vertices shifts every
+// face record, so the faces read as nonsense ("a face has 0 corners"); the
+// message then says which vertex count the file's size fits.
+TEST(PlyReaderErrors, BinaryWrongVertexCountIsNamed) {
+  auto square = [](int declared) {
+    Bytes b;
+    b.text(simple_header("binary_little_endian", declared, 2));
+    for (float c : {0.f, 0.f, 0.f, 1.f, 0.f, 0.f, 1.f, 1.f, 0.f, 0.f, 1.f, 0.f}) b.put<float>(c);
+    b.put<uint8_t>(3).put<int32_t>(0).put<int32_t>(1).put<int32_t>(2);
+    b.put<uint8_t>(3).put<int32_t>(0).put<int32_t>(2).put<int32_t>(3);
+    return b.data;
+  };
+  EXPECT_EQ(test::read_all(write_file("square.ply", square(4))).triangles(), 2u);
+  for (int declared : {3, 5})
+    EXPECT_READ_ERROR(write_file("square" + std::to_string(declared) + ".ply", square(declared)),
+                      "(the header declares " + std::to_string(declared) +
+                          " vertices, but with 2 triangles the file's size fits 4: is the header's vertex count "
+                          "wrong?)");
+  // A face that really has too few corners, in a file whose counts fit, gets no such hint.
+  Bytes b;
+  b.text(simple_header("binary_little_endian"));
+  for (float c : {0.f, 0.f, 0.f, 1.f, 0.f, 0.f, 0.f, 1.f, 0.f}) b.put<float>(c);
+  b.put<uint8_t>(2).put<int32_t>(0).put<int32_t>(1);
+  const std::string message = test::read_error(write_file("two_bin.ply", b.data));
+  EXPECT_NE(message.find("a face has 2 corners; at least 3 are needed"), std::string::npos) << message;
+  EXPECT_EQ(message.find("vertex count"), std::string::npos) << message;
 }
 
 TEST(PlyReaderErrors, NonFiniteCoordinates) {
