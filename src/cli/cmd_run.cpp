@@ -179,6 +179,17 @@ Status run_run(int argc, char** argv, bool& help) {
     std::printf("raylod run: %s\n", args.positionals().empty() ? "embedded default scene" : args.positionals()[0].c_str());
     std::printf("  triangles  %llu -> %llu (%.1fx fewer)\n", (unsigned long long)r.triangles_in,
                 (unsigned long long)r.triangles_out, r.triangles_out ? double(r.triangles_in) / double(r.triangles_out) : 0.0);
+    // The counts above are per distinct mesh; a mesh the scene places more
+    // than once is rendered once per placement.
+    if (scene.objects.size() > r.meshes.size()) {
+      const unsigned long long rendered = r.render.stats.triangles;
+      if (r.meshes.size() == 1)
+        std::printf("             the scene places this mesh %zu times: %llu triangles rendered\n", scene.objects.size(),
+                    rendered);
+      else
+        std::printf("             %zu objects place these %zu meshes: %llu triangles rendered\n", scene.objects.size(),
+                    r.meshes.size(), rendered);
+    }
     std::printf("  build      %7.2f s\n", r.seconds.build);
     std::printf("  probe      %7.2f s  (%llu test rays, K = %g%s)\n", r.seconds.probe, (unsigned long long)opts.rays,
                 r.footprint_scale, r.coarsening_steps ? ", coarsened to fit the memory limit" : "");

@@ -400,6 +400,30 @@ TEST(Run, MeshOptionStandsInForAMeshThatIsNotHere) {
   EXPECT_TRUE(fs::exists(work_dir() / "stand-in.cut"));
 }
 
+TEST(Run, AMeshPlacedTwiceIsCountedOnceAndRenderedTwice) {
+  // The summary's counts are the mesh's; the scene renders it at each
+  // placement, and the summary says how many triangles that makes.
+  std::string out;
+  const fs::path mesh = work_dir() / "placed.ply";
+  ASSERT_EQ(raylod("gen teapot --triangles 2000 -q -o '" + mesh.string() + "'", &out), 0) << out;
+  const fs::path scene = work_dir() / "twice.json";
+  std::ofstream(scene) << R"({"camera": {"eye": [6, 4, 8], "look_at": [0, 1, 0], "width": 64, "height": 48},
+    "materials": {"m": {"type": "diffuse"}},
+    "objects": [{"mesh": "placed.ply", "material": "m"},
+                {"mesh": "placed.ply", "material": "m", "transform": {"translate": [0, 0, -5]}}],
+    "lights": [{"type": "point", "position": [5, 9, 7], "intensity": 150}]})";
+  ASSERT_EQ(raylod("run '" + scene.string() + "' --no-cache --rays 300 -o '" + (work_dir() / "twice.png").string() +
+                       "' --stats-json '" + (work_dir() / "twice-stats.json").string() + "'",
+                   &out),
+            0)
+      << out;
+  const auto st = stats(work_dir() / "twice-stats.json");
+  const uint64_t simplified = st["triangles_out"];
+  EXPECT_NE(out.find("the scene places this mesh 2 times: " + std::to_string(2 * simplified) + " triangles rendered"),
+            std::string::npos)
+      << out;
+}
+
 TEST(Run, BadSceneIsAClearError) {
   fs::path bad = work_dir() / "bad.json";
   std::ofstream(bad) << "{\"camera\": 3}";
