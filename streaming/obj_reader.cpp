@@ -164,6 +164,10 @@ Status ObjReader::first_pass() {
           return at(ln, (kw == "v" ? "vertex " + std::to_string(nv + 1) + " coordinate "
                                    : "normal " + std::to_string(nn + 1) + " component ") +
                             std::string(text::clip(t)) + " is beyond the float range (about +-3.4e38)");
+        if (parsed == text::FloatParse::FarFromOrigin)
+          return at(ln, "vertex " + std::to_string(nv + 1) + " coordinate " + std::string(text::clip(t)) +
+                            " lies more than the float range from the mesh's first vertex " + vec_text(header_.origin) +
+                            ": the mesh spans more than the float range (about 3.4e38)");
       }
       const Vec3 p(x[0], x[1], x[2]);
       if (kw == "v") {

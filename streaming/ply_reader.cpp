@@ -377,6 +377,10 @@ Status PlyReader::load_ascii() {
             return error(ln + "vertex " + std::to_string(r) + (c < 3 ? " coordinate " : " normal component ") +
                          kCoordNames[c] + " = " + std::string(text::clip(t)) +
                          " is beyond the float range (about +-3.4e38)");
+          if (parsed == text::FloatParse::FarFromOrigin)
+            return error(ln + "vertex " + std::to_string(r) + " coordinate " + kCoordNames[c] + " = " +
+                         std::string(text::clip(t)) + " lies more than the float range from the mesh's first vertex " +
+                         vec_text(header_.origin) + ": the mesh spans more than the float range (about 3.4e38)");
         }
       }
       if (!tok.done()) return error(ln + "vertex " + std::to_string(r) + " has more values than its header declares");

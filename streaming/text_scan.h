@@ -122,7 +122,9 @@ inline bool overflows(std::string_view tok) {
   return magnitude + exponent > 0;
 }
 
-enum class FloatParse { Ok, NotANumber, OutOfRange };
+// FarFromOrigin: the value is a float, but not its difference from the
+// mesh's local origin (parse_coordinate): the mesh spans more than floats hold.
+enum class FloatParse { Ok, NotANumber, OutOfRange, FarFromOrigin };
 
 // A float coordinate or normal component. A value that rounds beyond the
 // float range (|x| >= 2^128 - 2^103, about 3.4e38, e.g. "1e39") is
@@ -192,7 +194,7 @@ inline FloatParse parse_coordinate(std::string_view tok, double origin, float& o
   // In range for parse_float, so out of range for a double means underflow.
   if (std::from_chars(tok.data(), tok.data() + tok.size(), d).ec == std::errc::result_out_of_range) d = 0;
   out = float(d - origin);
-  return FloatParse::Ok;
+  return std::isfinite(out) ? FloatParse::Ok : FloatParse::FarFromOrigin;
 }
 
 }  // namespace raylod::text

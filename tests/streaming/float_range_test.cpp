@@ -115,6 +115,21 @@ TEST(FloatRange, ObjVerticesAndNormals) {
   EXPECT_EQ(r.positions[1], Vec3(1, 0, 0));
 }
 
+// Every coordinate a float, but not their span: positions are kept relative
+// to the first vertex, and 3e38 lies 6e38 from -3e38. Said as such, not as
+// a non-finite coordinate the file does not hold.
+TEST(FloatRange, TextMeshSpanningMoreThanTheFloatRange) {
+  EXPECT_READ_ERROR(write_file("span.obj", "v -3e38 0 0\nv 3e38 0 0\nv 0 1 0\nf 1 2 3\n"),
+                    "line 2: vertex 2 coordinate 3e38 lies more than the float range from the mesh's first vertex "
+                    "(-3e+38, 0, 0): the mesh spans more than the float range");
+  EXPECT_READ_ERROR(write_file("span.ply", ply_header("ascii", "float", false) + "-3e38 0 0\n3e38 0 0\n0 1 0\n3 0 1 2\n"),
+                    "line 11: vertex 1 coordinate x = 3e38 lies more than the float range from the mesh's first vertex");
+  // Within the range of each other, far from zero: read.
+  auto r = read_all(write_file("far.obj", "v 3e38 0 0\nv 3.1e38 0 0\nv 3e38 1 0\nf 1 2 3\n"));
+  ASSERT_TRUE(r.status.is_ok()) << r.status.message();
+  EXPECT_EQ(r.triangles(), 1u);
+}
+
 TEST(FloatRange, AsciiStlVerticesAndFacetNormals) {
   const std::string head = "solid s\nfacet normal 0 0 1\nouter loop\n";
   const std::string tail = "endloop\nendfacet\nendsolid s\n";
