@@ -30,7 +30,7 @@ struct Cut {
   double footprint_scale = 1;
   std::vector<CollapsedCell> cells;      // an antichain: no cell is inside another, sorted by key
   std::map<std::string, uint64_t> counters;  // rays by kind, hits, pages read, ...
-  float min_footprint = 0;               // smallest footprint of any hit
+  float min_footprint = 0;               // smallest footprint of any hit, across its ray (ProbeHit::width)
 };
 
 Status write_cut(const std::filesystem::path& path, const Cut& cut);  // atomic

@@ -643,6 +643,21 @@ StatusOr<StagedMeshes> simplify_or_reuse(RunSession& session, const Scene& scene
   for (size_t i = 0; i < stores.stores.size(); ++i) {
     const Cut& cut = cuts[i];
     SimplifiedMesh sm;
+    // The store keeps positions on a grid (page_codec.h); a view that
+    // resolves less than twice its error shows the rounding of kept vertices.
+    {
+      const StoreHeader& h = stores.stores[i]->header();
+      const double grid_error = page_grid_max_error(page_grid(h.root_lo, h.root_size, h.grid_bits));
+      if (cut.min_footprint > 0 && grid_error > 0.5 * double(cut.min_footprint)) {
+        char text[320];
+        std::snprintf(text, sizeof text,
+                      ": its store keeps positions to within %.3g, and this view resolves %.3g (one pixel): the "
+                      "simplified mesh's vertices may show up to %.1f pixels from where they are; `raylod render` "
+                      "draws the mesh itself",
+                      grid_error, double(cut.min_footprint), grid_error / double(cut.min_footprint));
+        session.warnings.push_back(stores.meshes[i].string() + text);
+      }
+    }
     if (cache) {
       const std::string key = SimplifiedCache::key_for(cut, scene.crease_angle_deg);
       std::string note;

@@ -220,10 +220,13 @@ class ProbeTracer {
         if (r.has_differentials) {
           // The footprint in store units: the differentials mapped back by the inverse transform.
           h.footprint = std::max(glm::length(x.linv * r.dp_dx), glm::length(x.linv * r.dp_dy));
+          const Vec3d& d = r.ray.direction;
+          auto across = [&](const Vec3d& dp) { return glm::length(x.linv * (dp - glm::dot(dp, d) * d)); };
+          h.width = std::max(across(r.dp_dx), across(r.dp_dy));
           if (pr.kind != kPrimary && beam > 0 && path > 0) h.ratio = footprint(r) / (beam * path);
         } else {
           h.estimated = true;
-          h.footprint = beam * path / x.sigma;
+          h.footprint = h.width = beam * path / x.sigma;
           ++out.counters.v[ProbeRayCounters::dropped];
         }
         h.parent = pr.parent;
@@ -857,7 +860,7 @@ StatusOr<CutSelection> CutSelection::make(std::span<const ProbeView> views, cons
       for (const HitRecord& h : views[v].trace->hits) {
         if (xf[h.object].store != s) continue;
         const double f = h.estimated ? h.footprint * facts[v].m : h.footprint;
-        min_fp = std::min(min_fp, f);
+        min_fp = std::min(min_fp, h.estimated ? f : h.width);
         StoreNeeds::Hit& hit = n.hits.emplace_back();
         hit.footprint = float(f);
         std::array<uint64_t, 3>& codes = hit.codes;

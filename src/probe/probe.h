@@ -227,6 +227,12 @@ struct ProbeHit {
   uint32_t object = 0;             // index into the objects span
   std::array<Vec3d, 3> corners{};  // hit triangle's corners, store coordinates
   double footprint = 0;            // ||dP|| in store units; if estimated, without the factor m
+  // The footprint across the ray: dP with its part along the ray removed
+  // (store units; if estimated, the footprint). What one pixel resolves
+  // there, which at grazing incidence the footprint on the surface, drawn
+  // out along the ray, overstates many times (the cut's min_footprint, and
+  // so the Draco quantisation of the simplified mesh, take this).
+  double width = 0;
   double ratio = -1;               // f / (a_ray * path length) of a measured secondary hit
   // Mirror/glass hit: the largest normal tilt (radians) that turns no ray
   // leaving it by more than one pixel's spread anywhere along its path:

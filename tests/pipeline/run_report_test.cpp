@@ -424,6 +424,36 @@ TEST(Run, AMeshPlacedTwiceIsCountedOnceAndRenderedTwice) {
       << out;
 }
 
+TEST(Run, AViewFinerThanTheStoreGridIsWarnedAbout) {
+  // A 0.001-degree view of the teapot's knob resolves 2.9e-6, finer than
+  // the store's grid keeps positions (6.6e-6 for this mesh): said, with
+  // what to do; an ordinary view says nothing of it.
+  auto scene_at = [&](const std::string& name, double fov) {
+    const fs::path p = work_dir() / name;
+    std::ofstream(p) << R"({"camera": {"eye": [0, 3.15, 20], "look_at": [0, 3.15, 0], "fov_y": )" << fov
+                     << R"(, "width": 160, "height": 120},
+      "materials": {"m": {"type": "diffuse"}},
+      "objects": [{"mesh": {"generate": "teapot", "triangles": 20000}, "material": "m"}],
+      "lights": [{"type": "point", "position": [5, 9, 7], "intensity": 150}]})";
+    return p;
+  };
+  std::string out;
+  ASSERT_EQ(raylod("run '" + scene_at("zoom.json", 0.001).string() + "' --no-cache --rays 500 -o '" +
+                       (work_dir() / "zoom.png").string() + "'",
+                   &out),
+            0)
+      << out;
+  EXPECT_NE(out.find("warning:"), std::string::npos) << out;
+  EXPECT_NE(out.find("its store keeps positions to within"), std::string::npos) << out;
+  EXPECT_NE(out.find("`raylod render` draws the mesh itself"), std::string::npos) << out;
+  ASSERT_EQ(raylod("run '" + scene_at("whole.json", 30).string() + "' --no-cache --rays 500 -o '" +
+                       (work_dir() / "whole.png").string() + "'",
+                   &out),
+            0)
+      << out;
+  EXPECT_EQ(out.find("its store keeps positions"), std::string::npos) << out;
+}
+
 TEST(Run, BadSceneIsAClearError) {
   fs::path bad = work_dir() / "bad.json";
   std::ofstream(bad) << "{\"camera\": 3}";

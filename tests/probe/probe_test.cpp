@@ -26,6 +26,7 @@
 #include "geometry/optics.h"
 #include "probe/bvh.h"
 #include "probe/probe.h"
+#include "scene/scene_camera.h"
 #include "probe/store_tracer.h"
 #include "scene/scene_camera.h"
 #include "streaming/cut_file.h"
@@ -725,6 +726,41 @@ TEST(Probe, ObjectTransformScalesFootprints) {
   EXPECT_NEAR(double(scaled->cuts[0].min_footprint), double(plain->cuts[0].min_footprint),
               1e-6 * double(plain->cuts[0].min_footprint));
   EXPECT_EQ(scaled->cuts[0].cells.size(), plain->cuts[0].cells.size());
+}
+
+// Seen at grazing incidence a pixel's footprint on the surface is drawn out
+// along the ray, many times what the pixel resolves across it; the cut's
+// min_footprint (which bounds the Draco quantisation) is the width across
+// the ray. Found by a bug hunt: a 0.01-degree view of a teapot's lid grazing
+// its knob quantised the kept vertices by 1.5 pixels, nothing collapsed.
+const Built& plane();
+TEST(Probe, MinFootprintIsTheWidthAcrossTheRay) {
+  const Built& b = plane();  // y = 1, 4 x 4 around the axis
+  const OneObject one(b);
+  Scene scene = make_scene(MaterialType::Diffuse, Vec3d(0, 1.05, 6), Vec3d(0, 1, 0), false);
+  scene.camera.fov_y_deg = 1.5;  // the plane fills the image's lower part
+  ProbeConfig c;
+  c.rays = 2000;
+  c.seed = 7;
+  auto t = trace_probe(scene, one.stores(), one.objects(), c);
+  ASSERT_TRUE(t) << t.status().message();
+  ASSERT_GT(t->hits.size(), 100u);
+  const PinholeCamera cam = make_pinhole_camera(scene.camera);
+  const double pixel = 2.0 * cam.tan_half_y / scene.camera.height;  // at the image centre; less towards the corners
+  for (const ProbeHit& h : t->hits) {
+    ASSERT_FALSE(h.estimated);
+    // Hits lie 4 to 8 from the eye (the plane's near and far edges), at
+    // most 0.05 / 4 radians below the rays: the surface stretches the
+    // footprint by over 80 times, the width stays about a pixel's.
+    EXPECT_GT(h.footprint, 50.0 * h.width);
+    EXPECT_GT(h.width, 0.5 * pixel * 4.0);
+    EXPECT_LT(h.width, 1.5 * pixel * 8.5);
+  }
+  auto cuts = select_cuts(*t, scene, one.stores(), one.objects(), c);
+  ASSERT_TRUE(cuts) << cuts.status().message();
+  double narrowest = std::numeric_limits<double>::infinity();
+  for (const ProbeHit& h : t->hits) narrowest = std::min(narrowest, h.width);
+  EXPECT_FLOAT_EQ(cuts->cuts[0].min_footprint, float(narrowest));
 }
 
 // The deviation criterion (probe.h): flat regions are bounded by K alone,
