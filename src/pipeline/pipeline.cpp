@@ -198,11 +198,23 @@ fs::path store_path_for(const fs::path& mesh, const fs::path& cache_dir, const S
   const std::string absolute = fs::absolute(mesh).lexically_normal().string();
   char hash[17];
   std::snprintf(hash, sizeof hash, "%016llx", static_cast<unsigned long long>(fnv1a64(absolute.data(), absolute.size())));
-  const fs::path in_cache = cache_dir / "stores" / (std::string(hash) + "-" + mesh.filename().string() + ".raylod");
-  if (note) *note = folder.string() + " is not writable: the store goes to " + in_cache.string();
+  const std::string name = std::string(hash) + "-" + mesh.filename().string() + ".raylod";
+  const fs::path in_cache = cache_dir / "stores" / name;
   std::error_code ec;
   fs::create_directories(in_cache.parent_path(), ec);
-  return in_cache;
+  if (store_is_current(mesh, in_cache, options) || (!ec && folder_is_writable(in_cache.parent_path()))) {
+    if (note) *note = folder.string() + " is not writable: the store goes to " + in_cache.string();
+    return in_cache;
+  }
+  // Neither the mesh's folder nor the cache takes files (a read-only cache
+  // shared by others): the system's temporary folder, per user.
+  const fs::path in_temp =
+      fs::temp_directory_path() / ("raylod-stores-" + std::to_string(::getuid())) / name;
+  fs::create_directories(in_temp.parent_path(), ec);
+  if (note)
+    *note = folder.string() + " and " + in_cache.parent_path().string() + " are not writable: the store goes to " +
+            in_temp.string();
+  return in_temp;
 }
 
 StatusOr<SceneStores> prepare_scene_stores(Scene& scene, const std::optional<fs::path>& mesh_override,
@@ -674,11 +686,24 @@ StatusOr<StagedMeshes> simplify_or_reuse(RunSession& session, const Scene& scene
       if (entry) {
         cache->touch(*entry);
         // Render from a link of our own: another run's eviction cannot pull it away.
-        AtomicOutput tmp(session.scratch / ("cached-" + std::to_string(::getpid()) + "-" + std::to_string(i) + ".drc"));
-        sm.drc = tmp.temp_path();
-        sm.drc += ".drc";
-        RAYLOD_RETURN_IF_ERROR(cache->checkout(*entry, sm.drc));
-        out.scratch.add(sm.drc);
+        auto checkout_to = [&](const fs::path& dir) {
+          AtomicOutput tmp(dir / ("cached-" + std::to_string(::getpid()) + "-" + std::to_string(i) + ".drc"));
+          sm.drc = tmp.temp_path();
+          sm.drc += ".drc";
+          out.scratch.add(sm.drc);
+          return cache->checkout(*entry, sm.drc);
+        };
+        Status checked = checkout_to(session.scratch);
+        if (!checked.is_ok() && checked.is_write_failure() && session.scratch != fs::temp_directory_path()) {
+          // A cache this user may read but not write (a shared, read-only
+          // one): its entries are used from copies in the system's
+          // temporary folder, and what this run simplifies is not cached.
+          session.warnings.push_back("cannot write into the cache (" + checked.message() +
+                                     "); using its entries from the system's temporary folder");
+          session.scratch = fs::temp_directory_path();
+          checked = checkout_to(session.scratch);
+        }
+        RAYLOD_RETURN_IF_ERROR(checked);
         sm.triangles = entry->triangles;
         sm.cache_hit = true;
         sm.cache_note = note;

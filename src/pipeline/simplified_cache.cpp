@@ -28,6 +28,9 @@ class CacheLock {
  public:
   explicit CacheLock(const fs::path& dir) {
     fd_ = ::open((dir / "lock").c_str(), O_RDWR | O_CREAT, 0644);
+    // A cache this user may only read: its lock file opened for reading
+    // locks as well (flock does not need write access).
+    if (fd_ < 0) fd_ = ::open((dir / "lock").c_str(), O_RDONLY);
     if (fd_ >= 0) ::flock(fd_, LOCK_EX);
   }
   ~CacheLock() {
@@ -248,7 +251,10 @@ Status SimplifiedCache::checkout(const CacheEntry& entry, const fs::path& dest) 
   fs::remove(dest, ec);
   fs::create_hard_link(entry.mesh, dest, ec);
   if (ec) fs::copy_file(entry.mesh, dest, fs::copy_options::overwrite_existing, ec);
-  if (ec) return Status::error(entry.mesh.string() + ": cannot use cached mesh: " + ec.message());
+  if (ec)
+    return Status::write_failed(dest.string(), entry.mesh.string() + ": cannot use cached mesh: cannot link or copy it to " +
+                                                   dest.string() + ": " + ec.message(),
+                                ec.value());
   return {};
 }
 

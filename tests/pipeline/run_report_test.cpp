@@ -367,6 +367,52 @@ TEST(Run, MeshInAReadOnlyFolderGetsItsStoreInTheCache) {
   EXPECT_TRUE(fs::exists(writable / "x.png"));
 }
 
+TEST(Run, AReadOnlyCacheIsUsedAsItIs) {
+  // A cache and a mesh folder this user may read but not write (shared by
+  // others): a view the cache holds renders from it (its entry copied to
+  // the temporary folder), and a store that is missing is built there too.
+  // Found by a bug hunt: the cache hit failed with "Permission denied" and
+  // the store build with "cannot create temporary file".
+  const fs::path base = work_dir() / "read-only-cache";
+  const fs::path meshes = base / "meshes", cache = base / "cache", writable = base / "writable";
+  fs::create_directories(meshes);
+  fs::create_directories(writable / "tmp");
+  std::string out;
+  ASSERT_EQ(raylod("gen teapot --triangles 4000 -q -o '" + (meshes / "t.ply").string() + "'", &out), 0) << out;
+  const fs::path scene = write_scene("read-only-cache.json", 1.0, 48, 36);
+  const std::string args = "run '" + scene.string() + "' --mesh '" + (meshes / "t.ply").string() +
+                           "' --rays 300 --cache '" + cache.string() + "' -o ";
+  ASSERT_EQ(raylod(args + "'" + (writable / "first.png").string() + "'", &out), 0) << out;
+  for (const auto& e : fs::directory_iterator(meshes))
+    if (e.path().filename() != "t.ply") fs::remove(e.path());  // the store: built again below
+  std::string prefix = "env TMPDIR='" + (writable / "tmp").string() + "' ";
+  const bool root = ::geteuid() == 0;
+  if (root) {
+    if (std::system("command -v setpriv > /dev/null 2>&1") != 0) GTEST_SKIP() << "running as root without setpriv";
+    for (fs::path p = work_dir(); p.has_relative_path() && p != p.root_path(); p = p.parent_path())
+      if (((fs::status(p).permissions() & fs::perms::others_exec) == fs::perms::none))
+        GTEST_SKIP() << p << " is not searchable by other users";
+    fs::permissions(writable, fs::perms::all);
+    fs::permissions(writable / "tmp", fs::perms::all);
+    prefix = "setpriv --reuid=65534 --regid=65534 --clear-groups " + prefix + "HOME='" + writable.string() + "' ";
+  }
+  const auto read_only = fs::perms::owner_read | fs::perms::owner_exec | fs::perms::group_read |
+                         fs::perms::group_exec | fs::perms::others_read | fs::perms::others_exec;
+  for (const fs::path& d : {meshes, cache, cache / "simplified"}) fs::permissions(d, read_only);
+  const std::string cmd = prefix + "'" RAYLOD_EXE "' " + args + "'" + (writable / "second.png").string() + "'";
+  const int rc = std::system((cmd + " > '" + (base / "log").string() + "' 2>&1").c_str());
+  out = read(base / "log");
+  for (const fs::path& d : {meshes, cache, cache / "simplified"}) fs::permissions(d, fs::perms::owner_all);
+  ASSERT_TRUE(WIFEXITED(rc) && WEXITSTATUS(rc) == 0) << out;
+  EXPECT_NE(out.find("cache hit"), std::string::npos) << out;
+  EXPECT_NE(out.find("using its entries from the system's temporary folder"), std::string::npos) << out;
+  EXPECT_NE(out.find("are not writable: the store goes to " + (writable / "tmp").string() + "/raylod-stores-"),
+            std::string::npos)
+      << out;
+  EXPECT_EQ(read(writable / "second.png"), read(writable / "first.png"));
+  EXPECT_FALSE(fs::exists(meshes / "t.ply.raylod"));
+}
+
 TEST(Run, MeshOptionStandsInForAMeshThatIsNotHere) {
   // A scene written elsewhere names a mesh this machine does not have; the
   // commands' --mesh replaces it, so nothing needs the missing file.
