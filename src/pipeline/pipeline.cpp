@@ -652,6 +652,8 @@ StatusOr<StagedMeshes> simplify_or_reuse(RunSession& session, const Scene& scene
   std::optional<SimplifiedCache>& cache = session.cache;
   const uint64_t memory_limit = session.memory_limit;
   StagedMeshes out;
+  // This view's entries stay while it inserts its others (SimplifiedCache::hold).
+  if (cache) cache->release_held();
   for (size_t i = 0; i < stores.stores.size(); ++i) {
     const Cut& cut = cuts[i];
     SimplifiedMesh sm;
@@ -685,6 +687,7 @@ StatusOr<StagedMeshes> simplify_or_reuse(RunSession& session, const Scene& scene
       }
       if (entry) {
         cache->touch(*entry);
+        cache->hold(entry->key);
         // Render from a link of our own: another run's eviction cannot pull it away.
         auto checkout_to = [&](const fs::path& dir) {
           AtomicOutput tmp(dir / ("cached-" + std::to_string(::getpid()) + "-" + std::to_string(i) + ".drc"));
@@ -761,6 +764,7 @@ StatusOr<StagedMeshes> simplify_or_reuse(RunSession& session, const Scene& scene
           session.warnings.push_back("cannot cache the simplified mesh (" + entry.status().message() +
                                      "); rendering without caching");
         } else {
+          cache->hold(entry->key);
           std::error_code ec;
           sm.cache_note = fs::is_regular_file(entry->mesh, ec) ? "simplified and cached as " + entry->key
                                                                : "simplified; not cached (larger than the cache limit)";

@@ -318,8 +318,10 @@ void SimplifiedCache::evict() {
   uint64_t total = 0;
   for (const auto& e : all) total += e.bytes;
   std::sort(all.begin(), all.end(), [](const auto& a, const auto& b) { return a.last_used_ns < b.last_used_ns; });
-  // Keep the most recently used entry even if it alone exceeds the limit.
+  // Keep the most recently used entry even if it alone exceeds the limit,
+  // and the entries held for the view being prepared.
   for (size_t i = 0; i + 1 < all.size() && total > limit_; ++i) {
+    if (held_.count(all[i].key)) continue;
     remove_entry_files(dir_ / "simplified", all[i].key);
     total -= all[i].bytes;
   }

@@ -83,13 +83,21 @@ class SimplifiedCache {
   // Marks an entry used now (LRU order).
   void touch(const CacheEntry& entry);
   std::vector<CacheEntry> entries() const;
-  // Removes least-recently-used entries until the total is within the limit.
+  // Removes least-recently-used entries until the total is within the limit,
+  // never one that is held (and never the most recently used).
   void evict();
+  // Entries the view being prepared uses (the meshes of a scene): evicting
+  // one of them to make room for another would leave the next run of the
+  // same view a miss for each, in turn. Held until release_held(), when the
+  // next view starts; they may exceed the limit together meanwhile.
+  void hold(const std::string& key) { held_.insert(key); }
+  void release_held() { held_.clear(); }
 
  private:
   SimplifiedCache(std::filesystem::path dir, uint64_t limit) : dir_(std::move(dir)), limit_(limit) {}
   std::filesystem::path dir_;
   uint64_t limit_ = 0;
+  std::set<std::string> held_;
 };
 
 // Hash of a file's content (for corruption checks).

@@ -176,6 +176,35 @@ TEST(SimplifiedCache, EvictsLeastRecentlyUsed) {
   EXPECT_TRUE(cache->find_exact(SimplifiedCache::key_for(c)).has_value());
 }
 
+// A scene of two meshes whose entries fit the limit one at a time only:
+// inserting the second must not evict the first, which the same view uses,
+// or each run of the view would miss both in turn (found by a bug hunt).
+TEST(SimplifiedCache, AViewsEntriesAreHeldWhileItInsertsItsOthers) {
+  fs::path dir = fresh_dir("held");
+  auto cache = SimplifiedCache::open(dir, 3500);  // entries count their .drc, .cut and .json
+  ASSERT_TRUE(cache.is_ok());
+  Cut old = make_cut(1, {{1, 3}}), teapot = make_cut(1, {{1, 1}}), bottle = make_cut(1, {{1, 2}});
+  ASSERT_TRUE(cache->insert(old, write_file(dir / "o.drc", 1000, 'o'), 1, 0.001).is_ok());
+  // The view: the teapot's entry (a hit, or just made), then the bottle's.
+  cache->release_held();
+  auto t = cache->insert(teapot, write_file(dir / "t.drc", 2000, 't'), 1, 0.001);
+  ASSERT_TRUE(t.is_ok());
+  cache->hold(t->key);
+  auto b = cache->insert(bottle, write_file(dir / "b.drc", 2000, 'b'), 1, 0.001);
+  ASSERT_TRUE(b.is_ok());
+  cache->hold(b->key);
+  EXPECT_TRUE(cache->find_exact(t->key).has_value());  // held, though over the limit together
+  EXPECT_TRUE(cache->find_exact(b->key).has_value());
+  EXPECT_FALSE(cache->find_exact(SimplifiedCache::key_for(old)).has_value());  // not held: evicted
+  // The next view holds nothing yet: the limit applies again.
+  cache->release_held();
+  auto other = cache->insert(make_cut(1, {{1, 4}}), write_file(dir / "x.drc", 2000, 'x'), 1, 0.001);
+  ASSERT_TRUE(other.is_ok());
+  EXPECT_FALSE(cache->find_exact(t->key).has_value());
+  EXPECT_FALSE(cache->find_exact(b->key).has_value());
+  EXPECT_TRUE(cache->find_exact(other->key).has_value());
+}
+
 TEST(SimplifiedCache, LeftoversOfAKilledRunAreIgnored) {
   fs::path dir = fresh_dir("killed");
   auto cache = SimplifiedCache::open(dir, 1 << 20);
