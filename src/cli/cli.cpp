@@ -127,10 +127,11 @@ std::vector<Args::Option> cut_options() {
                 kDefaultFootprintScale, kDefaultDiagonalFootprintScale);
   std::snprintf(tol, sizeof tol,
                 "deviation criterion: largest surface deviation a collapse may cause,\n"
-                "                              in pixels (default %g)", kDefaultTolerancePx);
+                "                              in pixels (default %g; less above 4 spp)", kDefaultTolerancePx);
   std::snprintf(angle, sizeof angle,
                 "deviation criterion on mirrors and glass: largest turn of a reflected\n"
-                "                              or refracted ray, in pixel angles (default %g)", kDefaultAngleTolerancePx);
+                "                              or refracted ray, in pixel angles (default %g; less above 4 spp)",
+                kDefaultAngleTolerancePx);
   return {{"--criterion", "", "which cells collapse: deviation (default; bounded surface and\n"
                               "                              mirror-normal error) or diagonal (the paper's K test alone)", true, "NAME"},
           {"--tolerance", "", tol, true, "PX"},
@@ -146,6 +147,8 @@ std::vector<Args::Option> with_cut_options(std::vector<Args::Option> options) {
 StatusOr<CutOptions> cut_options_from_args(const Args& args) {
   CutOptions o;
   if (args.has("--criterion")) { RAYLOD_ASSIGN_OR_RETURN(o.criterion, parse_cut_criterion(args.get("--criterion"))); }
+  o.tolerance_given = args.has("--tolerance");
+  o.angle_tolerance_given = args.has("--angle-tolerance");
   RAYLOD_ASSIGN_OR_RETURN(o.tolerance_px, args.get_double("--tolerance", kDefaultTolerancePx));
   if (!(o.tolerance_px > 0)) return Status::error("--tolerance must be > 0 (pixels)");
   RAYLOD_ASSIGN_OR_RETURN(o.angle_tolerance_px, args.get_double("--angle-tolerance", kDefaultAngleTolerancePx));

@@ -77,6 +77,13 @@ struct CutOptions {
   double tolerance_px = kDefaultTolerancePx;
   double angle_tolerance_px = kDefaultAngleTolerancePx;
   double footprint_scale = kDefaultFootprintScale;
+  bool tolerance_given = false, angle_tolerance_given = false;
+  // The default tolerances for a render of `spp` samples per pixel
+  // (default_tolerance_px), where none was given.
+  void fit_defaults_to(int spp) {
+    if (!tolerance_given) tolerance_px = default_tolerance_px(spp);
+    if (!angle_tolerance_given) angle_tolerance_px = default_angle_tolerance_px(spp);
+  }
 };
 StatusOr<CutOptions> cut_options_from_args(const Args& args);
 

@@ -47,6 +47,7 @@ int cmd_probe(int argc, char** argv) {
   auto scene_or = cli::scene_from_args(args);
   if (!scene_or) return cli::fail("probe", scene_or.status());
   Scene scene = std::move(scene_or.value());
+  cut_opts->fit_defaults_to(scene.spp);  // the cut `raylod run` makes for the scene's spp
 
   auto rays = args.get_int("--rays", 5000, 1, 100'000'000);
   auto seed = args.get_int("--seed", int64_t(scene.seed), 0, INT64_MAX);

@@ -148,6 +148,9 @@ Status run_run(int argc, char** argv, bool& help) {
   if (!quiet) log = [](const std::string& m) { std::fprintf(stderr, "raylod run: %s\n", m.c_str()); };
 
   RAYLOD_ASSIGN_OR_RETURN(Scene scene, scene_from_args(args));
+  cut.fit_defaults_to(opts.spp > 0 ? opts.spp : scene.spp);
+  opts.tolerance_px = cut.tolerance_px;
+  opts.angle_tolerance_px = cut.angle_tolerance_px;
   {
     std::vector<FileRole> outputs = {{sequence ? numbered_image_path(output, 0) : output, "the image (-o)"}};
     if (args.has("--stats-json")) outputs.push_back({args.get("--stats-json"), "--stats-json"});
@@ -191,8 +194,16 @@ Status run_run(int argc, char** argv, bool& help) {
                     r.meshes.size(), rendered);
     }
     std::printf("  build      %7.2f s\n", r.seconds.build);
-    std::printf("  probe      %7.2f s  (%llu test rays, K = %g%s)\n", r.seconds.probe, (unsigned long long)opts.rays,
-                r.footprint_scale, r.coarsening_steps ? ", coarsened to fit the memory limit" : "");
+    char tolerance[96] = "";
+    if (opts.criterion == CutCriterion::Deviation && opts.tolerance_px != kDefaultTolerancePx) {
+      if (cut.tolerance_given)
+        std::snprintf(tolerance, sizeof tolerance, ", tolerance %.3g px", opts.tolerance_px);
+      else
+        std::snprintf(tolerance, sizeof tolerance, ", tolerance %.3g px (%g fitted to %d spp)", opts.tolerance_px,
+                      kDefaultTolerancePx, opts.spp > 0 ? opts.spp : scene.spp);
+    }
+    std::printf("  probe      %7.2f s  (%llu test rays, K = %g%s%s)\n", r.seconds.probe, (unsigned long long)opts.rays,
+                r.footprint_scale, tolerance, r.coarsening_steps ? ", coarsened to fit the memory limit" : "");
     std::printf("  simplify   %7.2f s  (%s)\n", r.seconds.simplify, r.cache_hit ? "from cache" : "simplified");
     for (const auto& m : r.meshes) std::printf("             %s\n", m.cache_note.c_str());
     std::printf("  render     %7.2f s  (load %.2f s, BVH %.2f s, trace %.2f s)\n", r.seconds.render,

@@ -438,6 +438,9 @@ StatusOr<ReportResult> run_report(const Scene& input_scene, const std::optional<
       row.rays = n;
       RAYLOD_ASSIGN_OR_RETURN(ProbeConfig pc, make_probe_config(run.scene, n, k, budget, false));
       pc.criterion = variant.criterion;
+      const int spp = cfg.spp > 0 ? cfg.spp : run.scene.spp;  // as the images are rendered
+      pc.tolerance_px = default_tolerance_px(spp);
+      pc.angle_tolerance_px = default_angle_tolerance_px(spp);
       if (!traces.count(n)) {
         RAYLOD_ASSIGN_OR_RETURN(ProbeTrace t, trace_probe(run.scene, stores.probe_stores, stores.objects, pc));
         traces.emplace(n, std::move(t));

@@ -448,6 +448,8 @@ uint64_t store_fingerprint(const OctreeStore& store) {
 
 const char* to_string(CutCriterion c) { return c == CutCriterion::Diagonal ? "diagonal" : "deviation"; }
 
+double default_tolerance_scale(int spp) { return spp > 4 ? std::pow(4.0 / double(spp), 0.75) : 1.0; }
+
 StatusOr<CutCriterion> parse_cut_criterion(const std::string& name) {
   if (name == "deviation") return CutCriterion::Deviation;
   if (name == "diagonal") return CutCriterion::Diagonal;

@@ -500,6 +500,31 @@ TEST(Run, AViewFinerThanTheStoreGridIsWarnedAbout) {
   EXPECT_EQ(out.find("its store keeps positions"), std::string::npos) << out;
 }
 
+TEST(Run, TheDefaultToleranceFollowsTheSamplesPerPixel) {
+  // Above 4 spp the renderer's noise floor rises past what 0.5 px keeps
+  // (a bug hunt's glossy teapot at 64 spp: 7.9 dB below it); the default
+  // tolerance tightens with the spp the run renders at, and says so. An
+  // explicit --tolerance is taken as given.
+  const fs::path scene = write_scene("spp.json", 1.0, 64, 48);
+  std::string out;
+  auto triangles = [&](const std::string& extra, const std::string& tag) -> uint64_t {
+    const fs::path st = work_dir() / (tag + ".json");
+    EXPECT_EQ(raylod("run '" + scene.string() + "' --no-cache --rays 1000 " + extra + " -o '" +
+                         (work_dir() / (tag + ".png")).string() + "' --stats-json '" + st.string() + "'",
+                     &out),
+              0)
+        << out;
+    return stats(st)["triangles_out"];
+  };
+  const uint64_t at4 = triangles("--spp 4", "spp4");
+  EXPECT_EQ(out.find("tolerance"), std::string::npos) << out;
+  const uint64_t at64 = triangles("--spp 64", "spp64");
+  EXPECT_NE(out.find("tolerance 0.0625 px (0.5 fitted to 64 spp)"), std::string::npos) << out;
+  EXPECT_GT(at64, at4);
+  EXPECT_EQ(triangles("--spp 64 --tolerance 0.5", "spp64-given"), at4);
+  EXPECT_NE(out.find("K = 64)"), std::string::npos) << out;  // 0.5 given: the default, not reported
+}
+
 TEST(Run, BadSceneIsAClearError) {
   fs::path bad = work_dir() / "bad.json";
   std::ofstream(bad) << "{\"camera\": 3}";

@@ -793,6 +793,16 @@ const Built& plane() {
   return b;
 }
 
+TEST(ProbeDeviation, DefaultTolerancesTightenAboveFourSamplesPerPixel) {
+  for (int spp : {1, 2, 4}) {
+    EXPECT_EQ(default_tolerance_px(spp), kDefaultTolerancePx);
+    EXPECT_EQ(default_angle_tolerance_px(spp), kDefaultAngleTolerancePx);
+  }
+  EXPECT_DOUBLE_EQ(default_tolerance_px(64), kDefaultTolerancePx / 8);  // (4 / 64)^0.75
+  EXPECT_DOUBLE_EQ(default_angle_tolerance_px(64), kDefaultAngleTolerancePx / 8);
+  for (int spp = 5; spp < 4096; spp *= 2) EXPECT_LT(default_tolerance_px(spp + 1), default_tolerance_px(spp));
+}
+
 TEST(ProbeDeviation, FlatPlaneCollapsesAsCoarselyAsKAllows) {
   const Scene scene = make_scene(MaterialType::Diffuse, Vec3d(0.5, 6, 4), Vec3d(0, 1, 0), false);
   const OctreeStore& st = *plane().store;
