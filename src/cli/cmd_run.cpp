@@ -180,8 +180,14 @@ Status run_run(int argc, char** argv, bool& help) {
     for (const std::string& w : r.warnings) std::fprintf(stderr, "raylod run: warning: %s\n", w.c_str());
 
     std::printf("raylod run: %s\n", args.positionals().empty() ? "embedded default scene" : args.positionals()[0].c_str());
-    std::printf("  triangles  %llu -> %llu (%.1fx fewer)\n", (unsigned long long)r.triangles_in,
-                (unsigned long long)r.triangles_out, r.triangles_out ? double(r.triangles_in) / double(r.triangles_out) : 0.0);
+    if (r.triangles_out == 0) {
+      std::printf("  triangles  %llu -> 0 (every one collapsed or left out)\n", (unsigned long long)r.triangles_in);
+    } else {
+      // Two decimals below 10x, so that 9956 -> 9871 does not read as no change.
+      const double ratio = double(r.triangles_in) / double(r.triangles_out);
+      std::printf("  triangles  %llu -> %llu (%.*fx fewer)\n", (unsigned long long)r.triangles_in,
+                  (unsigned long long)r.triangles_out, ratio < 10 ? 2 : 1, ratio);
+    }
     // The counts above are per distinct mesh; a mesh the scene places more
     // than once is rendered once per placement.
     if (scene.objects.size() > r.meshes.size()) {
