@@ -33,6 +33,7 @@
 #include "core/parallelism.h"
 #include "core/system.h"
 #include "streaming/distinct_keys.h"
+#include "streaming/mesh_reader.h"
 
 namespace raylod {
 namespace {
@@ -383,14 +384,48 @@ StatusOr<DracoEncoded> encode_draco_parts(const std::filesystem::path& path, con
 
 }  // namespace
 
+namespace {
+
+// Draco quantises the three axes on one grid over the largest side, and
+// the float rounding of coordinates far from zero (2^-23 of their size)
+// sets how fine that grid can usefully be, for every axis: a float sphere of
+// radius 1 at x = 1e7 (a mesh read from a float file keeps its coordinates,
+// MeshHeader::origin) got 4 bits, its positions 2.18 off where y and z held
+// 1e-7. A mesh whose centre lies kLocalOriginThreshold or more from its
+// origin is encoded relative to a local origin there (an integer point):
+// float coordinates minus it are exact, and the grid then follows the mesh's
+// own size.
+Vec3d local_shift(const IndexedMesh& mesh) {
+  if (mesh.positions.empty()) return Vec3d(0);
+  Vec3 lo = mesh.positions[0], hi = lo;
+  for (const Vec3& p : mesh.positions) {
+    lo = glm::min(lo, p);
+    hi = glm::max(hi, p);
+  }
+  return local_origin_for(0.5 * (Vec3d(lo) + Vec3d(hi)));
+}
+
+void shift_positions(IndexedMesh& mesh, const Vec3d& shift) {
+  for (Vec3& p : mesh.positions) p = Vec3(Vec3d(p) - shift);
+  mesh.origin += shift;
+}
+
+}  // namespace
+
 StatusOr<DracoEncoded> encode_draco(const std::filesystem::path& path, const IndexedMesh& mesh,
                                      const DracoOptions& options) {
+  if (const Vec3d shift = local_shift(mesh); shift != Vec3d(0)) {
+    IndexedMesh near = mesh;
+    shift_positions(near, shift);
+    return encode_draco(path, std::move(near), options);
+  }
   if (options.parts > 1) return encode_draco_parts(path, mesh, options, nullptr);
   return encode_draco_mesh(path, mesh, options, nullptr);
 }
 
 StatusOr<DracoEncoded> encode_draco(const std::filesystem::path& path, IndexedMesh&& mesh,
                                      const DracoOptions& options) {
+  shift_positions(mesh, local_shift(mesh));
   if (options.parts > 1) return encode_draco_parts(path, mesh, options, &mesh);
   return encode_draco_mesh(path, mesh, options, &mesh);
 }

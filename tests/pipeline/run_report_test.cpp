@@ -9,6 +9,7 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <optional>
 #include <sstream>
 #include <vector>
 
@@ -76,6 +77,27 @@ fs::path write_scene(const std::string& name, double eye_scale, int width = 128,
 }
 
 nlohmann::json stats(const fs::path& p) { return nlohmann::json::parse(read(p)); }
+
+// A command prefix that runs raylod as a user who cannot write where the
+// test forbids it: root writes anywhere, so as root the command drops to
+// user nobody (setpriv), with HOME in `home` (made writable to all); for
+// anyone else, empty (the test makes folders read-only instead). nullopt,
+// and why, when root cannot drop here.
+std::optional<std::string> as_unprivileged(const fs::path& home, std::string* why) {
+  if (::geteuid() != 0) return std::string();
+  if (std::system("command -v setpriv > /dev/null 2>&1") != 0) {
+    *why = "running as root without setpriv";
+    return std::nullopt;
+  }
+  // nobody must reach the executable, the scene and the writable folder.
+  for (fs::path p = work_dir(); p.has_relative_path() && p != p.root_path(); p = p.parent_path())
+    if (((fs::status(p).permissions() & fs::perms::others_exec) == fs::perms::none)) {
+      *why = p.string() + " is not searchable by other users";
+      return std::nullopt;
+    }
+  fs::permissions(home, fs::perms::all);
+  return "setpriv --reuid=65534 --regid=65534 --clear-groups env HOME='" + home.string() + "' ";
+}
 
 TEST(Run, SecondRunOfTheSameViewHitsTheCache) {
   fs::path scene = write_scene("view.json", 1.0);
@@ -339,19 +361,12 @@ TEST(Run, MeshInAReadOnlyFolderGetsItsStoreInTheCache) {
   std::string out;
   ASSERT_EQ(raylod("gen teapot --triangles 4000 -q -o '" + (meshes / "t.ply").string() + "'", &out), 0) << out;
   const fs::path scene = write_scene("read-only.json", 1.0, 48, 36);
-  std::string prefix;
+  std::string why;
+  const std::optional<std::string> unprivileged = as_unprivileged(writable, &why);
+  if (!unprivileged) GTEST_SKIP() << why;
+  const std::string prefix = *unprivileged;
   const bool root = ::geteuid() == 0;
-  if (root) {
-    if (std::system("command -v setpriv > /dev/null 2>&1") != 0) GTEST_SKIP() << "running as root without setpriv";
-    // nobody must reach the executable, the scene and the writable folder.
-    for (fs::path p = work_dir(); p.has_relative_path() && p != p.root_path(); p = p.parent_path())
-      if (((fs::status(p).permissions() & fs::perms::others_exec) == fs::perms::none))
-        GTEST_SKIP() << p << " is not searchable by other users";
-    fs::permissions(writable, fs::perms::all);
-    prefix = "setpriv --reuid=65534 --regid=65534 --clear-groups env HOME='" + writable.string() + "' ";
-  } else {
-    fs::permissions(meshes, fs::perms::owner_read | fs::perms::owner_exec);
-  }
+  if (!root) fs::permissions(meshes, fs::perms::owner_read | fs::perms::owner_exec);
   const fs::path cache = writable / "cache";
   const std::string cmd = prefix + "'" RAYLOD_EXE "' run '" + scene.string() + "' --mesh '" + (meshes / "t.ply").string() +
                           "' --rays 300 --cache '" + cache.string() + "' -o '" + (writable / "x.png").string() + "'";
@@ -385,17 +400,11 @@ TEST(Run, AReadOnlyCacheIsUsedAsItIs) {
   ASSERT_EQ(raylod(args + "'" + (writable / "first.png").string() + "'", &out), 0) << out;
   for (const auto& e : fs::directory_iterator(meshes))
     if (e.path().filename() != "t.ply") fs::remove(e.path());  // the store: built again below
-  std::string prefix = "env TMPDIR='" + (writable / "tmp").string() + "' ";
-  const bool root = ::geteuid() == 0;
-  if (root) {
-    if (std::system("command -v setpriv > /dev/null 2>&1") != 0) GTEST_SKIP() << "running as root without setpriv";
-    for (fs::path p = work_dir(); p.has_relative_path() && p != p.root_path(); p = p.parent_path())
-      if (((fs::status(p).permissions() & fs::perms::others_exec) == fs::perms::none))
-        GTEST_SKIP() << p << " is not searchable by other users";
-    fs::permissions(writable, fs::perms::all);
-    fs::permissions(writable / "tmp", fs::perms::all);
-    prefix = "setpriv --reuid=65534 --regid=65534 --clear-groups " + prefix + "HOME='" + writable.string() + "' ";
-  }
+  std::string why;
+  const std::optional<std::string> unprivileged = as_unprivileged(writable, &why);
+  if (!unprivileged) GTEST_SKIP() << why;
+  if (::geteuid() == 0) fs::permissions(writable / "tmp", fs::perms::all);
+  const std::string prefix = *unprivileged + "env TMPDIR='" + (writable / "tmp").string() + "' ";
   const auto read_only = fs::perms::owner_read | fs::perms::owner_exec | fs::perms::group_read |
                          fs::perms::group_exec | fs::perms::others_read | fs::perms::others_exec;
   for (const fs::path& d : {meshes, cache, cache / "simplified"}) fs::permissions(d, read_only);

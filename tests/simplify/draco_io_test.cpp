@@ -7,6 +7,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <fstream>
+#include <limits>
 #include <random>
 #include <set>
 
@@ -96,6 +97,40 @@ TEST(DracoIo, RoundTripSphereWithinTheStatedErrors) {
     ASSERT_TRUE(back.is_ok()) << back.status().message();
     ASSERT_EQ(back->normals.size(), back->positions.size());
     expect_same_triangles(mesh, *back, rep->max_position_error, rep->max_normal_error);
+  }
+}
+
+// A mesh read from a float file keeps its coordinates (origin 0): a sphere
+// of radius 1 at x = 1e7 has x on a 1.0 grid (the file's own rounding) and
+// y, z to 1e-7. Draco's one grid over all axes was sized by x's rounding (4
+// bits, positions 2.18 off, found by a bug hunt); encoded relative to a
+// local origin it keeps every coordinate the file held, within the bound.
+TEST(DracoIo, AFloatMeshFarFromZeroKeepsItsPrecision) {
+  const IndexedMesh mesh = indexed(test::uv_sphere({1e7, 0.5, -0.25}, 1.0f, 24, 32));
+  ASSERT_EQ(mesh.origin, Vec3d(0));
+  for (int parts : {1, 3}) {
+    DracoOptions opt;
+    opt.max_position_error = 1e-5;
+    opt.parts = parts;
+    const auto path = tmp_dir() / ("far" + std::to_string(parts) + ".drc");
+    auto rep = write_draco(path, mesh, opt);
+    ASSERT_TRUE(rep.is_ok()) << rep.status().message();
+    EXPECT_LE(rep->max_position_error, 1e-5);
+    auto back = read_draco(path);
+    ASSERT_TRUE(back.is_ok()) << back.status().message();
+    ASSERT_EQ(back->triangle_count(), mesh.triangle_count());
+    // Every decoded corner lies within the bound of an input vertex (world
+    // coordinates: the decoded mesh has its own origin).
+    std::vector<Vec3d> input;
+    for (const Vec3& p : mesh.positions) input.push_back(mesh.origin + Vec3d(p));
+    double worst = 0;
+    for (const Vec3& q : back->positions) {
+      const Vec3d w = back->origin + Vec3d(q);
+      double nearest = std::numeric_limits<double>::infinity();
+      for (const Vec3d& p : input) nearest = std::min(nearest, glm::distance(p, w));
+      worst = std::max(worst, nearest);
+    }
+    EXPECT_LE(worst, rep->max_position_error) << parts << " parts";
   }
 }
 
