@@ -32,6 +32,7 @@ CollapseDeviation collapse_deviation(const NodeRecord& node, const Bbox& cell, c
   const double resultant = std::min(1.0, glm::length(node.normal_sum) / weight);
   const double from_spread = 2.0 * (1.0 - resultant);
   d.normal = std::min({M_PI, from_side, from_spread});
+  d.crease = from_spread > 0.05 && from_side < 0.1 * from_spread;
   if (s.rank <= 1) {
     const SymmetricEigen3 e = symmetric_eigen(q);
     d.folded = std::abs(glm::dot(node.normal_sum, e.vectors[0])) < kFoldMargin * e.values[0];

@@ -63,6 +63,10 @@ struct CollapseDeviation {
   double position = 0;  // same units as the cell (store units)
   double normal = 0;    // radians
   bool folded = false;  // opposite-facing sheets solved as one plane (above)
+  // Sheets meeting at a crease or corner that the solve puts the
+  // representative on exactly (no deviation), while the cell's normals spread
+  // (from_spread over 0.05 rad, ten times the curvature estimate).
+  bool crease = false;
 };
 
 // `cell` in the quadric's frame (relative to StoreHeader::origin for store

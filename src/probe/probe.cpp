@@ -1095,11 +1095,11 @@ StatusOr<ProbeResult> CutSelection::select(const ProbeConfig& config) {
     // inside an accepted one is collapsed with it).
     const QemSolveConfig qem;
     const Vec3d origin = st.header().origin;
-    uint64_t rejected_deviation = 0, rejected_normal = 0, rejected_boundary = 0, rejected_fold = 0;
+    uint64_t rejected_deviation = 0, rejected_normal = 0, rejected_boundary = 0, rejected_fold = 0, rejected_crease = 0;
     // The finest cells left uncollapsed (their input triangles are kept as
     // they are), by the test that kept them: K, deviation, normal, boundary,
     // fold.
-    std::array<uint64_t, 6> finest_kept{};
+    std::array<uint64_t, 7> finest_kept{};
     std::vector<std::vector<char>> collapsed(size_t(Q) + 1);
     const std::vector<std::vector<uint64_t>>& codes_at = n.kept->codes;
     for (int L = 0; L <= Q; ++L) {
@@ -1118,7 +1118,8 @@ StatusOr<ProbeResult> CutSelection::select(const ProbeConfig& config) {
         }
       }
       // 0 = keep, 1 = collapse, 2 = kept for its deviation, 3 = for its
-      // normal, 4 = for an open boundary in it, 5 = for a fold in it.
+      // normal, 4 = for an open boundary in it, 5 = for a fold in it, 6 =
+      // for a crease in it (mirrors and glass).
       std::vector<char> verdict(nodes.size(), 0);
       tbb::parallel_for(tbb::blocked_range<size_t>(0, nodes.size(), 256), [&](const tbb::blocked_range<size_t>& r) {
         for (size_t i = r.begin(); i != r.end(); ++i) {
@@ -1147,6 +1148,15 @@ StatusOr<ProbeResult> CutSelection::select(const ProbeConfig& config) {
             continue;
           }
           if (bound_normals && dev.normal > config.angle_tolerance_px * n.tilt[size_t(L)][i]) { verdict[i] = 3; continue; }
+          // On mirrors and glass, a crease or corner the cell holds exactly
+          // (its representative on the edge, no deviation) is still cut
+          // across by the triangles that join it to the cells beside it
+          // wherever the crease does not follow the cells' faces: chamfers
+          // and folded flaps that reflection and refraction show (a
+          // rotated glass cube: 23.78 dB against a 36.02 dB floor). Such a
+          // cell collapses only while the whole cell is within the
+          // tolerance, as a rim does.
+          if (bound_normals && dev.crease && !(diag <= config.tolerance_px * f)) { verdict[i] = 6; continue; }
           verdict[i] = 1;
         }
       });
@@ -1157,6 +1167,7 @@ StatusOr<ProbeResult> CutSelection::select(const ProbeConfig& config) {
         rejected_normal += verdict[i] == 3;
         rejected_boundary += verdict[i] == 4;
         rejected_fold += verdict[i] == 5;
+        rejected_crease += verdict[i] == 6;
         if (verdict[i] == 1) {
           collapsed[size_t(L)][i] = 1;
           cut.cells.push_back({CellKey{uint32_t(L), codes[i]}, 0.0f, 0});
@@ -1167,13 +1178,15 @@ StatusOr<ProbeResult> CutSelection::select(const ProbeConfig& config) {
     cut.counters["cells_kept_for_normals"] = rejected_normal;
     cut.counters["cells_kept_for_boundary"] = rejected_boundary;
     cut.counters["cells_kept_for_fold"] = rejected_fold;
+    cut.counters["cells_kept_for_crease"] = rejected_crease;
     cut.counters["finest_cells_kept"] =
-        finest_kept[0] + finest_kept[2] + finest_kept[3] + finest_kept[4] + finest_kept[5];
+        finest_kept[0] + finest_kept[2] + finest_kept[3] + finest_kept[4] + finest_kept[5] + finest_kept[6];
     cut.counters["finest_cells_kept_for_k"] = finest_kept[0];
     cut.counters["finest_cells_kept_for_deviation"] = finest_kept[2];
     cut.counters["finest_cells_kept_for_normals"] = finest_kept[3];
     cut.counters["finest_cells_kept_for_boundary"] = finest_kept[4];
     cut.counters["finest_cells_kept_for_fold"] = finest_kept[5];
+    cut.counters["finest_cells_kept_for_crease"] = finest_kept[6];
     std::sort(cut.cells.begin(), cut.cells.end(), [](const CollapsedCell& a, const CollapsedCell& b) { return a.key < b.key; });
     // Footprints and hit counts of the marked cells (each hit counted once per cell).
     std::unordered_map<uint64_t, size_t> cell_index;  // pack(level, code) -> index

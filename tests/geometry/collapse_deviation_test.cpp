@@ -90,6 +90,29 @@ TEST(CollapseDeviation, ThinWallIsItsThickness) {
   EXPECT_LE(d.position, 2 * t);
 }
 
+// A crease or corner the solve holds exactly has no deviation, yet its
+// normals spread: flagged, so that mirrors and glass (where the triangles
+// joining it to the cells beside it show as chamfers) treat it as a rim.
+// Planes and curved patches are not creases.
+TEST(CollapseDeviation, CreasesAreFlaggedPlanesAndCurvesAreNot) {
+  const Bbox cell{Vec3d(-1), Vec3d(1)};
+  NodeRecord flat;
+  add_triangle(flat, {-1, 0, -1}, {-1, 0, 1}, {1, 0, 1});
+  add_triangle(flat, {-1, 0, -1}, {1, 0, 1}, {1, 0, -1});
+  EXPECT_FALSE(collapse_deviation(flat, cell).crease);
+  NodeRecord crease = flat;
+  add_triangle(crease, {0.2, 0, -1}, {0.2, 1, -1}, {0.2, 1, 1});
+  add_triangle(crease, {0.2, 0, -1}, {0.2, 1, 1}, {0.2, 0, 1});
+  const CollapseDeviation c = collapse_deviation(crease, cell);
+  EXPECT_TRUE(c.crease);
+  EXPECT_LT(c.position, 1e-6);
+  NodeRecord corner = crease;
+  add_triangle(corner, {0.2, 0, 0.3}, {0.2, 1, 0.3}, {-1, 1, 0.3});
+  EXPECT_TRUE(collapse_deviation(corner, cell).crease);
+  for (double alpha : {0.05, 0.3, 1.0})
+    EXPECT_FALSE(collapse_deviation(cap(1.0, alpha), Bbox{Vec3d(-2), Vec3d(2)}).crease) << "alpha " << alpha;
+}
+
 TEST(CollapseDeviation, FoldsAreFlaggedOneSidedSurfacesAreNot) {
   const Bbox cell{Vec3d(-1), Vec3d(1)};
   // A knife edge: two faces meeting at a 0-degree dihedral along x = 1 (the
