@@ -26,12 +26,12 @@
 #include "geometry/optics.h"
 #include "probe/bvh.h"
 #include "probe/probe.h"
-#include "scene/scene_camera.h"
 #include "probe/store_tracer.h"
 #include "scene/scene_camera.h"
 #include "streaming/cut_file.h"
 #include "streaming/mesh_writer.h"
 #include "streaming/octree_store.h"
+#include "one_object_scene.h"
 #include "test_scenes.h"
 #include "test_tmp.h"
 
@@ -100,21 +100,7 @@ const Built& teapot() {
 }
 
 Scene make_scene(MaterialType type, const Vec3d& eye, const Vec3d& look_at, bool ground = true, bool lights = true) {
-  Scene s;
-  s.camera.eye = eye;
-  s.camera.look_at = look_at;
-  s.camera.width = 320;
-  s.camera.height = 240;
-  s.camera.fov_y_deg = 40;
-  Material m;
-  m.name = "object";
-  m.type = type;
-  m.ior = 1.5f;
-  Material floor;
-  floor.name = "floor";
-  s.materials = {m, floor};
-  if (ground) s.ground = Ground{0.0, 40.0, 1};
-  if (lights) s.lights.push_back(Light{});
+  Scene s = test::one_object_scene(type, eye, look_at, 320, 240, 40, ground, lights);
   s.max_depth = 5;
   return s;
 }

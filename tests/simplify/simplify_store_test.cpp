@@ -10,6 +10,7 @@
 
 #include "core/progress.h"
 #include "octree/octree_test_util.h"
+#include "one_object_scene.h"
 #include "probe/probe.h"
 #include "simplify/collapse.h"
 #include "simplify/indexed_mesh_writer.h"
@@ -233,18 +234,7 @@ TEST(SimplifyStore, AGlassCubeTurnedAgainstTheCellsKeepsItsEdges) {
   BuiltStore b = build(cube, "turned-cube");
   ASSERT_TRUE(b.store);
   auto cut_for = [&](MaterialType type) {
-    Scene scene;
-    scene.camera.eye = Vec3d(0.5, 2.5, 7.0);
-    scene.camera.look_at = Vec3d(0, 0, 0);
-    scene.camera.width = 160;
-    scene.camera.height = 120;
-    scene.camera.fov_y_deg = 35;
-    Material m;
-    m.name = "cube";
-    m.type = type;
-    m.ior = 1.5f;
-    scene.materials = {m};
-    scene.lights.push_back(Light{});
+    Scene scene = test::one_object_scene(type, Vec3d(0.5, 2.5, 7.0), Vec3d(0), 160, 120, 35, false, true);
     scene.max_depth = 6;
     const ProbeStore store{b.store.get(), b.dir / "s.raylod"};
     const ProbeObject object{0, glm::dmat4(1.0), 0};
