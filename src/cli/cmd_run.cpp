@@ -125,8 +125,6 @@ Status run_run(int argc, char** argv, bool& help) {
   RAYLOD_ASSIGN_OR_RETURN(CutOptions cut, cut_options_from_args(args));
   opts.footprint_scale = cut.footprint_scale;
   opts.criterion = cut.criterion;
-  opts.tolerance_px = cut.tolerance_px;
-  opts.angle_tolerance_px = cut.angle_tolerance_px;
   RAYLOD_ASSIGN_OR_RETURN(int64_t spp, args.get_int("--spp", 0, 1, 4096));
   RAYLOD_ASSIGN_OR_RETURN(opts.cache_limit, args.get_size("--cache-limit", uint64_t(4) << 30));
   opts.rays = uint64_t(rays);
@@ -148,7 +146,8 @@ Status run_run(int argc, char** argv, bool& help) {
   if (!quiet) log = [](const std::string& m) { std::fprintf(stderr, "raylod run: %s\n", m.c_str()); };
 
   RAYLOD_ASSIGN_OR_RETURN(Scene scene, scene_from_args(args));
-  cut.fit_defaults_to(opts.spp > 0 ? opts.spp : scene.spp);
+  const int render_spp = opts.spp > 0 ? opts.spp : scene.spp;
+  cut.fit_defaults_to(render_spp);  // the tolerances, once the render's spp is known
   opts.tolerance_px = cut.tolerance_px;
   opts.angle_tolerance_px = cut.angle_tolerance_px;
   {
@@ -206,7 +205,7 @@ Status run_run(int argc, char** argv, bool& help) {
         std::snprintf(tolerance, sizeof tolerance, ", tolerance %.3g px", opts.tolerance_px);
       else
         std::snprintf(tolerance, sizeof tolerance, ", tolerance %.3g px (%g fitted to %d spp)", opts.tolerance_px,
-                      kDefaultTolerancePx, opts.spp > 0 ? opts.spp : scene.spp);
+                      kDefaultTolerancePx, render_spp);
     }
     std::printf("  probe      %7.2f s  (%llu test rays, K = %g%s%s)\n", r.seconds.probe, (unsigned long long)opts.rays,
                 r.footprint_scale, tolerance, r.coarsening_steps ? ", coarsened to fit the memory limit" : "");

@@ -202,7 +202,7 @@ fs::path store_path_for(const fs::path& mesh, const fs::path& cache_dir, const S
   const fs::path in_cache = cache_dir / "stores" / name;
   std::error_code ec;
   fs::create_directories(in_cache.parent_path(), ec);
-  if (store_is_current(mesh, in_cache, options) || (!ec && folder_is_writable(in_cache.parent_path()))) {
+  if ((!ec && folder_is_writable(in_cache.parent_path())) || store_is_current(mesh, in_cache, options)) {
     if (note) *note = folder.string() + " is not writable: the store goes to " + in_cache.string();
     return in_cache;
   }

@@ -1133,17 +1133,20 @@ StatusOr<ProbeResult> CutSelection::select(const ProbeConfig& config) {
             dev = collapse_deviation(nodes[i], Bbox{cell.lo - origin, cell.hi - origin}, qem);
           }
           if (dev.position > config.tolerance_px * f) { verdict[i] = 2; continue; }
+          // What a quadric cannot bound (rims, folds, creases on mirrors
+          // and glass, below) collapses only while the whole cell is within
+          // the tolerance.
+          const bool whole_cell_within = diag <= config.tolerance_px * f;
           // The quadric does not see a rim (collapse_deviation.h), which the
           // representative may pull anywhere in the cell: a cell with an
-          // open boundary collapses only while the whole cell is within the
-          // tolerance.
-          if (!(diag <= config.tolerance_px * f) && st.touches_boundary(CellKey{uint32_t(L), codes[i]})) {
+          // open boundary.
+          if (!whole_cell_within && st.touches_boundary(CellKey{uint32_t(L), codes[i]})) {
             verdict[i] = 4;
             continue;
           }
           // Nor a fold (a knife edge, a plate thinner than the cell), whose
           // edge the representative may pull as far in: the same rule.
-          if (!(diag <= config.tolerance_px * f) && dev.folded) {
+          if (!whole_cell_within && dev.folded) {
             verdict[i] = 5;
             continue;
           }
@@ -1153,10 +1156,9 @@ StatusOr<ProbeResult> CutSelection::select(const ProbeConfig& config) {
           // across by the triangles that join it to the cells beside it
           // wherever the crease does not follow the cells' faces: chamfers
           // and folded flaps that reflection and refraction show (a
-          // rotated glass cube: 23.78 dB against a 36.02 dB floor). Such a
-          // cell collapses only while the whole cell is within the
-          // tolerance, as a rim does.
-          if (bound_normals && dev.crease && !(diag <= config.tolerance_px * f)) { verdict[i] = 6; continue; }
+          // rotated glass cube: 23.78 dB against a 36.02 dB floor). The
+          // rim's rule.
+          if (bound_normals && dev.crease && !whole_cell_within) { verdict[i] = 6; continue; }
           verdict[i] = 1;
         }
       });
