@@ -1,7 +1,8 @@
-// raylod gen teapot|bottle --triangles N [-o FILE.ply|.stl] [--no-normals]
+// raylod gen teapot|bottle --triangles N [--around N] [-o FILE.ply|.stl] [--no-normals]
 #include <cctype>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 
 #include "cli/cli.h"
 #include "core/system.h"
@@ -39,7 +40,7 @@ std::string human_count(uint64_t n) {
 }
 
 int run_gen(int argc, char** argv) {
-  Args args("gen", "teapot|bottle --triangles N [-o FILE.ply|FILE.stl] [--no-normals]",
+  Args args("gen", "teapot|bottle --triangles N [--around N] [-o FILE.ply|FILE.stl] [--no-normals]",
             "Writes a large CAD-like test mesh with analytic vertex normals, streamed to disk:\n"
             "  teapot  Newell's Utah teapot (32 bicubic Bezier patches), y up, base at y = 0\n"
             "  bottle  a glass bottle (closed surface of revolution with a 0.06 wall)\n"
@@ -49,6 +50,8 @@ int run_gen(int argc, char** argv) {
              {"--output", "-o", "output file, .ply (binary, indexed) or .stl (binary); default <shape>-<N>.ply",
               true, "FILE"},
              {"--no-normals", "", "omit vertex normals from the PLY", false, ""},
+             {"--around", "", "bottle: columns around the axis (default: triangles close to square on the body)",
+              true, "N"},
              {"--quiet", "-q", "no progress bar", false, ""}});
   if (Status st = args.parse(argc, argv); !st) return fail("gen", st);
   if (args.help_requested()) {
@@ -65,6 +68,14 @@ int run_gen(int argc, char** argv) {
   options.shape = args.positionals()[0];
   options.triangles = *tri;
   options.normals = !args.has("--no-normals");
+  if (args.has("--around")) {
+    const std::string text = args.get("--around");
+    char* end = nullptr;
+    const unsigned long v = std::strtoul(text.c_str(), &end, 10);
+    if (text.empty() || *end != '\0' || v == 0 || v > 0xffffffffUL)
+      return fail("gen", Status::error("--around: '" + text + "' is not a number of columns (3 or more)"));
+    options.around = uint32_t(v);
+  }
   // A progress bar only where there is time to watch one.
   options.progress = !args.has("--quiet") && options.triangles >= 5000000;
   const std::string out = args.get("--output", options.shape + "-" + human_count(options.triangles) + ".ply");

@@ -167,6 +167,18 @@ BottlePlan plan_bottle(uint64_t target, const BottleConfig& config) {
   return plan;
 }
 
+BottlePlan plan_bottle_around(uint64_t target, uint32_t around) {
+  assert(around >= 3);
+  // triangles = 2 around (profile_segments - 1)
+  const double rows = std::round(double(target) / (2.0 * around));
+  BottlePlan plan;
+  plan.around = around;
+  plan.profile_segments = uint32_t(std::clamp(rows, 1.0, 4e9)) + 1;
+  plan.triangles = bottle_triangle_count(plan.profile_segments, plan.around);
+  plan.vertices = uint64_t(plan.around) * (plan.profile_segments - 1) + 2;
+  return plan;
+}
+
 BottleSurface::BottleSurface(const BottlePlan& plan, const BottleConfig& config)
     : plan_(plan), profile_(config) {
   assert(plan.profile_segments >= 2 && plan.around >= 3);

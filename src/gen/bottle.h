@@ -87,6 +87,11 @@ uint64_t bottle_triangle_count(uint32_t profile_segments, uint32_t around);
 // The resolution whose triangle count is closest to `target` (>= 6), with
 // angular and profile spacing within a factor 2 of each other on the body.
 BottlePlan plan_bottle(uint64_t target_triangles, const BottleConfig& config = {});
+// The resolution with exactly `around` columns whose triangle count is
+// closest to `target` (at least 2 profile segments): long thin triangles
+// along the profile when `around` is small, as a cylinder allows. Used to
+// ask how few triangles the exact surface needs (tools/glass_reference.sh).
+BottlePlan plan_bottle_around(uint64_t target_triangles, uint32_t around);
 
 class BottleSurface final : public GridSurface {
  public:

@@ -110,8 +110,13 @@ void expand_bounds(Bbox* bounds, const std::vector<Vec3>& pos) {
 }  // namespace
 
 StatusOr<std::unique_ptr<GridSurface>> make_generated_surface(const std::string& shape, uint64_t triangles,
-                                                              std::string* grid) {
+                                                              std::string* grid, uint32_t around) {
   RAYLOD_RETURN_IF_ERROR(check_request(shape, triangles));
+  if (around > 0 && shape != "bottle")
+    return Status::error("a number of columns around the axis is a bottle's, not a " + shape + "'s");
+  if (around > 0 && (around < 3 || 2.0 * around > double(triangles)))
+    return Status::error("columns around the axis: " + std::to_string(around) + " is outside [3, " +
+                         std::to_string(triangles / 2) + "] for " + std::to_string(triangles) + " triangles");
   if (shape == "teapot") {
     const TeapotPlan plan = plan_teapot(triangles);
     if (grid)
@@ -121,7 +126,7 @@ StatusOr<std::unique_ptr<GridSurface>> make_generated_surface(const std::string&
   }
   const BottleConfig config;
   RAYLOD_RETURN_IF_ERROR(validate_bottle(config));
-  const BottlePlan plan = plan_bottle(triangles, config);
+  const BottlePlan plan = around > 0 ? plan_bottle_around(triangles, around) : plan_bottle(triangles, config);
   if (grid)
     *grid = std::to_string(plan.profile_segments) + " profile segments x " + std::to_string(plan.around) + " around";
   return std::unique_ptr<GridSurface>(new BottleSurface(plan, config));
@@ -240,7 +245,7 @@ StatusOr<GenReport> generate_mesh(const GenOptions& options, const std::filesyst
   report.shape = options.shape;
   report.format = ext.substr(1);
   report.requested_triangles = options.triangles;
-  RAYLOD_ASSIGN_OR_RETURN(auto surface, make_generated_surface(options.shape, options.triangles, &report.grid));
+  RAYLOD_ASSIGN_OR_RETURN(auto surface, make_generated_surface(options.shape, options.triangles, &report.grid, options.around));
   report.triangles = surface->triangle_count();
   report.vertices = surface->vertex_count();
   if (ext == ".ply") {

@@ -27,6 +27,7 @@ struct GenOptions {
   std::string shape;        // "teapot" or "bottle"
   uint64_t triangles = 0;   // requested; the written count is within ~1% (see GenReport)
   bool normals = true;      // PLY vertex normals (STL always has face normals)
+  uint32_t around = 0;      // bottle only: columns around the axis (0: the squarest grid for the count)
   bool progress = false;    // show a progress bar on stderr
 };
 
@@ -44,9 +45,10 @@ struct GenReport {
 };
 
 // The tessellation of `shape` closest to `triangles`, without writing it.
-// `grid` (optional) receives a description of the resolution.
+// `grid` (optional) receives a description of the resolution. `around` > 0
+// (bottle only) fixes the columns around the axis (plan_bottle_around).
 StatusOr<std::unique_ptr<GridSurface>> make_generated_surface(const std::string& shape, uint64_t triangles,
-                                                              std::string* grid = nullptr);
+                                                              std::string* grid = nullptr, uint32_t around = 0);
 
 // Writes the mesh to `out`, choosing PLY or STL by extension (case-insensitive).
 // The file appears only when complete (AtomicOutput).

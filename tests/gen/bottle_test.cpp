@@ -23,6 +23,22 @@ TEST(BottlePlan, TriangleCountFormulaAndRequest) {
   }
 }
 
+TEST(BottlePlan, AGivenNumberOfColumnsAround) {
+  // 44,574 triangles (the paper's simplified count) with 40 columns: 2 x 40
+  // x 557 = 44,560 is the closest (558 rows: 44,640).
+  BottlePlan plan = plan_bottle_around(44574, 40);
+  EXPECT_EQ(plan.around, 40u);
+  EXPECT_EQ(plan.profile_segments, 558u);
+  EXPECT_EQ(plan.triangles, 44560u);
+  EXPECT_EQ(plan.vertices, 40u * 557u + 2u);
+  const BottleSurface s(plan);
+  EXPECT_EQ(s.triangle_count(), plan.triangles);
+  // Fewer triangles than one band needs: the coarsest grid with those columns.
+  plan = plan_bottle_around(100, 100);
+  EXPECT_EQ(plan.profile_segments, 2u);
+  EXPECT_EQ(plan.triangles, 200u);
+}
+
 TEST(Bottle, ConfigValidation) {
   EXPECT_TRUE(validate_bottle({}).is_ok());
   BottleConfig c;

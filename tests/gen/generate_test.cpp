@@ -121,9 +121,30 @@ TEST(Generate, BadRequestsAreErrorsAndWriteNothing) {
   expect_error({"teapot", 10}, "a.ply", "outside");
   expect_error({"teapot", kGenMaxTriangles + 1}, "a.ply", "outside");
   expect_error({"teapot", 1000}, "a.obj", ".ply or .stl");
+  GenOptions columns{"teapot", 1000};
+  columns.around = 40;
+  expect_error(columns, "a.ply", "bottle's, not a teapot's");
+  columns.shape = "bottle";
+  columns.around = 2;
+  expect_error(columns, "a.ply", "outside [3, 500]");
+  columns.around = 501;
+  expect_error(columns, "a.ply", "outside [3, 500]");
   auto r = generate_mesh({"teapot", 1000}, dir / "missing" / "a.ply");
   EXPECT_FALSE(r.is_ok());
   EXPECT_TRUE(std::filesystem::is_empty(dir));
+}
+
+TEST(Generate, ABottleWithAGivenNumberOfColumns) {
+  const auto dir = test::test_tmp_dir("around");
+  GenOptions o{"bottle", 1200};
+  o.around = 40;  // 2 x 40 x 15 = 1200
+  auto r = generate_mesh(o, dir / "b.ply");
+  ASSERT_TRUE(r.is_ok()) << r.status().message();
+  EXPECT_EQ(r->triangles, 1200u);
+  EXPECT_EQ(r->vertices, 40u * 15u + 2u);
+  EXPECT_EQ(r->grid, "16 profile segments x 40 around");
+  const auto m = test::read_generated_ply(dir / "b.ply");
+  EXPECT_EQ(m.indices.size(), 3u * 1200u);
 }
 
 TEST(Generate, CacheGeneratesOnceAndReuses) {
