@@ -70,6 +70,9 @@ int run_simplify(int argc, char** argv) {
                                     "                              normals (default 30, as the scene's crease_angle)", true, "DEG"},
              {"--fold-passes", "", "passes that refine cells whose collapse turns a triangle over\n"
                                    "                              (default 0; raylod run uses 3 on mirror and glass meshes)", true, "N"},
+             {"--exact-normals", "", "meshes with normals: a representative takes the input normal at the\n"
+                                     "                              input point nearest it (raylod run does on mirror and glass meshes)",
+              false, ""},
              {"--quiet", "-q", "no progress bar", false, ""}});
   if (Status st = args.parse(argc, argv); !st) return fail("simplify", st);
   if (args.help_requested()) {
@@ -141,6 +144,7 @@ int run_simplify(int argc, char** argv) {
   config.crease_angle_deg = *crease;
   config.memory_limit = limit->total;
   config.fold_passes = *fold_passes;
+  config.exact_normals = args.has("--exact-normals");
   config.progress = !args.has("--quiet");
   auto result = simplify(**store, *cut, config);
   if (!result) return fail("simplify", result.status().with_context(store_path.string()));
@@ -204,6 +208,9 @@ int run_simplify(int argc, char** argv) {
                 ull(r.fold_cells_refined), ull(r.fold_passes), ull(s.folded));
   if (r.folds_stopped_by_memory)
     std::printf("  folds      refining stopped: the next pass's cells would not fit the memory limit (raise --memory-limit)\n");
+  if (s.exact_normals)
+    std::printf("  normals    %llu representatives took the input's normal at their nearest input point\n",
+                ull(s.exact_normals));
   if (s.normal_fallbacks) std::printf("  normals    %llu fell back (merged normals cancelled; the quadric's normal used)\n", ull(s.normal_fallbacks));
   std::printf("%s", quantisation.c_str());
   std::printf("  bytes      %llu (%s)\n", ull(bytes), format_bytes(bytes).c_str());

@@ -144,6 +144,9 @@ StatusOr<SimplifiedMesh> simplify_cut_to_draco(const OctreeStore& store, const C
   SimplifyConfig sc;
   sc.crease_angle_deg = crease_angle_deg;
   sc.fold_passes = fold_passes;
+  // Fold passes are asked for on meshes that a mirror or glass material
+  // uses (fold_passes_for); their representatives take exact normals too.
+  sc.exact_normals = fold_passes > 0;
   sc.memory_limit = memory_limit;
   sc.progress = progress;
   RAYLOD_ASSIGN_OR_RETURN(SimplifyResult simplified, simplify(store, cut, sc));

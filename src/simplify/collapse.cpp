@@ -133,6 +133,7 @@ Representative make_representative(const NodeRecord& node, const Bbox& cell_boun
   r.fallback_normal = dominant_normal(node.quadric);
   r.normal_sum = 6.0 * node.normal_sum;  // area / 3 per corner -> twice the area
   r.has_normal_sum = true;
+  r.side = cell_bounds_world.hi.x - cell_bounds_world.lo.x;
   return r;
 }
 
@@ -279,10 +280,70 @@ bool same_kept_vertex(const PageMesh& page, const Vec3& pa, const Vec3& pb, uint
   return same_bits(canonical(na), canonical(nb));
 }
 
+// The point of triangle (a, b, c) nearest q, as barycentric weights
+// (Ericson, Real-Time Collision Detection, 5.1.5: the Voronoi regions of the
+// corners, then of the edges, then the face).
+Vec3d nearest_on_triangle(const Vec3d& q, const Vec3d& a, const Vec3d& b, const Vec3d& c) {
+  const Vec3d ab = b - a, ac = c - a, ap = q - a;
+  const double d1 = glm::dot(ab, ap), d2 = glm::dot(ac, ap);
+  if (d1 <= 0 && d2 <= 0) return {1, 0, 0};
+  const Vec3d bp = q - b;
+  const double d3 = glm::dot(ab, bp), d4 = glm::dot(ac, bp);
+  if (d3 >= 0 && d4 <= d3) return {0, 1, 0};
+  const double vc = d1 * d4 - d3 * d2;
+  if (vc <= 0 && d1 >= 0 && d3 <= 0) {
+    const double v = d1 / (d1 - d3);
+    return {1 - v, v, 0};
+  }
+  const Vec3d cp = q - c;
+  const double d5 = glm::dot(ab, cp), d6 = glm::dot(ac, cp);
+  if (d6 >= 0 && d5 <= d6) return {0, 0, 1};
+  const double vb = d5 * d2 - d1 * d6;
+  if (vb <= 0 && d2 >= 0 && d6 <= 0) {
+    const double w = d2 / (d2 - d6);
+    return {1 - w, 0, w};
+  }
+  const double va = d3 * d6 - d5 * d4;
+  if (va <= 0 && d4 - d3 >= 0 && d5 - d6 >= 0) {
+    const double w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
+    return {0, 1 - w, w};
+  }
+  const double denom = va + vb + vc;
+  if (!(denom > 0)) return {1, 0, 0};  // no area: a corner stands in
+  const double v = vb / denom, w = vc / denom;
+  return {1 - v - w, v, w};
+}
+
+// For each representative among the triangle's corners' cells: the
+// triangle's point nearest it, if nearer than the page's best so far
+// (PreparedBatch::rep_samples).
+void sample_nearest_points(const Vec3* p, const Vec3* normals, const uint32_t* vi, const uint32_t* c,
+                           std::span<const Vec3> rep_pos, PreparedBatch& out) {
+  for (int k = 0; k < 3; ++k) {
+    const uint32_t r = c[k];
+    if (r == kKeepVertex || (k > 0 && r == c[0]) || (k > 1 && r == c[1])) continue;
+    const Vec3d q(rep_pos[r]), a(p[0]), b(p[1]), cc(p[2]);
+    const Vec3d w = nearest_on_triangle(q, a, b, cc);
+    const Vec3d at = w.x * a + w.y * b + w.z * cc;
+    const float d2 = float(glm::dot(at - q, at - q));
+    uint32_t& slot = out.rep_slot[r];
+    if (slot != kKeepVertex && !(d2 < out.rep_samples[slot].d2)) continue;
+    const Vec3d n = w.x * Vec3d(normals[vi[0]]) + w.y * Vec3d(normals[vi[1]]) + w.z * Vec3d(normals[vi[2]]);
+    const double len = glm::length(n);
+    if (!(len > 0) || !std::isfinite(len)) continue;
+    if (slot == kKeepVertex) {
+      slot = uint32_t(out.rep_samples.size());
+      out.rep_samples.push_back({r, d2, Vec3(n / len)});
+    } else {
+      out.rep_samples[slot] = {r, d2, Vec3(n / len)};
+    }
+  }
+}
+
 }  // namespace
 
 void prepare_collapse(const PageMesh& page, std::span<const uint32_t> vertex_cell, std::span<const Vec3> rep_pos,
-                      bool input_has_normals, PreparedBatch& out) {
+                      bool input_has_normals, PreparedBatch& out, bool exact_normals) {
   assert(vertex_cell.size() == page.vertices());
   const bool page_normals = input_has_normals && page.normals.size() == page.vertices();
   const size_t nt = page.size(), nv = page.vertices();
@@ -294,6 +355,9 @@ void prepare_collapse(const PageMesh& page, std::span<const uint32_t> vertex_cel
   out.vertex_normal.assign(nv, kKeepVertex);
   out.rep_normals.clear();
   out.unique.clear();
+  out.rep_samples.clear();
+  const bool sample = exact_normals && page_normals;
+  if (sample && out.rep_slot.size() != rep_pos.size()) out.rep_slot.assign(rep_pos.size(), kKeepVertex);
   for (size_t v = 0; v < nv; ++v) {
     if (vertex_cell[v] != kKeepVertex) continue;
     const Vec3 n = input_has_normals && page_normals ? canonical(page.normals[v]) : Vec3(0);
@@ -304,6 +368,7 @@ void prepare_collapse(const PageMesh& page, std::span<const uint32_t> vertex_cel
     const uint32_t* vi = &page.index[3 * t];
     const Vec3 p[3] = {page.positions[vi[0]], page.positions[vi[1]], page.positions[vi[2]]};
     const uint32_t c[3] = {vertex_cell[vi[0]], vertex_cell[vi[1]], vertex_cell[vi[2]]};
+    if (sample) sample_nearest_points(p, normals, vi, c, rep_pos, out);
     if (c[0] != kKeepVertex && c[0] == c[1] && c[1] == c[2]) {
       // Wholly inside one collapsed cell: it disappears unexamined (most
       // triangles of a coarse cut end here); its normal reaches the cell
@@ -358,6 +423,7 @@ void prepare_collapse(const PageMesh& page, std::span<const uint32_t> vertex_cel
     else if (turned_over(pos[0], pos[1], pos[2], input, collapsed)) out.fate[t] = TriangleFate::kKeptFolded;
     else out.fate[t] = TriangleFate::kKept;
   }
+  for (const PreparedBatch::RepresentativeSample& s : out.rep_samples) out.rep_slot[s.rep] = kKeepVertex;
 }
 
 bool collapse_turns_over(const PageMesh& page, std::span<const uint32_t> vertex_cell, std::span<const Vec3> rep_pos,
@@ -404,6 +470,15 @@ void CollapseBuilder::add(const PageMesh& page, std::span<const uint32_t> vertex
   for (const auto& r : prepared.rep_normals) {
     clusters_.add(r.rep, r.normal, r.weight, kRepresentativeClusters);
     reached_sum_[r.rep] += r.weight * r.normal;
+  }
+  if (!prepared.rep_samples.empty() && sample_d2_.empty()) {
+    sample_d2_.assign(nreps, std::numeric_limits<float>::infinity());
+    sample_normal_.assign(nreps, Vec3(0));
+  }
+  for (const auto& s : prepared.rep_samples) {  // pages come in order: the first nearest stays
+    if (!(s.d2 < sample_d2_[s.rep])) continue;
+    sample_d2_[s.rep] = s.d2;
+    sample_normal_[s.rep] = s.normal;
   }
   page_kept_.assign(page.vertices(), kKeepVertex);
   const Vec3 n_none(0);
@@ -457,7 +532,8 @@ uint64_t CollapseBuilder::memory_bytes() const {
   return rep_pos_.capacity() * sizeof(Vec3) + kept_pos_.capacity() * sizeof(Vec3) +
          kept_normal_.capacity() * sizeof(Vec3) + clusters_.memory_bytes() + table_.capacity() * sizeof(uint32_t) +
          tris_.capacity() * sizeof(tris_[0]) + keys_.capacity() * sizeof(Vec3) +
-         reached_sum_.capacity() * sizeof(Vec3d);
+         reached_sum_.capacity() * sizeof(Vec3d) + sample_d2_.capacity() * sizeof(float) +
+         sample_normal_.capacity() * sizeof(Vec3);
 }
 
 IndexedMesh CollapseBuilder::finish(CollapseStats* stats_out) {
@@ -520,6 +596,15 @@ IndexedMesh CollapseBuilder::finish(CollapseStats* stats_out) {
   }
   std::vector<Keyed>().swap(sorted);
 
+  // Representatives whose nearest input point was found near enough to stand
+  // for the input there (collapse.h).
+  std::vector<uint8_t> exact(sample_d2_.empty() ? 0 : nreps, 0);
+  for (size_t v = 0; v < exact.size(); ++v) {
+    const double reach = reps_[v].side / 16;
+    exact[v] = std::isfinite(sample_d2_[v]) && double(sample_d2_[v]) <= reach * reach;
+    stats_.exact_normals += exact[v];
+  }
+
   // Resolve every corner's normal, then split each provisional vertex by the
   // distinct normals its corners got; output vertices in order of first use.
   IndexedMesh mesh;
@@ -544,6 +629,8 @@ IndexedMesh CollapseBuilder::finish(CollapseStats* stats_out) {
           const Vec3d fallback = v < nreps ? reps_[v].fallback_normal : key;
           nd = glm::length(fallback) > 0 ? glm::normalize(fallback) : Vec3d(0, 1, 0);
         }
+        // The input's normal at the representative (exact normals, collapse.h).
+        if (v < exact.size() && exact[v] && glm::dot(Vec3d(sample_normal_[v]), nd) >= cos_crease_) nd = sample_normal_[v];
         unit = Vec3(nd);
       }
       uint32_t out = first_out[v];
@@ -622,11 +709,12 @@ struct PageWork {
 
   // The normals of the vertices of triangles not wholly inside one cell (the
   // only ones prepare_collapse and the builder read); the others stay zero.
+  // Exact normals read them all.
   std::vector<uint8_t> needed;
-  void decode_needed_normals() {
+  void decode_needed_normals(bool all) {
     const size_t nv = page.vertices();
-    needed.assign(nv, 0);
-    for (size_t t = 0; t < page.size(); ++t) {
+    needed.assign(nv, all ? 1 : 0);
+    for (size_t t = 0; t < page.size() && !all; ++t) {
       const uint32_t* vi = &page.index[3 * t];
       const uint32_t c = vertex_cell[vi[0]];
       if (c != kKeepVertex && c == vertex_cell[vi[1]] && c == vertex_cell[vi[2]]) continue;
@@ -820,9 +908,9 @@ Status collapse_pass(const OctreeStore& store, std::span<const CellKey> keys, co
         if (w.inside_one_cell) return {};  // its triangles' normals come through the node's sum
         RAYLOD_RETURN_IF_ERROR(store.read_page(i, w.page));
         w.look_up_cells(lookup);
-        if (store.header().has_normals) w.decode_needed_normals();
+        if (store.header().has_normals) w.decode_needed_normals(config.exact_normals);
         prepare_collapse(w.page, w.vertex_cell, builder.representative_positions(), store.header().has_normals,
-                         w.prepared);
+                         w.prepared, config.exact_normals);
         mark_page_unique_vertices(w.page, w.vertex_cell, neighbours.others(i), neighbours.inner(i), w.prepared);
         return {};
       },

@@ -37,6 +37,19 @@
 //     normal per side, a flat side exactly its own normal. If nothing is
 //     within the angle, the mean of all clusters, then the dominant plane
 //     normal of the cell's quadric (dominant_normal), then +Y.
+//   * Exact normals (SimplifyConfig::exact_normals, meshes with input
+//     normals): the cluster mean is the normal of the cell's surface on
+//     average, not at the representative. Where the normal bends unevenly
+//     in the cell (the S-shaped foot of the teapot: a surface that is
+//     nearly flat, so the quadric allows the collapse, while its normal
+//     swings by 0.4 rad) the two differ by up to 0.03 rad, and glass shows
+//     it. The representative then takes the input normal interpolated at
+//     the input surface point nearest it, found among the triangles with a
+//     corner in its cell, for the corners whose cluster lies within the
+//     crease angle of it (the other side of a crease keeps its cluster),
+//     if that point lies within 1/16 of the cell's side (a page wholly
+//     inside the cell is not read, so the nearest point found may be a far
+//     one: the mean is kept then).
 //   * Output is indexed: kept vertices with bit-identical position (and
 //     input normal, where the input has normals) are one vertex, then every
 //     vertex is split by the distinct normals its corners got. Vertex and
@@ -72,6 +85,7 @@ struct Representative {
   bool has_normal_sum = false;
   int rank = 0;              // rank of the QEM solve (qem_solve.h)
   bool clamped = false;
+  double side = 0;           // the cell's edge length (world units); 0 = unknown
 };
 
 // Representative of a stored node: QEM solve relative to the store origin
@@ -117,6 +131,7 @@ struct CollapseStats {
   uint64_t kept_vertices = 0;         // distinct kept vertices (before splitting by normal)
   uint64_t split_vertices = 0;        // extra output vertices for corners with their own normal
   uint64_t normal_fallbacks = 0;      // corners whose normals cancelled (quadric's normal or +Y used)
+  uint64_t exact_normals = 0;         // representatives given the input's normal at their nearest input point
   uint64_t folded = 0;                // kept triangles turned over: facing against their input triangle
   uint64_t peak_bytes = 0;          // largest memory_bytes() seen
 };
@@ -149,6 +164,17 @@ struct PreparedBatch {
     Vec3d normal;
   };
   std::vector<RepresentativeNormal> rep_normals;
+  // With exact normals (SimplifyConfig::exact_normals): per representative
+  // the page met, the input surface point nearest it among the page's
+  // triangles with a corner in its cell, as the squared distance and the
+  // input normal interpolated there (first nearest in triangle order).
+  struct RepresentativeSample {
+    uint32_t rep;
+    float d2;
+    Vec3 normal;
+  };
+  std::vector<RepresentativeSample> rep_samples;
+  std::vector<uint32_t> rep_slot;  // scratch: per representative, its entry in rep_samples
   std::vector<uint32_t> vertex_normal;  // scratch: per page vertex, its entry in rep_normals
   // Per page vertex: 1 if no other page can hold a vertex at its position
   // (mark_page_unique_vertices); such a kept vertex skips the builder's
@@ -159,8 +185,10 @@ struct PreparedBatch {
 // kKeepVertex; rep_pos[i] is representative i's float position;
 // input_has_normals as for CollapseBuilder (the page's normals must then be
 // decoded, PageMesh::decode_normals).
+// exact_normals: also find each representative's nearest input surface point
+// (PreparedBatch::rep_samples; the page's normals must all be decoded).
 void prepare_collapse(const PageMesh& page, std::span<const uint32_t> vertex_cell, std::span<const Vec3> rep_pos,
-                      bool input_has_normals, PreparedBatch& out);
+                      bool input_has_normals, PreparedBatch& out, bool exact_normals = false);
 // Marks out.unique for the kept vertices (vertex_cell kKeepVertex) of a page
 // whose position lies in no box of `other_pages` (the decoded bounds of every
 // other page whose bounds meet this page's): no other page has a vertex
@@ -222,13 +250,15 @@ class CollapseBuilder {
   std::vector<Vec3> keys_;               // per triangle: its input triangle's unit normal (crease key)
   std::vector<uint8_t> folding_;         // per representative
   std::vector<Vec3d> reached_sum_;       // per representative: the normals its clusters were given
+  std::vector<float> sample_d2_;         // per representative: its nearest input point's squared distance
+  std::vector<Vec3> sample_normal_;      // and the input normal there (empty: no samples given)
   CollapseStats stats_;
 };
 
 // Bytes per output triangle and vertex that CollapseBuilder and finish() hold
 // at their peak (used to check a memory limit before any work).
 inline constexpr uint64_t kCollapseBytesPerTriangle = 12 + 12 + 4 + 12 + 12 + 12;
-inline constexpr uint64_t kCollapseBytesPerVertex = 12 + 12 + 8 + 4 + 4 + 2 * sizeof(NormalCluster) + 24 + 8;
+inline constexpr uint64_t kCollapseBytesPerVertex = 12 + 12 + 8 + 4 + 4 + 2 * sizeof(NormalCluster) + 24 + 8 + 16;
 
 // Bytes the Draco encoder holds on top of the mesh it encodes, per triangle
 // (speed 5, with normals, about half as many vertices as triangles):
@@ -254,6 +284,12 @@ struct SimplifyConfig {
   // mesh grow to: a pass whose refined cells would need more is left out,
   // its folds stay and folds_stopped_by_memory says so. 0 = memory_limit.
   uint64_t fold_memory_limit = 0;
+  // Meshes with input normals: a representative takes the input's normal
+  // interpolated at the input surface point nearest it, where the cell's
+  // mean normal would otherwise stand (collapse.cpp). The pipeline asks for
+  // it on meshes with a mirror or glass material, whose reflected and
+  // refracted rays turn with every error in the normal.
+  bool exact_normals = false;
 };
 
 struct SimplifyEstimate {

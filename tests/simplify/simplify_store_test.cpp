@@ -272,6 +272,89 @@ TEST(SimplifyStore, AGlassCubeTurnedAgainstTheCellsKeepsItsEdges) {
   EXPECT_EQ(tilted, 0u);
 }
 
+// A sheet whose normal swings while its position barely moves (a ripple of
+// amplitude 0.004 and wavelength 0.25, slopes up to 0.1 rad): the quadric
+// lets cells a quarter wavelength wide collapse, and the mean normal of such
+// a cell is not the normal at its representative. Exact normals take the
+// input's normal at the representative, which here is the analytic one.
+TEST(SimplifyStore, ExactNormalsFollowTheInputAtTheRepresentative) {
+  const double a = 0.004, k = 2 * M_PI / 0.25;
+  const double phase = 0.9;  // not in step with the cells
+  auto height = [&](double x) { return a * std::sin(k * x + phase); };
+  auto normal_at = [&](double x) { return glm::normalize(Vec3d(-a * k * std::cos(k * x + phase), 0, 1)); };
+  TriangleBatch sheet;
+  const int nx = 384, ny = 8;
+  auto p = [&](int i, int j) {
+    const double x = -1.0 + 2.0 * i / nx, y = -0.25 + 0.5 * j / ny;
+    return Vec3(Vec3d(x, y, height(x)));
+  };
+  auto n = [&](int i) { return Vec3(normal_at(-1.0 + 2.0 * i / nx)); };
+  for (int i = 0; i < nx; ++i)
+    for (int j = 0; j < ny; ++j) {
+      test::add_tri_n(sheet, p(i, j), p(i + 1, j), p(i + 1, j + 1), n(i), n(i + 1), n(i + 1));
+      test::add_tri_n(sheet, p(i, j), p(i + 1, j + 1), p(i, j + 1), n(i), n(i + 1), n(i));
+    }
+  BuiltStore b = build(sheet, "ripple");
+  ASSERT_TRUE(b.store);
+  // Cells about a wavelength wide: their mean normal is near +z, while the
+  // normal at the representative may be anywhere in the swing.
+  const int level = int(std::round(std::log2(b.store->header().root_size / 0.25)));
+  const Cut cut = uniform_cut(*b.store, level);
+  auto worst = [&](bool exact, double* mean) {
+    SimplifyConfig config;
+    config.exact_normals = exact;
+    auto out = simplify(*b.store, cut, config);
+    EXPECT_TRUE(out.is_ok()) << out.status().message();
+    if (!out.is_ok()) return 10.0;
+    EXPECT_EQ(out->stats.exact_normals, exact ? out->stats.representatives_used : 0u);
+    const IndexedMesh& m = out->mesh;
+    double most = 0, sum = 0;
+    for (size_t v = 0; v < m.positions.size(); ++v) {
+      const double x = m.origin.x + m.positions[v].x;
+      const double e = std::acos(std::min(1.0, glm::dot(Vec3d(m.normals[v]), normal_at(x))));
+      most = std::max(most, e);
+      sum += e;
+    }
+    *mean = sum / double(m.positions.size());
+    return most;
+  };
+  double mean_exact = 0, mean_cluster = 0;
+  const double exact = worst(true, &mean_exact), cluster = worst(false, &mean_cluster);
+  // The input interpolates the analytic normal linearly over triangles
+  // 1/192 wide: within 0.005 rad of it.
+  EXPECT_LT(exact, 0.005);
+  EXPECT_GT(cluster, 0.03);  // the mean normals miss by more (the case this is for)
+  EXPECT_LT(mean_exact, 0.25 * mean_cluster);
+}
+
+// Across a crease the nearest input point lies on one side: only the corners
+// of that side take its normal, and every face of a box keeps its own.
+TEST(SimplifyStore, ExactNormalsKeepCreasesSplit) {
+  TriangleBatch box = test::closed_box({-1, -1, -1}, {1, 1, 1}, 12);
+  for (size_t t = 0; t < box.size(); ++t) {
+    const Vec3 f(face_normal(Vec3d(box.positions[3 * t]), Vec3d(box.positions[3 * t + 1]),
+                             Vec3d(box.positions[3 * t + 2])));
+    box.normals.insert(box.normals.end(), {f, f, f});
+  }
+  BuiltStore b = build(box, "exact-box");
+  ASSERT_TRUE(b.store);
+  const Cut cut = uniform_cut(*b.store, 4);
+  SimplifyConfig config;
+  config.exact_normals = true;
+  auto out = simplify(*b.store, cut, config);
+  ASSERT_TRUE(out.is_ok()) << out.status().message();
+  EXPECT_GT(out->stats.exact_normals, 0u);
+  const IndexedMesh& m = out->mesh;
+  ASSERT_GT(m.triangle_count(), 0u);
+  size_t off_face = 0;
+  for (size_t t = 0; t < m.triangle_count(); ++t) {
+    const Vec3d f = face_normal(Vec3d(m.positions[m.indices[3 * t]]), Vec3d(m.positions[m.indices[3 * t + 1]]),
+                                Vec3d(m.positions[m.indices[3 * t + 2]]));
+    for (int k = 0; k < 3; ++k) off_face += glm::dot(Vec3d(m.normals[m.indices[3 * t + k]]), f) < 1 - 1e-6;
+  }
+  EXPECT_EQ(off_face, 0u);
+}
+
 TEST(SimplifyStore, PagesInsideOneCollapsedCellAreNotReadAndChangeNothing) {
   // A cut coarser than the pages: many pages lie wholly inside one collapsed
   // cell and are not read, and the mesh is the one built from every page.
