@@ -675,8 +675,11 @@ StatusOr<StagedMeshes> simplify_or_reuse(RunSession& session, const Scene& scene
         session.warnings.push_back(stores.meshes[i].string() + text);
       }
     }
+    // Exact normals (simplify_cut_to_draco) change the mesh of a store with
+    // normals that a mirror or glass object uses: the cache keeps it apart.
+    const bool exact_normals = fold_passes_for(scene, stores.objects, i) > 0 && stores.stores[i]->header().has_normals;
     if (cache) {
-      const std::string key = SimplifiedCache::key_for(cut, scene.crease_angle_deg);
+      const std::string key = SimplifiedCache::key_for(cut, scene.crease_angle_deg, exact_normals);
       std::string note;
       std::optional<CacheEntry> entry = cache->find_exact(key, &note);
       if (entry) {
@@ -685,7 +688,7 @@ StatusOr<StagedMeshes> simplify_or_reuse(RunSession& session, const Scene& scene
         if (!note.empty()) say(log, note);
         std::string why;
         entry = cache->find_reusable(cut, draco_error_bound(cut, *stores.stores[i]), &why, scene.crease_angle_deg,
-                                     session.reusable ? &*session.reusable : nullptr);
+                                     session.reusable ? &*session.reusable : nullptr, exact_normals);
         if (entry) note = "reusing " + entry->key + ": " + why;
       }
       if (entry) {
@@ -761,7 +764,8 @@ StatusOr<StagedMeshes> simplify_or_reuse(RunSession& session, const Scene& scene
       // Rendered from the staged file, which lives until after rendering.
       sm.cache_note = options.use_cache ? "simplified; not cached" : "simplified (cache disabled)";
       if (cache) {
-        auto entry = cache->insert(cut, staged, sm.triangles, sm.max_position_error, scene.crease_angle_deg);
+        auto entry =
+            cache->insert(cut, staged, sm.triangles, sm.max_position_error, scene.crease_angle_deg, exact_normals);
         if (!entry.is_ok()) {
           // A full cache disk costs the reuse, not the image.
           session.warnings.push_back("cannot cache the simplified mesh (" + entry.status().message() +

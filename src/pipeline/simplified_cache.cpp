@@ -67,6 +67,7 @@ std::optional<CacheEntry> read_meta(const fs::path& json_path) {
     e.max_position_error = j.at("max_position_error").get<double>();
     e.crease_angle_deg = j.contains("crease_angle") ? j.at("crease_angle").get<double>()
                                                     : std::numeric_limits<double>::quiet_NaN();
+    e.exact_normals = j.contains("exact_normals") && j.at("exact_normals").get<bool>();
     e.last_used_ns = j.at("last_used_ns").get<int64_t>();
     fs::path dir = json_path.parent_path();
     e.mesh = dir / (e.key + ".drc");
@@ -90,6 +91,7 @@ Status write_meta(const fs::path& dir, const CacheEntry& e) {
   j["footprint_scale"] = e.footprint_scale;
   j["max_position_error"] = e.max_position_error;
   j["crease_angle"] = e.crease_angle_deg;
+  j["exact_normals"] = e.exact_normals;
   j["last_used_ns"] = e.last_used_ns;
   return write_file_atomic(dir / (e.key + ".json"), j.dump(2) + "\n");
 }
@@ -173,9 +175,10 @@ StatusOr<SimplifiedCache> SimplifiedCache::open(const fs::path& dir, uint64_t si
   return SimplifiedCache(dir, size_limit);
 }
 
-std::string SimplifiedCache::key_for(const Cut& cut, double crease_angle_deg) {
-  // Version 2 of the normal rule: crease-angle normals (geometry/crease_normals.h).
-  const uint32_t normal_rule = 2;
+std::string SimplifiedCache::key_for(const Cut& cut, double crease_angle_deg, bool exact_normals) {
+  // Version 2 of the normal rule: crease-angle normals (geometry/crease_normals.h);
+  // 3: the same with exact normals at representatives (simplify/collapse.h).
+  const uint32_t normal_rule = exact_normals ? 3 : 2;
   uint64_t h = fnv1a64(&cut.store_hash, sizeof cut.store_hash);
   h = fnv1a64(&normal_rule, sizeof normal_rule, h);
   h = fnv1a64(&crease_angle_deg, sizeof crease_angle_deg, h);
@@ -212,7 +215,7 @@ std::optional<CacheEntry> SimplifiedCache::find_exact(const std::string& key, st
 
 std::optional<CacheEntry> SimplifiedCache::find_reusable(const Cut& wanted, double max_position_error,
                                                          std::string* why, double crease_angle_deg,
-                                                         const std::set<std::string>* candidates) {
+                                                         const std::set<std::string>* candidates, bool exact_normals) {
   CacheLock lock(dir_);
   // Candidates by the cheap checks first (metadata and cut); only the chosen
   // one is hashed, and a corrupt one is removed and the next tried.
@@ -220,6 +223,7 @@ std::optional<CacheEntry> SimplifiedCache::find_reusable(const Cut& wanted, doub
   for (const auto& e : entries()) {
     if (e.store_hash != wanted.store_hash || e.max_position_error > max_position_error * (1 + 1e-9)) continue;
     if (!(e.crease_angle_deg == crease_angle_deg)) continue;  // another normal rule (or an old entry)
+    if (e.exact_normals != exact_normals) continue;
     if (candidates && !candidates->count(e.key)) continue;
     auto cut = read_cut(e.cut);
     if (!cut.is_ok()) {  // corrupt or missing: the entry can never be reused
@@ -259,10 +263,12 @@ Status SimplifiedCache::checkout(const CacheEntry& entry, const fs::path& dest) 
 }
 
 StatusOr<CacheEntry> SimplifiedCache::insert(const Cut& cut, const fs::path& drc_file, uint64_t triangles,
-                                             double max_position_error, double crease_angle_deg) {
+                                             double max_position_error, double crease_angle_deg,
+                                             bool exact_normals) {
   CacheEntry e;
-  e.key = key_for(cut, crease_angle_deg);
+  e.key = key_for(cut, crease_angle_deg, exact_normals);
   e.crease_angle_deg = crease_angle_deg;
+  e.exact_normals = exact_normals;
   fs::path dir = dir_ / "simplified";
   e.mesh = dir / (e.key + ".drc");
   e.cut = dir / (e.key + ".cut");

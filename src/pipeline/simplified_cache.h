@@ -40,6 +40,9 @@ struct CacheEntry {
   // The normal rule the mesh was made with (NaN for entries from before
   // crease-angle normals: never reused).
   double crease_angle_deg = kDefaultCreaseAngleDeg;
+  // Made with exact normals (SimplifyConfig::exact_normals: the meshes a
+  // mirror or glass object uses); entries from before it say false.
+  bool exact_normals = false;
   int64_t last_used_ns = 0;
 };
 
@@ -60,7 +63,8 @@ class SimplifiedCache {
 
   // Key of a cut for a store: stable hash of the store hash, the cut cells
   // and the normal rule (crease angle).
-  static std::string key_for(const Cut& cut, double crease_angle_deg = kDefaultCreaseAngleDeg);
+  static std::string key_for(const Cut& cut, double crease_angle_deg = kDefaultCreaseAngleDeg,
+                             bool exact_normals = false);
 
   // Exact hit for this key, verified (content hash); a corrupt entry is
   // removed and reported through `note`.
@@ -68,15 +72,17 @@ class SimplifiedCache {
   // The coarsest verified entry for the same store whose cut is at least as
   // fine as `wanted` needs and whose quantisation error is at most
   // `max_position_error`; `why` says which and why.
-  // Only entries made with the same crease angle qualify, and, if
-  // `candidates` is given, only entries whose key it holds.
+  // Only entries made with the same crease angle and exact-normals setting
+  // qualify, and, if `candidates` is given, only entries whose key it holds.
   std::optional<CacheEntry> find_reusable(const Cut& wanted, double max_position_error, std::string* why = nullptr,
                                           double crease_angle_deg = kDefaultCreaseAngleDeg,
-                                          const std::set<std::string>* candidates = nullptr);
+                                          const std::set<std::string>* candidates = nullptr,
+                                          bool exact_normals = false);
   // Copies a finished .drc (written elsewhere, e.g. a temporary file) into the
   // cache with its cut, then evicts least-recently-used entries over the limit.
   StatusOr<CacheEntry> insert(const Cut& cut, const std::filesystem::path& drc_file, uint64_t triangles,
-                              double max_position_error, double crease_angle_deg = kDefaultCreaseAngleDeg);
+                              double max_position_error, double crease_angle_deg = kDefaultCreaseAngleDeg,
+                              bool exact_normals = false);
   // Links (or copies) an entry's mesh to `dest` under the cache lock, so that
   // a concurrent eviction cannot remove the file this run is about to render.
   Status checkout(const CacheEntry& entry, const std::filesystem::path& dest);

@@ -326,7 +326,7 @@ void sample_nearest_points(const Vec3* p, const Vec3* normals, const uint32_t* v
     const Vec3d w = nearest_on_triangle(q, a, b, cc);
     const Vec3d at = w.x * a + w.y * b + w.z * cc;
     const float d2 = float(glm::dot(at - q, at - q));
-    uint32_t& slot = out.rep_slot[r];
+    uint32_t& slot = out.slot_of(r);
     if (slot != kKeepVertex && !(d2 < out.rep_samples[slot].d2)) continue;
     const Vec3d n = w.x * Vec3d(normals[vi[0]]) + w.y * Vec3d(normals[vi[1]]) + w.z * Vec3d(normals[vi[2]]);
     const double len = glm::length(n);
@@ -357,7 +357,11 @@ void prepare_collapse(const PageMesh& page, std::span<const uint32_t> vertex_cel
   out.unique.clear();
   out.rep_samples.clear();
   const bool sample = exact_normals && page_normals;
-  if (sample && out.rep_slot.size() != rep_pos.size()) out.rep_slot.assign(rep_pos.size(), kKeepVertex);
+  if (sample) {
+    size_t size = 16;
+    while (size < 2 * nv) size *= 2;
+    out.rep_slot.assign(size, {kKeepVertex, kKeepVertex});
+  }
   for (size_t v = 0; v < nv; ++v) {
     if (vertex_cell[v] != kKeepVertex) continue;
     const Vec3 n = input_has_normals && page_normals ? canonical(page.normals[v]) : Vec3(0);
@@ -423,7 +427,19 @@ void prepare_collapse(const PageMesh& page, std::span<const uint32_t> vertex_cel
     else if (turned_over(pos[0], pos[1], pos[2], input, collapsed)) out.fate[t] = TriangleFate::kKeptFolded;
     else out.fate[t] = TriangleFate::kKept;
   }
-  for (const PreparedBatch::RepresentativeSample& s : out.rep_samples) out.rep_slot[s.rep] = kKeepVertex;
+}
+
+uint32_t& PreparedBatch::slot_of(uint32_t rep) {
+  // A page's representatives are among its vertices' cells: at most half the
+  // table's size, so a free slot is always found.
+  const size_t mask = rep_slot.size() - 1;
+  for (size_t i = (rep * 0x9E3779B1u) & mask;; i = (i + 1) & mask) {
+    if (rep_slot[i].first == rep) return rep_slot[i].second;
+    if (rep_slot[i].first == kKeepVertex) {
+      rep_slot[i].first = rep;
+      return rep_slot[i].second;  // kKeepVertex: no entry yet
+    }
+  }
 }
 
 bool collapse_turns_over(const PageMesh& page, std::span<const uint32_t> vertex_cell, std::span<const Vec3> rep_pos,
@@ -602,8 +618,8 @@ IndexedMesh CollapseBuilder::finish(CollapseStats* stats_out) {
   for (size_t v = 0; v < exact.size(); ++v) {
     const double reach = reps_[v].side / 16;
     exact[v] = std::isfinite(sample_d2_[v]) && double(sample_d2_[v]) <= reach * reach;
-    stats_.exact_normals += exact[v];
   }
+  std::vector<uint8_t> took(exact.size(), 0);  // representatives a corner took the sample of
 
   // Resolve every corner's normal, then split each provisional vertex by the
   // distinct normals its corners got; output vertices in order of first use.
@@ -630,7 +646,10 @@ IndexedMesh CollapseBuilder::finish(CollapseStats* stats_out) {
           nd = glm::length(fallback) > 0 ? glm::normalize(fallback) : Vec3d(0, 1, 0);
         }
         // The input's normal at the representative (exact normals, collapse.h).
-        if (v < exact.size() && exact[v] && glm::dot(Vec3d(sample_normal_[v]), nd) >= cos_crease_) nd = sample_normal_[v];
+        if (v < exact.size() && exact[v] && glm::dot(Vec3d(sample_normal_[v]), nd) >= cos_crease_) {
+          nd = sample_normal_[v];
+          took[v] = 1;
+        }
         unit = Vec3(nd);
       }
       uint32_t out = first_out[v];
@@ -654,9 +673,11 @@ IndexedMesh CollapseBuilder::finish(CollapseStats* stats_out) {
       mesh.indices.push_back(out);
     }
   }
+  for (uint8_t t : took) stats_.exact_normals += t;
   stats_.output_triangles = mesh.triangle_count();
   stats_.output_vertices = mesh.positions.size();
   stats_.peak_bytes = std::max(stats_.peak_bytes, memory_bytes() + first_out.size() * 4 + next_out.capacity() * 4 +
+                                                      exact.size() + took.size() +
                                                       tris_.size() / 8 + mesh.positions.capacity() * 24 +
                                                       mesh.indices.capacity() * 4);
   if (stats_out) *stats_out = stats_;
@@ -943,7 +964,10 @@ StatusOr<SimplifyResult> simplify(const OctreeStore& store, const Cut& cut, cons
   SimplifyResult result;
   result.cut_cells = cut.cells.size();
 
+  // Exact normals keep a sample per representative (CollapseBuilder).
+  const uint64_t per_cell = config.exact_normals && h.has_normals ? kExactNormalsBytesPerRepresentative : 0;
   SimplifyEstimate estimate = estimate_simplify(store, cut);
+  estimate.bytes += per_cell * cut.cells.size();
   if (config.memory_limit && estimate.bytes > config.memory_limit)
     return Status::error("the simplified mesh (about " + std::to_string(estimate.triangles) + " triangles) needs about " +
                          format_bytes(estimate.bytes) + ", over the memory limit of " +
@@ -1003,7 +1027,8 @@ StatusOr<SimplifyResult> simplify(const OctreeStore& store, const Cut& cut, cons
     // Refined cells keep more triangles (at 100M, 6.6M -> 9.4M over three
     // passes): the refinement stops where it would outgrow the memory limit,
     // leaving those folds, rather than fail in the building pass.
-    const SimplifyEstimate refined = estimate_cells(store, next_keys, [](const CellKey& k) { return k; });
+    SimplifyEstimate refined = estimate_cells(store, next_keys, [](const CellKey& k) { return k; });
+    refined.bytes += per_cell * next_keys.size();
     const uint64_t fold_limit = config.fold_memory_limit ? config.fold_memory_limit : config.memory_limit;
     if (fold_limit && refined.bytes > fold_limit) {
       result.folds_stopped_by_memory = true;

@@ -174,7 +174,10 @@ struct PreparedBatch {
     Vec3 normal;
   };
   std::vector<RepresentativeSample> rep_samples;
-  std::vector<uint32_t> rep_slot;  // scratch: per representative, its entry in rep_samples
+  // Scratch: open addressing from representative to its entry in
+  // rep_samples, sized to the page (a page meets few representatives).
+  std::vector<std::pair<uint32_t, uint32_t>> rep_slot;
+  uint32_t& slot_of(uint32_t rep);
   std::vector<uint32_t> vertex_normal;  // scratch: per page vertex, its entry in rep_normals
   // Per page vertex: 1 if no other page can hold a vertex at its position
   // (mark_page_unique_vertices); such a kept vertex skips the builder's
@@ -258,7 +261,10 @@ class CollapseBuilder {
 // Bytes per output triangle and vertex that CollapseBuilder and finish() hold
 // at their peak (used to check a memory limit before any work).
 inline constexpr uint64_t kCollapseBytesPerTriangle = 12 + 12 + 4 + 12 + 12 + 12;
-inline constexpr uint64_t kCollapseBytesPerVertex = 12 + 12 + 8 + 4 + 4 + 2 * sizeof(NormalCluster) + 24 + 8 + 16;
+inline constexpr uint64_t kCollapseBytesPerVertex = 12 + 12 + 8 + 4 + 4 + 2 * sizeof(NormalCluster) + 24 + 8;
+// With exact normals, per representative: its nearest input point's squared
+// distance and normal, whether it is near enough and whether a corner took it.
+inline constexpr uint64_t kExactNormalsBytesPerRepresentative = 4 + 12 + 1 + 1;
 
 // Bytes the Draco encoder holds on top of the mesh it encodes, per triangle
 // (speed 5, with normals, about half as many vertices as triangles):

@@ -147,6 +147,29 @@ TEST(SimplifiedCache, CoarserQuantisationIsNotReused) {
   EXPECT_FALSE(cache->find_reusable(cut, 0.001).has_value());
 }
 
+// A mesh simplified with exact normals (mirror and glass meshes with
+// normals) differs from one simplified without at the same cut: neither is
+// found for the other, and entries from before exact normals (no such field
+// in their metadata) count as made without.
+TEST(SimplifiedCache, ExactNormalsAreAnotherNormalRule) {
+  fs::path dir = fresh_dir("exact-normals");
+  auto cache = SimplifiedCache::open(dir, 1 << 20);
+  ASSERT_TRUE(cache.is_ok());
+  Cut cut = make_cut(9, {{3, 5}});
+  EXPECT_NE(SimplifiedCache::key_for(cut, 30, true), SimplifiedCache::key_for(cut, 30, false));
+  ASSERT_TRUE(cache->insert(cut, write_file(dir / "a.drc", 100, 'a'), 50, 0.01, 30, false).is_ok());
+  EXPECT_FALSE(cache->find_exact(SimplifiedCache::key_for(cut, 30, true)).has_value());
+  EXPECT_FALSE(cache->find_reusable(cut, 0.01, nullptr, 30, nullptr, true).has_value());
+  EXPECT_TRUE(cache->find_reusable(cut, 0.01, nullptr, 30, nullptr, false).has_value());
+  auto with = cache->insert(cut, write_file(dir / "b.drc", 100, 'b'), 60, 0.01, 30, true);
+  ASSERT_TRUE(with.is_ok()) << with.status().message();
+  EXPECT_TRUE(with->exact_normals);
+  auto hit = cache->find_reusable(cut, 0.01, nullptr, 30, nullptr, true);
+  ASSERT_TRUE(hit.has_value());
+  EXPECT_EQ(hit->triangles, 60u);
+  EXPECT_EQ(cache->find_reusable(cut, 0.01, nullptr, 30, nullptr, false)->triangles, 50u);
+}
+
 TEST(SimplifiedCache, CheckoutSurvivesEviction) {
   fs::path dir = fresh_dir("checkout");
   auto cache = SimplifiedCache::open(dir, 1500);
