@@ -2,7 +2,6 @@
 #include <cctype>
 #include <cmath>
 #include <cstdio>
-#include <cstdlib>
 
 #include "cli/cli.h"
 #include "core/system.h"
@@ -68,14 +67,9 @@ int run_gen(int argc, char** argv) {
   options.shape = args.positionals()[0];
   options.triangles = *tri;
   options.normals = !args.has("--no-normals");
-  if (args.has("--around")) {
-    const std::string text = args.get("--around");
-    char* end = nullptr;
-    const unsigned long v = std::strtoul(text.c_str(), &end, 10);
-    if (text.empty() || *end != '\0' || v == 0 || v > 0xffffffffUL)
-      return fail("gen", Status::error("--around: '" + text + "' is not a number of columns (3 or more)"));
-    options.around = uint32_t(v);
-  }
+  auto around = args.get_int("--around", 0, 3, 0xffffffff);  // 0: the squarest grid
+  if (!around) return fail("gen", around.status());
+  options.around = uint32_t(*around);
   // A progress bar only where there is time to watch one.
   options.progress = !args.has("--quiet") && options.triangles >= 5000000;
   const std::string out = args.get("--output", options.shape + "-" + human_count(options.triangles) + ".ply");

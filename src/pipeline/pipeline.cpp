@@ -137,6 +137,10 @@ int fold_passes_for(const Scene& scene, std::span<const ProbeObject> objects, si
   return 0;
 }
 
+bool exact_normals_for(const OctreeStore& store, int fold_passes) {
+  return fold_passes > 0 && store.header().has_normals;
+}
+
 StatusOr<SimplifiedMesh> simplify_cut_to_draco(const OctreeStore& store, const Cut& cut, const fs::path& out,
                                                uint64_t memory_limit, double max_normal_error, bool progress,
                                                double* seconds, double crease_angle_deg, int fold_passes) {
@@ -144,9 +148,7 @@ StatusOr<SimplifiedMesh> simplify_cut_to_draco(const OctreeStore& store, const C
   SimplifyConfig sc;
   sc.crease_angle_deg = crease_angle_deg;
   sc.fold_passes = fold_passes;
-  // Fold passes are asked for on meshes that a mirror or glass material
-  // uses (fold_passes_for); their representatives take exact normals too.
-  sc.exact_normals = fold_passes > 0;
+  sc.exact_normals = exact_normals_for(store, fold_passes);
   sc.memory_limit = memory_limit;
   sc.progress = progress;
   RAYLOD_ASSIGN_OR_RETURN(SimplifyResult simplified, simplify(store, cut, sc));
@@ -675,9 +677,9 @@ StatusOr<StagedMeshes> simplify_or_reuse(RunSession& session, const Scene& scene
         session.warnings.push_back(stores.meshes[i].string() + text);
       }
     }
-    // Exact normals (simplify_cut_to_draco) change the mesh of a store with
-    // normals that a mirror or glass object uses: the cache keeps it apart.
-    const bool exact_normals = fold_passes_for(scene, stores.objects, i) > 0 && stores.stores[i]->header().has_normals;
+    // Exact normals change the mesh (simplify_cut_to_draco): the cache keeps it apart.
+    const int fold_passes = fold_passes_for(scene, stores.objects, i);
+    const bool exact_normals = exact_normals_for(*stores.stores[i], fold_passes);
     if (cache) {
       const std::string key = SimplifiedCache::key_for(cut, scene.crease_angle_deg, exact_normals);
       std::string note;
@@ -730,8 +732,7 @@ StatusOr<StagedMeshes> simplify_or_reuse(RunSession& session, const Scene& scene
       fs::path staged = staged_in(session.scratch);
       auto simplify_store = [&] {
         return simplify_cut_to_draco(*stores.stores[i], cut, staged, memory_limit, shading_normal_tolerance(scene),
-                                     options.progress, nullptr, scene.crease_angle_deg,
-                                     fold_passes_for(scene, stores.objects, i));
+                                     options.progress, nullptr, scene.crease_angle_deg, fold_passes);
       };
       auto simplified = simplify_store();
       if (!simplified.is_ok() && cache && staged_write_refused(simplified.status(), staged)) {

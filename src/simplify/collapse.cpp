@@ -729,13 +729,13 @@ struct PageWork {
   bool inside_one_cell = false;  // the page lies in one collapsed cell: not read
 
   // The normals of the vertices of triangles not wholly inside one cell (the
-  // only ones prepare_collapse and the builder read); the others stay zero.
-  // Exact normals read them all.
+  // only ones prepare_collapse and the builder read, unless exact normals
+  // read them all: PageMesh::decode_normals); the others stay zero.
   std::vector<uint8_t> needed;
-  void decode_needed_normals(bool all) {
+  void decode_needed_normals() {
     const size_t nv = page.vertices();
-    needed.assign(nv, all ? 1 : 0);
-    for (size_t t = 0; t < page.size() && !all; ++t) {
+    needed.assign(nv, 0);
+    for (size_t t = 0; t < page.size(); ++t) {
       const uint32_t* vi = &page.index[3 * t];
       const uint32_t c = vertex_cell[vi[0]];
       if (c != kKeepVertex && c == vertex_cell[vi[1]] && c == vertex_cell[vi[2]]) continue;
@@ -929,7 +929,10 @@ Status collapse_pass(const OctreeStore& store, std::span<const CellKey> keys, co
         if (w.inside_one_cell) return {};  // its triangles' normals come through the node's sum
         RAYLOD_RETURN_IF_ERROR(store.read_page(i, w.page));
         w.look_up_cells(lookup);
-        if (store.header().has_normals) w.decode_needed_normals(config.exact_normals);
+        if (store.header().has_normals) {
+          if (config.exact_normals) w.page.decode_normals();
+          else w.decode_needed_normals();
+        }
         prepare_collapse(w.page, w.vertex_cell, builder.representative_positions(), store.header().has_normals,
                          w.prepared, config.exact_normals);
         mark_page_unique_vertices(w.page, w.vertex_cell, neighbours.others(i), neighbours.inner(i), w.prepared);
