@@ -40,24 +40,37 @@ NodeRecord cap(double r, double alpha, int rings = 80, int slices = 160) {
   return node;
 }
 
+// The exact cases: a plane across the cell
+// (y = 0), the same with a second plane meeting it at 90 degrees along
+// x = 0.2 (a crease), and with a third closing a box corner.
+NodeRecord flat_node() {
+  NodeRecord n;
+  add_triangle(n, {-1, 0, -1}, {-1, 0, 1}, {1, 0, 1});
+  add_triangle(n, {-1, 0, -1}, {1, 0, 1}, {1, 0, -1});
+  return n;
+}
+NodeRecord crease_node() {
+  NodeRecord n = flat_node();
+  add_triangle(n, {0.2, 0, -1}, {0.2, 1, -1}, {0.2, 1, 1});
+  add_triangle(n, {0.2, 0, -1}, {0.2, 1, 1}, {0.2, 0, 1});
+  return n;
+}
+NodeRecord corner_node() {
+  NodeRecord n = crease_node();
+  add_triangle(n, {0.2, 0, 0.3}, {0.2, 1, 0.3}, {-1, 1, 0.3});
+  return n;
+}
+
 TEST(CollapseDeviation, FlatCreaseAndCornerCellsDoNotMove) {
   const Bbox cell{Vec3d(-1), Vec3d(1)};
-  NodeRecord flat;
-  add_triangle(flat, {-1, 0, -1}, {-1, 0, 1}, {1, 0, 1});
-  add_triangle(flat, {-1, 0, -1}, {1, 0, 1}, {1, 0, -1});
-  EXPECT_NEAR(collapse_deviation(flat, cell).position, 0.0, 1e-9);
-  EXPECT_NEAR(collapse_deviation(flat, cell).normal, 0.0, 1e-12);
+  EXPECT_NEAR(collapse_deviation(flat_node(), cell).position, 0.0, 1e-9);
+  EXPECT_NEAR(collapse_deviation(flat_node(), cell).normal, 0.0, 1e-12);
   // A 90-degree crease (floor + wall) and a box corner (three faces): the
   // representative lies on every plane, and crease-split normals keep them sharp.
-  NodeRecord crease = flat;
-  add_triangle(crease, {0.2, 0, -1}, {0.2, 1, -1}, {0.2, 1, 1});
-  add_triangle(crease, {0.2, 0, -1}, {0.2, 1, 1}, {0.2, 0, 1});
-  const CollapseDeviation c = collapse_deviation(crease, cell);
+  const CollapseDeviation c = collapse_deviation(crease_node(), cell);
   EXPECT_NEAR(c.position, 0.0, 1e-9);
   EXPECT_NEAR(c.normal, 0.0, 1e-12);
-  NodeRecord corner = crease;
-  add_triangle(corner, {0.2, 0, 0.3}, {0.2, 1, 0.3}, {-1, 1, 0.3});
-  EXPECT_NEAR(collapse_deviation(corner, cell).position, 0.0, 1e-9);
+  EXPECT_NEAR(collapse_deviation(corner_node(), cell).position, 0.0, 1e-9);
   // Empty and zero-area cells: nothing to move.
   NodeRecord empty;
   EXPECT_EQ(collapse_deviation(empty, cell).position, 0.0);
@@ -96,19 +109,11 @@ TEST(CollapseDeviation, ThinWallIsItsThickness) {
 // Planes and curved patches are not creases.
 TEST(CollapseDeviation, CreasesAreFlaggedPlanesAndCurvesAreNot) {
   const Bbox cell{Vec3d(-1), Vec3d(1)};
-  NodeRecord flat;
-  add_triangle(flat, {-1, 0, -1}, {-1, 0, 1}, {1, 0, 1});
-  add_triangle(flat, {-1, 0, -1}, {1, 0, 1}, {1, 0, -1});
-  EXPECT_FALSE(collapse_deviation(flat, cell).crease);
-  NodeRecord crease = flat;
-  add_triangle(crease, {0.2, 0, -1}, {0.2, 1, -1}, {0.2, 1, 1});
-  add_triangle(crease, {0.2, 0, -1}, {0.2, 1, 1}, {0.2, 0, 1});
-  const CollapseDeviation c = collapse_deviation(crease, cell);
+  EXPECT_FALSE(collapse_deviation(flat_node(), cell).crease);
+  const CollapseDeviation c = collapse_deviation(crease_node(), cell);
   EXPECT_TRUE(c.crease);
   EXPECT_LT(c.position, 1e-6);
-  NodeRecord corner = crease;
-  add_triangle(corner, {0.2, 0, 0.3}, {0.2, 1, 0.3}, {-1, 1, 0.3});
-  EXPECT_TRUE(collapse_deviation(corner, cell).crease);
+  EXPECT_TRUE(collapse_deviation(corner_node(), cell).crease);
   for (double alpha : {0.05, 0.3, 1.0})
     EXPECT_FALSE(collapse_deviation(cap(1.0, alpha), Bbox{Vec3d(-2), Vec3d(2)}).crease) << "alpha " << alpha;
 }
@@ -135,20 +140,12 @@ TEST(CollapseDeviation, FoldsAreFlaggedOneSidedSurfacesAreNot) {
   // One-sided surfaces are not: a plane, a crease, a box corner, a
   // spherical cap, a 30-degree wedge (two planes the solve keeps apart: its
   // ridge pins the representative).
-  NodeRecord flat;
-  add_triangle(flat, {-1, 0, -1}, {-1, 0, 1}, {1, 0, 1});
-  add_triangle(flat, {-1, 0, -1}, {1, 0, 1}, {1, 0, -1});
-  EXPECT_FALSE(collapse_deviation(flat, cell).folded);
-  NodeRecord crease = flat;
-  add_triangle(crease, {0.2, 0, -1}, {0.2, 1, -1}, {0.2, 1, 1});
-  add_triangle(crease, {0.2, 0, -1}, {0.2, 1, 1}, {0.2, 0, 1});
-  EXPECT_FALSE(collapse_deviation(crease, cell).folded);
-  NodeRecord corner = crease;
-  add_triangle(corner, {0.2, 0, 0.3}, {0.2, 1, 0.3}, {-1, 1, 0.3});
-  EXPECT_FALSE(collapse_deviation(corner, cell).folded);
+  EXPECT_FALSE(collapse_deviation(flat_node(), cell).folded);
+  EXPECT_FALSE(collapse_deviation(crease_node(), cell).folded);
+  EXPECT_FALSE(collapse_deviation(corner_node(), cell).folded);
   for (double alpha : {0.05, 0.3, 1.0})
     EXPECT_FALSE(collapse_deviation(cap(1.0, alpha), Bbox{Vec3d(-2), Vec3d(2)}).folded) << "alpha " << alpha;
-  NodeRecord wedge = flat;
+  NodeRecord wedge = flat_node();
   const double s = std::tan(M_PI / 6);
   add_triangle(wedge, {-1, -2 * s, -1}, {1, 0, 1}, {-1, -2 * s, 1});
   add_triangle(wedge, {-1, -2 * s, -1}, {1, 0, -1}, {1, 0, 1});
