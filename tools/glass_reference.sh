@@ -45,8 +45,15 @@ else
   trap 'rm -rf "$work"' EXIT
 fi
 
-# idiff exits non-zero when the images differ, which they do.
-psnr() { { idiff -a "$1" "$2" 2> /dev/null || true; } | sed -n 's/.*Peak SNR = \([0-9.]*\).*/\1/p' | head -1; }
+# idiff exits non-zero when the images differ, which they do: its PSNR line
+# says whether it compared them.
+psnr() {
+  local out value
+  out=$(idiff -a "$1" "$2" 2>&1 || true)
+  value=$(printf '%s\n' "$out" | sed -n 's/.*Peak SNR = \([0-9.]*\).*/\1/p' | head -1)
+  [ -n "$value" ] || { echo "glass_reference.sh: idiff could not compare $1 and $2: $out" >&2; exit 1; }
+  echo "$value"
+}
 render() { "$raylod" render "$@" -q; }
 
 # The scene at seed 2 beside seed 1 (the scenes say "seed": 1).
@@ -58,7 +65,9 @@ reference() {  # name scene
   floor=$(psnr "$work/$1.full.png" "$work/$1.seed2.png")
 }
 row() {  # label triangles image reference
-  printf '| %s | %s | %s | %s |\n' "$1" "$2" "$(psnr "$4" "$3")" "$floor"
+  local value
+  value=$(psnr "$4" "$3")  # an assignment, so that set -e sees a failed comparison
+  printf '| %s | %s | %s | %s |\n' "$1" "$2" "$value" "$floor"
 }
 
 echo "| mesh | triangles | PSNR dB | floor dB |"
