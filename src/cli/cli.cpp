@@ -136,7 +136,9 @@ std::vector<Args::Option> cut_options() {
                               "                              mirror-normal error) or diagonal (the paper's K test alone)", true, "NAME"},
           {"--tolerance", "", tol, true, "PX"},
           {"--angle-tolerance", "", angle, true, "PX"},
-          {"--footprint-scale", "", k, true, "K"}};
+          {"--footprint-scale", "", k, true, "K"},
+          {"--balance", "", "grade the cut (no cell beside one two levels coarser): specular\n"
+                            "                              (objects on mirrors and glass; default), all or off", true, "WHICH"}};
 }
 
 std::vector<Args::Option> with_cut_options(std::vector<Args::Option> options) {
@@ -157,6 +159,7 @@ StatusOr<CutOptions> cut_options_from_args(const Args& args) {
       o.criterion == CutCriterion::Diagonal ? kDefaultDiagonalFootprintScale : kDefaultFootprintScale;
   RAYLOD_ASSIGN_OR_RETURN(o.footprint_scale, args.get_double("--footprint-scale", default_k));
   if (!(o.footprint_scale > 0)) return Status::error("--footprint-scale must be > 0");
+  if (args.has("--balance")) { RAYLOD_ASSIGN_OR_RETURN(o.balance, parse_cut_balance(args.get("--balance"))); }
   return o;
 }
 

@@ -77,6 +77,7 @@ struct CutOptions {
   double tolerance_px = kDefaultTolerancePx;
   double angle_tolerance_px = kDefaultAngleTolerancePx;
   double footprint_scale = kDefaultFootprintScale;
+  CutBalance balance = CutBalance::Specular;
   bool tolerance_given = false, angle_tolerance_given = false;
   // The default tolerances for a render of `spp` samples per pixel
   // (default_tolerance_px), where none was given.

@@ -67,6 +67,7 @@ struct RunOptions {
   CutCriterion criterion = CutCriterion::Deviation;
   double tolerance_px = kDefaultTolerancePx;        // deviation criterion (probe.h)
   double angle_tolerance_px = kDefaultAngleTolerancePx;  // its mirror/glass normal bound (probe.h)
+  CutBalance balance = CutBalance::Specular;             // which cuts are graded (probe.h)
   std::filesystem::path cache_dir;    // empty = default_cache_dir()
   uint64_t cache_limit = uint64_t(4) << 30;
   bool use_cache = true;

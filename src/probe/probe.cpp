@@ -2,6 +2,8 @@
 // differentials; the policy for unreached cells is documented in probe.h.
 #include "probe/probe.h"
 
+#include "probe/cut_balance.h"
+
 #include <algorithm>
 #include <array>
 #include <chrono>
@@ -450,6 +452,16 @@ const char* to_string(CutCriterion c) { return c == CutCriterion::Diagonal ? "di
 
 double default_tolerance_scale(int spp) { return spp > 4 ? std::pow(4.0 / double(spp), 0.75) : 1.0; }
 
+const char* to_string(CutBalance b) {
+  return b == CutBalance::Specular ? "specular" : b == CutBalance::All ? "all" : "off";
+}
+
+StatusOr<CutBalance> parse_cut_balance(const std::string& name) {
+  for (CutBalance b : {CutBalance::Specular, CutBalance::All, CutBalance::Off})
+    if (name == to_string(b)) return b;
+  return Status::error("--balance: unknown value '" + name + "' (specular, all or off)");
+}
+
 StatusOr<CutCriterion> parse_cut_criterion(const std::string& name) {
   if (name == "deviation") return CutCriterion::Deviation;
   if (name == "diagonal") return CutCriterion::Diagonal;
@@ -497,6 +509,7 @@ std::string probe_key(const Scene& scene, const OctreeStore& store, std::span<co
   mix(config.criterion);
   mix(config.tolerance_px);
   mix(config.angle_tolerance_px);
+  mix(config.balance);
   mix(config.calibration_quantile);
   mix(config.shadow_factor);
   mix(config.limits.min_cos);
@@ -1170,10 +1183,24 @@ StatusOr<ProbeResult> CutSelection::select(const ProbeConfig& config) {
         rejected_boundary += verdict[i] == 4;
         rejected_fold += verdict[i] == 5;
         rejected_crease += verdict[i] == 6;
-        if (verdict[i] == 1) {
-          collapsed[size_t(L)][i] = 1;
-          cut.cells.push_back({CellKey{uint32_t(L), codes[i]}, 0.0f, 0});
+        if (verdict[i] == 1) collapsed[size_t(L)][i] = 1;
+      }
+    }
+    // Graded where the deviation criterion bounds normals (mirrors and
+    // glass), or as asked: a triangle joining a fine cell to a much coarser
+    // one spans the coarse cell, beyond the fine cell's bound.
+    if (config.balance == CutBalance::All || (config.balance == CutBalance::Specular && bound_normals))
+      cut.counters["cells_split_to_balance"] = balance_cut(codes_at, collapsed, false);
+    for (int L = 0; L <= Q; ++L) {
+      const std::vector<uint64_t>& codes = codes_at[size_t(L)];
+      for (size_t i = 0; i < codes.size(); ++i) {
+        if (!collapsed[size_t(L)][i]) continue;
+        if (L > 0) {
+          const std::vector<uint64_t>& parents = codes_at[size_t(L) - 1];
+          auto it = std::lower_bound(parents.begin(), parents.end(), codes[i] >> 3);
+          if (it != parents.end() && *it == (codes[i] >> 3) && collapsed[size_t(L) - 1][size_t(it - parents.begin())]) continue;
         }
+        cut.cells.push_back({CellKey{uint32_t(L), codes[i]}, 0.0f, 0});
       }
     }
     cut.counters["cells_kept_for_deviation"] = rejected_deviation;

@@ -121,6 +121,15 @@ const char* to_string(CutCriterion c);
 // Parses "deviation" or "diagonal".
 StatusOr<CutCriterion> parse_cut_criterion(const std::string& name);
 
+// Which stores' cuts are graded (cut_balance.h: no cut cell beside one two
+// or more levels coarser): those of objects on mirrors and glass, where a
+// triangle's interpolated normal is what the image shows (default); every
+// store's; or none.
+enum class CutBalance { Specular, All, Off };
+const char* to_string(CutBalance b);
+// Parses "specular", "all" or "off".
+StatusOr<CutBalance> parse_cut_balance(const std::string& name);
+
 // Defaults shared by `raylod probe`, `run` and `report` (README, "What
 // accuracy costs", for how they were chosen).
 // Measured with tools/accuracy.sh and raylod report on the 10M teapot, the
@@ -194,6 +203,7 @@ struct ProbeConfig {
   double footprint_scale = kDefaultFootprintScale;  // K: collapse cells with diagonal < K * footprint
   double tolerance_px = kDefaultTolerancePx;        // deviation criterion: surface deviation, in pixels
   double angle_tolerance_px = kDefaultAngleTolerancePx;  // and a mirror or glass ray's turn, in pixel angles
+  CutBalance balance = CutBalance::Specular;             // which cuts are graded
   uint64_t cache_bytes = uint64_t(256) << 20;  // page cache budget; 0 = no limit
   // A page cache that outlives the trace (a view sequence's, so that a view
   // reuses the pages the views before it loaded), resized to cache_bytes

@@ -123,6 +123,15 @@ TEST(Info, ZeroNormalsAreRepairedWithOneWarning) {
   EXPECT_EQ(r.out.find("warning", at + warning.size()), std::string::npos) << r.out;
 }
 
+// A cut option's bad value is named before any work, by run and probe alike.
+TEST(CutOptions, AnUnknownBalanceIsNamed) {
+  for (const char* cmd : {"run", "probe"}) {
+    const CommandResult r = run(std::string(cmd) + " '" + RAYLOD_DATA_DIR + "/default_scene.json' --balance sideways", 60);
+    EXPECT_EQ(r.status, 1) << cmd;
+    EXPECT_NE(r.out.find("--balance: unknown value 'sideways' (specular, all or off)"), std::string::npos) << r.out;
+  }
+}
+
 TEST(Info, Help) {
   const CommandResult r = run("info --help");
   EXPECT_EQ(r.status, 0);

@@ -1160,6 +1160,63 @@ TEST(ProbeDeviation, AngleToleranceLoosensOnlyMirrorAndGlass) {
   EXPECT_NE(rejected.status().message().find("angle tolerance"), std::string::npos) << rejected.status().message();
 }
 
+// Pairs of cut cells that touch (closed boxes, in finest-level units) and
+// whose levels differ by more than one: brute force over all pairs.
+size_t ungraded_pairs(const Cut& cut) {
+  int Q = 0;
+  for (const CollapsedCell& c : cut.cells) Q = std::max(Q, int(c.key.level));
+  size_t bad = 0;
+  for (size_t a = 0; a < cut.cells.size(); ++a)
+    for (size_t b = a + 1; b < cut.cells.size(); ++b) {
+      const CellKey &ka = cut.cells[a].key, &kb = cut.cells[b].key;
+      if (std::abs(int(ka.level) - int(kb.level)) <= 1) continue;
+      uint32_t pa[3], pb[3];
+      morton_decode(ka.code, pa[0], pa[1], pa[2]);
+      morton_decode(kb.code, pb[0], pb[1], pb[2]);
+      const int64_t sa = int64_t(1) << (Q - int(ka.level)), sb = int64_t(1) << (Q - int(kb.level));
+      bool touch = true;
+      for (int k = 0; k < 3; ++k) touch = touch && pa[k] * sa <= (pb[k] + 1) * sb && pb[k] * sb <= (pa[k] + 1) * sa;
+      bad += touch;
+    }
+  return bad;
+}
+
+// The cut is graded (no cut cell touches one two or more levels coarser)
+// on mirrors and glass by default, where the normal bound applies; the
+// grading only splits cells (every cell of the ungraded cut stays
+// collapsed); a diffuse object's cut is graded only when asked (`all`);
+// and the cut's key tells the modes apart where they differ.
+TEST(ProbeDeviation, GlassCutsAreGradedDiffuseOnlyWhenAsked) {
+  const Built& b = teapot();
+  auto cut_with = [&](MaterialType type, CutBalance balance) {
+    const OneObject one(b);
+    ProbeConfig c;
+    c.rays = 2000;
+    c.seed = 7;
+    c.angle_tolerance_px = 4;
+    c.balance = balance;
+    auto r = run_probe(make_scene(type, kEye, kLook), one.stores(), one.objects(), c);
+    EXPECT_TRUE(r) << r.status().message();
+    return r ? r->cuts[0] : Cut{};
+  };
+  const Cut glass_off = cut_with(MaterialType::Glass, CutBalance::Off);
+  const Cut glass = cut_with(MaterialType::Glass, CutBalance::Specular);
+  ASSERT_FALSE(glass.cells.empty());
+  EXPECT_GT(ungraded_pairs(glass_off), 0u) << "the test should start from a cut that is not graded";
+  EXPECT_EQ(ungraded_pairs(glass), 0u);
+  EXPECT_GT(glass.counters.at("cells_split_to_balance"), 0u);
+  EXPECT_GT(glass.cells.size(), glass_off.cells.size());
+  for (const CollapsedCell& c : glass.cells) EXPECT_TRUE(collapsed_by(glass_off, c.key)) << "level " << c.key.level;
+  EXPECT_NE(glass.key, glass_off.key);
+
+  const Cut diffuse_off = cut_with(MaterialType::Diffuse, CutBalance::Off);
+  const Cut diffuse = cut_with(MaterialType::Diffuse, CutBalance::Specular);
+  const Cut diffuse_all = cut_with(MaterialType::Diffuse, CutBalance::All);
+  EXPECT_EQ(cells_of(diffuse), cells_of(diffuse_off));
+  EXPECT_GT(ungraded_pairs(diffuse_off), 0u);
+  EXPECT_EQ(ungraded_pairs(diffuse_all), 0u);
+}
+
 // Property: every cell the shared cut collapses is collapsed (itself or
 // through an ancestor) by each view's own cut, for diffuse and glass (whose
 // normal bound uses the tilt allowance too).
