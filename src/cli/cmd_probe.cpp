@@ -133,14 +133,17 @@ int cmd_probe(int argc, char** argv) {
       for (const CollapsedCell& cell : cut.cells) ++per_level[cell.key.level];
       std::string levels;
       for (const auto& [level, n] : per_level) levels += " L" + std::to_string(level) + ":" + std::to_string(n);
-      say("probe: %s: %zu cells marked (%llu with hits;%s), smallest footprint %g\n", out.string().c_str(),
-          cut.cells.size(), static_cast<unsigned long long>(cut.counters.at("cells_marked_with_hits")),
-          levels.c_str(), double(cut.min_footprint));
-      // Why finest cells stay whole: their input triangles are kept as they are.
       auto count = [&](const char* name) {
         auto it = cut.counters.find(name);
         return static_cast<unsigned long long>(it == cut.counters.end() ? 0 : it->second);
       };
+      const std::string graded = cut.counters.count("cells_split_to_balance")
+                                     ? "; graded, " + std::to_string(count("cells_split_to_balance")) + " cells split"
+                                     : "";
+      say("probe: %s: %zu cells marked (%llu with hits;%s)%s, smallest footprint %g\n", out.string().c_str(),
+          cut.cells.size(), static_cast<unsigned long long>(cut.counters.at("cells_marked_with_hits")),
+          levels.c_str(), graded.c_str(), double(cut.min_footprint));
+      // Why finest cells stay whole: their input triangles are kept as they are.
       if (count("finest_cells_kept") > 0)
         say("probe: %llu finest cells kept whole (for K %llu, deviation %llu, normals %llu, open boundary %llu, "
             "fold %llu, crease %llu)\n",

@@ -1125,16 +1125,21 @@ TEST(CutSelection, ASharedSelectionCacheChangesNoCut) {
 // it moves the cut on a glass object and only there, every cell the
 // stricter bound collapses stays collapsed under the looser one, and the
 // bound is what kept the cells the looser one lets go.
+// The teapot probed from kEye (2,000 test rays, seed 7) at an angle
+// tolerance and a grading.
+StatusOr<ProbeResult> probe_teapot(MaterialType type, double angle, CutBalance balance = CutBalance::Specular) {
+  const OneObject one(teapot());
+  ProbeConfig c;
+  c.rays = 2000;
+  c.seed = 7;
+  c.angle_tolerance_px = angle;
+  c.balance = balance;
+  return run_probe(make_scene(type, kEye, kLook), one.stores(), one.objects(), c);
+}
+
 TEST(ProbeDeviation, AngleToleranceLoosensOnlyMirrorAndGlass) {
   const Built& b = teapot();
-  auto with_angle = [&](MaterialType type, double angle) {
-    const OneObject one(b);
-    ProbeConfig c;
-    c.rays = 2000;
-    c.seed = 7;
-    c.angle_tolerance_px = angle;
-    return run_probe(make_scene(type, kEye, kLook), one.stores(), one.objects(), c);
-  };
+  auto with_angle = [&](MaterialType type, double angle) { return probe_teapot(type, angle); };
   auto strict = with_angle(MaterialType::Glass, 0.5), loose = with_angle(MaterialType::Glass, 4.0);
   ASSERT_TRUE(strict && loose);
   const Cut &s = strict->cuts[0], &l = loose->cuts[0];
@@ -1187,15 +1192,8 @@ size_t ungraded_pairs(const Cut& cut) {
 // collapsed); a diffuse object's cut is graded only when asked (`all`);
 // and the cut's key tells the modes apart where they differ.
 TEST(ProbeDeviation, GlassCutsAreGradedDiffuseOnlyWhenAsked) {
-  const Built& b = teapot();
   auto cut_with = [&](MaterialType type, CutBalance balance) {
-    const OneObject one(b);
-    ProbeConfig c;
-    c.rays = 2000;
-    c.seed = 7;
-    c.angle_tolerance_px = 4;
-    c.balance = balance;
-    auto r = run_probe(make_scene(type, kEye, kLook), one.stores(), one.objects(), c);
+    auto r = probe_teapot(type, 4, balance);
     EXPECT_TRUE(r) << r.status().message();
     return r ? r->cuts[0] : Cut{};
   };
