@@ -414,6 +414,11 @@ void shift_positions(IndexedMesh& mesh, const Vec3d& shift) {
 
 StatusOr<DracoEncoded> encode_draco(const std::filesystem::path& path, const IndexedMesh& mesh,
                                      const DracoOptions& options) {
+  // Draco's symbol coder sizes a histogram by the largest symbol on every
+  // call (ComputeShannonEntropy: 128 MiB at 25 position bits), a fresh
+  // mapping each time that faults in page by page: kept by the allocator
+  // meanwhile, those pages are touched once.
+  const ScopedKeptFreeMemory keep;
   if (const Vec3d shift = local_shift(mesh); shift != Vec3d(0)) {
     IndexedMesh near = mesh;
     shift_positions(near, shift);
@@ -425,6 +430,7 @@ StatusOr<DracoEncoded> encode_draco(const std::filesystem::path& path, const Ind
 
 StatusOr<DracoEncoded> encode_draco(const std::filesystem::path& path, IndexedMesh&& mesh,
                                      const DracoOptions& options) {
+  const ScopedKeptFreeMemory keep;  // as above
   shift_positions(mesh, local_shift(mesh));
   if (options.parts > 1) return encode_draco_parts(path, mesh, options, &mesh);
   return encode_draco_mesh(path, mesh, options, &mesh);

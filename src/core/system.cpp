@@ -2,6 +2,9 @@
 
 
 #include <fcntl.h>
+#if defined(__GLIBC__)
+#include <malloc.h>
+#endif
 #include <sys/stat.h>
 #if defined(__linux__)
 #include <sys/prctl.h>
@@ -18,6 +21,7 @@
 #include <cstring>
 #include <fstream>
 #include <iterator>
+#include <limits>
 #include <mutex>
 #include <random>
 #include <sstream>
@@ -49,6 +53,32 @@ ScopedSmallPages::ScopedSmallPages() {
 ScopedSmallPages::~ScopedSmallPages() {
 #if defined(__linux__) && defined(PR_SET_THP_DISABLE)
   if (changed_) prctl(PR_SET_THP_DISABLE, 0, 0, 0, 0);
+#endif
+}
+
+namespace {
+std::mutex kept_free_mutex;
+int kept_free_users = 0;
+}  // namespace
+
+ScopedKeptFreeMemory::ScopedKeptFreeMemory() {
+#if defined(__GLIBC__)
+  std::lock_guard<std::mutex> lock(kept_free_mutex);
+  if (kept_free_users++ == 0) {
+    mallopt(M_MMAP_MAX, 0);
+    mallopt(M_TRIM_THRESHOLD, std::numeric_limits<int>::max());
+  }
+#endif
+}
+
+ScopedKeptFreeMemory::~ScopedKeptFreeMemory() {
+#if defined(__GLIBC__)
+  std::lock_guard<std::mutex> lock(kept_free_mutex);
+  if (--kept_free_users == 0) {
+    mallopt(M_MMAP_MAX, 65536);              // glibc's defaults
+    mallopt(M_TRIM_THRESHOLD, 128 * 1024);
+    malloc_trim(0);
+  }
 #endif
 }
 

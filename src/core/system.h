@@ -36,6 +36,22 @@ class ScopedSmallPages {
   bool changed_ = false;  // the process allowed huge pages before
 };
 
+// While one lives (the first of several nested or concurrent ones decides),
+// memory this process frees stays with the allocator (glibc: large blocks
+// come from the heap rather than their own mappings, and the heap is not
+// trimmed), so a stage that allocates and frees the same large blocks over
+// and over touches fresh pages once, not on every call. When the last one
+// goes, glibc's limits are set back and free memory is returned to the
+// system (malloc_trim). Draco's encoder sizes a symbol histogram by the
+// quantisation range on every call (128 MiB at 25 bits); see draco_io.cpp.
+class ScopedKeptFreeMemory {
+ public:
+  ScopedKeptFreeMemory();
+  ~ScopedKeptFreeMemory();
+  ScopedKeptFreeMemory(const ScopedKeptFreeMemory&) = delete;
+  ScopedKeptFreeMemory& operator=(const ScopedKeptFreeMemory&) = delete;
+};
+
 // The first instruction set extension this build was compiled to use
 // (CMake's RAYLOD_X86_LEVEL) that the CPU running it lacks, e.g. "sse4.2";
 // nullptr when the CPU has them all, or the build asks for none.

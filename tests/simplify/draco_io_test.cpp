@@ -12,10 +12,14 @@
 #include <set>
 
 #include <tbb/global_control.h>
+#if defined(__GLIBC__)
+#include <malloc.h>
+#endif
 
 #include <draco/compression/encode.h>
 #include <draco/mesh/mesh.h>
 
+#include "core/system.h"
 #include "simplify/collapse.h"
 #include "streaming/draco_io.h"
 #include "test_meshes.h"
@@ -468,4 +472,41 @@ TEST(DracoParts, DamagedPartFilesGiveErrorsNamingTheFile) {
 }
 
 }  // namespace
+
+#if defined(__has_feature)
+#if __has_feature(address_sanitizer) || __has_feature(memory_sanitizer) || __has_feature(thread_sanitizer)
+#define RAYLOD_TEST_OWN_MALLOC 1
+#endif
+#endif
+#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
+#define RAYLOD_TEST_OWN_MALLOC 1
+#endif
+
+// ScopedKeptFreeMemory (around Draco's encoder): while one lives, a large
+// block comes from the heap rather than a mapping of its own, so freeing it
+// keeps its pages; a nested one leaves the outer one's setting; after the
+// last, large blocks are mapped again (glibc's defaults).
+TEST(KeptFreeMemory, LargeBlocksStayInTheHeapWhileOneLives) {
+#if defined(__GLIBC__) && !defined(RAYLOD_TEST_OWN_MALLOC)
+  auto mapped = [] {
+    const size_t before = mallinfo2().hblks;
+    void* p = std::malloc(size_t(64) << 20);
+    static_cast<volatile char*>(p)[0] = 1;
+    const size_t during = mallinfo2().hblks;
+    std::free(p);
+    return during > before;
+  };
+  EXPECT_TRUE(mapped());
+  {
+    const ScopedKeptFreeMemory outer;
+    EXPECT_FALSE(mapped());
+    { const ScopedKeptFreeMemory inner; }
+    EXPECT_FALSE(mapped());
+  }
+  EXPECT_TRUE(mapped());
+#else
+  GTEST_SKIP() << "glibc's allocator is not the one in use";
+#endif
+}
+
 }  // namespace raylod
