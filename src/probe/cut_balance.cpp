@@ -21,8 +21,7 @@ struct Cell {
 
 }  // namespace
 
-uint64_t balance_cut(const std::vector<std::vector<uint64_t>>& codes, std::vector<std::vector<char>>& collapsed,
-                     bool finest_as_cells) {
+uint64_t balance_cut(const std::vector<std::vector<uint64_t>>& codes, std::vector<std::vector<char>>& collapsed) {
   const int Q = int(codes.size()) - 1;
   if (Q < 2) return 0;
   // Collapsed flags are closed downwards (a collapsed node's descendants are
@@ -43,21 +42,19 @@ uint64_t balance_cut(const std::vector<std::vector<uint64_t>>& codes, std::vecto
         parent_collapsed = j < parents.size() && parents[j] == (level[i] >> 3) && collapsed[size_t(L) - 1][j];
       }
       if (collapsed[size_t(L)][i] && !parent_collapsed) work.push_back({L, level[i]});
-      else if (finest_as_cells && L == Q && !collapsed[size_t(L)][i]) work.push_back({Q + 1, level[i]});
     }
   }
   uint64_t splits = 0;
   while (!work.empty()) {
     const Cell c = work.back();
     work.pop_back();
-    const int g = c.level - 2;  // the level a neighbour region may not be coarser than
+    const int L = c.level;
+    const int g = L - 2;  // a neighbour region collapsed at this level or above is too coarse
     if (g < 0) continue;
-    // A kept finest cell of "level Q + 1" looks at its neighbours at level Q.
-    const int L = std::min(c.level, Q);
     uint32_t x, y, z;
     morton_decode(c.code, x, y, z);
     const int64_t side = int64_t(1) << L;
-    const uint64_t own = c.code >> (3 * (L - g));  // not collapsed: c is a cut cell, or kept
+    const uint64_t own = c.code >> (3 * (L - g));  // not collapsed: c is a cut cell
     // The 26 neighbours' ancestors at level g: at most 8 distinct, mostly `own`.
     uint64_t seen[27];
     int nseen = 0;

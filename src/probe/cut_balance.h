@@ -18,10 +18,11 @@ namespace raylod {
 // collapsed ancestor); a collapsed node whose parent is not is a cut cell.
 // Clears the flag of cut cells (making their children cut cells) until
 // every cut cell's 26 neighbours at its own level lie in cut cells at most
-// one level coarser, or in space with no node. With `finest_as_cells`, nodes
-// of level Q left whole count as cells of level Q + 1 (their input triangles
-// are finer than the cell). Returns the number of cells split.
-uint64_t balance_cut(const std::vector<std::vector<uint64_t>>& codes, std::vector<std::vector<char>>& collapsed,
-                     bool finest_as_cells);
+// one level coarser, or in space with no node. Nodes left whole (not
+// collapsed) constrain nothing: counting finest ones as cells of level
+// Q + 1 split more cells on the glass scene for no gain (35.04 dB at
+// 862,064 triangles against 35.03 at 853,684). Returns the number of cells
+// split.
+uint64_t balance_cut(const std::vector<std::vector<uint64_t>>& codes, std::vector<std::vector<char>>& collapsed);
 
 }  // namespace raylod

@@ -1190,7 +1190,7 @@ StatusOr<ProbeResult> CutSelection::select(const ProbeConfig& config) {
     // glass), or as asked: a triangle joining a fine cell to a much coarser
     // one spans the coarse cell, beyond the fine cell's bound.
     if (config.balance == CutBalance::All || (config.balance == CutBalance::Specular && bound_normals))
-      cut.counters["cells_split_to_balance"] = balance_cut(codes_at, collapsed, false);
+      cut.counters["cells_split_to_balance"] = balance_cut(codes_at, collapsed);
     for (int L = 0; L <= Q; ++L) {
       const std::vector<uint64_t>& codes = codes_at[size_t(L)];
       for (size_t i = 0; i < codes.size(); ++i) {

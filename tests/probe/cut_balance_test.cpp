@@ -67,18 +67,6 @@ size_t unbalanced_pairs(const std::vector<CutCell>& cells, int Q) {
   return bad;
 }
 
-// Brute force: the pairs of a finest node left whole (as a cell of level
-// Q + 1) and a cut cell coarser than Q that touch.
-size_t kept_touching_coarse(const std::vector<CutCell>& cells, const std::vector<std::vector<uint64_t>>& codes,
-                            const std::vector<std::vector<char>>& collapsed, int Q) {
-  size_t bad = 0;
-  for (size_t i = 0; i < codes[size_t(Q)].size(); ++i) {
-    if (collapsed[size_t(Q)][i]) continue;
-    for (const CutCell& c : cells) bad += c.level < Q && touch(c, {Q, codes[size_t(Q)][i]}, Q);
-  }
-  return bad;
-}
-
 // Marks node (L, code) and everything below it collapsed.
 void collapse(const std::vector<std::vector<uint64_t>>& codes, std::vector<std::vector<char>>& collapsed, int L,
               uint64_t code) {
@@ -105,7 +93,7 @@ TEST(CutBalance, CoarseCellsBesideFineOnesSplitOnce) {
   for (uint64_t c = 0; c < 7; ++c) collapse(codes, collapsed, 1, c);
   for (uint64_t c = 0; c < 64; ++c) collapse(codes, collapsed, 3, (uint64_t(7) << 6) | c);
   ASSERT_GT(unbalanced_pairs(cut_cells(codes, collapsed), Q), 0u);
-  EXPECT_EQ(balance_cut(codes, collapsed, false), 7u);
+  EXPECT_EQ(balance_cut(codes, collapsed), 7u);
   const auto cells = cut_cells(codes, collapsed);
   EXPECT_EQ(unbalanced_pairs(cells, Q), 0u);
   size_t at[4] = {};
@@ -123,13 +111,13 @@ TEST(CutBalance, ABalancedCutIsLeftAlone) {
   auto uniform = none_collapsed(codes);
   for (uint64_t c = 0; c < 64; ++c) collapse(codes, uniform, 2, c);
   const auto before = uniform;
-  EXPECT_EQ(balance_cut(codes, uniform, false), 0u);
+  EXPECT_EQ(balance_cut(codes, uniform), 0u);
   EXPECT_EQ(uniform, before);
   auto graded = none_collapsed(codes);
   for (uint64_t c = 0; c < 7; ++c) collapse(codes, graded, 1, c);
   for (uint64_t c = 0; c < 8; ++c) collapse(codes, graded, 2, (uint64_t(7) << 3) | c);
   const auto graded_before = graded;
-  EXPECT_EQ(balance_cut(codes, graded, false), 0u);
+  EXPECT_EQ(balance_cut(codes, graded), 0u);
   EXPECT_EQ(graded, graded_before);
 }
 
@@ -147,16 +135,14 @@ TEST(CutBalance, EmptySpaceDoesNotPropagate) {
   collapse(codes, collapsed, 1, 0);   // coarse, at the origin corner
   collapse(codes, collapsed, 3, 511); // fine, at the far corner
   const auto before = collapsed;
-  EXPECT_EQ(balance_cut(codes, collapsed, false), 0u);
+  EXPECT_EQ(balance_cut(codes, collapsed), 0u);
   EXPECT_EQ(collapsed, before);
 }
 
 // Property (seeded): random sparse trees and random cuts, balanced, have no
 // touching cut cells more than one level apart (brute force over all pairs);
 // balancing only splits (every originally collapsed point stays covered by
-// a cell at least as fine) and never collapses a node the cut kept; and with
-// `finest_as_cells`, no cut cell coarser than Q - 1 touches a kept finest
-// node.
+// a cell at least as fine) and never collapses a node the cut kept.
 TEST(CutBalance, RandomCutsComeOutGradedBySplittingOnly) {
   const int Q = 5;
   std::mt19937_64 rng(20261126);
@@ -180,9 +166,8 @@ TEST(CutBalance, RandomCutsComeOutGradedBySplittingOnly) {
     for (int L = 1; L <= Q; ++L)
       for (uint64_t c : codes[size_t(L)])
         if (rng() % 4 == 0) collapse(codes, collapsed, L, c);
-    const bool finest_as_cells = trial % 2 == 1;
     const auto before = collapsed;
-    balance_cut(codes, collapsed, finest_as_cells);
+    balance_cut(codes, collapsed);
     const auto cells = cut_cells(codes, collapsed);
     EXPECT_EQ(unbalanced_pairs(cells, Q), 0u) << "trial " << trial;
     for (size_t L = 0; L <= size_t(Q); ++L)
@@ -193,9 +178,6 @@ TEST(CutBalance, RandomCutsComeOutGradedBySplittingOnly) {
           EXPECT_EQ(collapsed[L][i], before[L][i]) << "trial " << trial;
         }
       }
-    if (finest_as_cells) {
-      EXPECT_EQ(kept_touching_coarse(cells, codes, collapsed, Q), 0u) << "trial " << trial;
-    }
   }
 }
 
