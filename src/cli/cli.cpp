@@ -138,7 +138,8 @@ std::vector<Args::Option> cut_options() {
           {"--angle-tolerance", "", angle, true, "PX"},
           {"--footprint-scale", "", k, true, "K"},
           {"--balance", "", "grade the cut (no cell beside one two levels coarser): specular\n"
-                            "                              (objects on mirrors and glass; default), all or off", true, "WHICH"}};
+                            "                              (objects on mirrors and glass under the deviation criterion;\n"
+                            "                              default), all or off", true, "WHICH"}};
 }
 
 std::vector<Args::Option> with_cut_options(std::vector<Args::Option> options) {

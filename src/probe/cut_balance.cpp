@@ -2,8 +2,6 @@
 
 #include <algorithm>
 
-#include "streaming/octree_store.h"
-
 namespace raylod {
 
 namespace {
@@ -31,19 +29,7 @@ uint64_t balance_cut(const std::vector<std::vector<uint64_t>>& codes, std::vecto
   // holds it is collapsed (a node missing below it is empty space inside
   // that cut cell's box).
   std::vector<Cell> work;
-  for (int L = 0; L <= Q; ++L) {
-    const std::vector<uint64_t>& level = codes[size_t(L)];
-    size_t j = 0;  // parents walked alongside (both sorted)
-    for (size_t i = 0; i < level.size(); ++i) {
-      bool parent_collapsed = false;
-      if (L > 0) {
-        const std::vector<uint64_t>& parents = codes[size_t(L) - 1];
-        while (j < parents.size() && parents[j] < (level[i] >> 3)) ++j;
-        parent_collapsed = j < parents.size() && parents[j] == (level[i] >> 3) && collapsed[size_t(L) - 1][j];
-      }
-      if (collapsed[size_t(L)][i] && !parent_collapsed) work.push_back({L, level[i]});
-    }
-  }
+  for (const CellKey& k : cut_cells(codes, collapsed)) work.push_back({int(k.level), k.code});
   uint64_t splits = 0;
   while (!work.empty()) {
     const Cell c = work.back();
@@ -92,6 +78,25 @@ uint64_t balance_cut(const std::vector<std::vector<uint64_t>>& codes, std::vecto
         }
   }
   return splits;
+}
+
+std::vector<CellKey> cut_cells(const std::vector<std::vector<uint64_t>>& codes,
+                               const std::vector<std::vector<char>>& collapsed) {
+  std::vector<CellKey> cells;
+  for (size_t L = 0; L < codes.size(); ++L) {
+    const std::vector<uint64_t>& level = codes[L];
+    size_t j = 0;  // parents walked alongside (both sorted)
+    for (size_t i = 0; i < level.size(); ++i) {
+      if (!collapsed[L][i]) continue;
+      if (L > 0) {
+        const std::vector<uint64_t>& parents = codes[L - 1];
+        while (j < parents.size() && parents[j] < (level[i] >> 3)) ++j;
+        if (j < parents.size() && parents[j] == (level[i] >> 3) && collapsed[L - 1][j]) continue;
+      }
+      cells.push_back(CellKey{uint32_t(L), level[i]});
+    }
+  }
+  return cells;
 }
 
 }  // namespace raylod

@@ -11,6 +11,8 @@
 #include <cstdint>
 #include <vector>
 
+#include "streaming/octree_store.h"
+
 namespace raylod {
 
 // codes[L]: the sorted Morton codes of the store's nodes at level L (0..Q).
@@ -24,5 +26,10 @@ namespace raylod {
 // 862,064 triangles against 35.03 at 853,684). Returns the number of cells
 // split.
 uint64_t balance_cut(const std::vector<std::vector<uint64_t>>& codes, std::vector<std::vector<char>>& collapsed);
+
+// The cut cells of `collapsed` (as above), level by level in code order: one
+// merge walk per level.
+std::vector<CellKey> cut_cells(const std::vector<std::vector<uint64_t>>& codes,
+                               const std::vector<std::vector<char>>& collapsed);
 
 }  // namespace raylod

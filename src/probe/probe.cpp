@@ -1191,18 +1191,7 @@ StatusOr<ProbeResult> CutSelection::select(const ProbeConfig& config) {
     // one spans the coarse cell, beyond the fine cell's bound.
     if (config.balance == CutBalance::All || (config.balance == CutBalance::Specular && bound_normals))
       cut.counters["cells_split_to_balance"] = balance_cut(codes_at, collapsed);
-    for (int L = 0; L <= Q; ++L) {
-      const std::vector<uint64_t>& codes = codes_at[size_t(L)];
-      for (size_t i = 0; i < codes.size(); ++i) {
-        if (!collapsed[size_t(L)][i]) continue;
-        if (L > 0) {
-          const std::vector<uint64_t>& parents = codes_at[size_t(L) - 1];
-          auto it = std::lower_bound(parents.begin(), parents.end(), codes[i] >> 3);
-          if (it != parents.end() && *it == (codes[i] >> 3) && collapsed[size_t(L) - 1][size_t(it - parents.begin())]) continue;
-        }
-        cut.cells.push_back({CellKey{uint32_t(L), codes[i]}, 0.0f, 0});
-      }
-    }
+    for (const CellKey& k : cut_cells(codes_at, collapsed)) cut.cells.push_back({k, 0.0f, 0});
     cut.counters["cells_kept_for_deviation"] = rejected_deviation;
     cut.counters["cells_kept_for_normals"] = rejected_normal;
     cut.counters["cells_kept_for_boundary"] = rejected_boundary;

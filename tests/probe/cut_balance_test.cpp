@@ -26,7 +26,7 @@ struct CutCell {
   uint64_t code;
 };
 
-std::vector<CutCell> cut_cells(const std::vector<std::vector<uint64_t>>& codes,
+std::vector<CutCell> brute_cut_cells(const std::vector<std::vector<uint64_t>>& codes,
                                const std::vector<std::vector<char>>& collapsed) {
   std::vector<CutCell> cells;
   for (size_t L = 0; L < codes.size(); ++L)
@@ -92,9 +92,9 @@ TEST(CutBalance, CoarseCellsBesideFineOnesSplitOnce) {
   auto collapsed = none_collapsed(codes);
   for (uint64_t c = 0; c < 7; ++c) collapse(codes, collapsed, 1, c);
   for (uint64_t c = 0; c < 64; ++c) collapse(codes, collapsed, 3, (uint64_t(7) << 6) | c);
-  ASSERT_GT(unbalanced_pairs(cut_cells(codes, collapsed), Q), 0u);
+  ASSERT_GT(unbalanced_pairs(brute_cut_cells(codes, collapsed), Q), 0u);
   EXPECT_EQ(balance_cut(codes, collapsed), 7u);
-  const auto cells = cut_cells(codes, collapsed);
+  const auto cells = brute_cut_cells(codes, collapsed);
   EXPECT_EQ(unbalanced_pairs(cells, Q), 0u);
   size_t at[4] = {};
   for (const CutCell& c : cells) ++at[c.level];
@@ -121,22 +121,48 @@ TEST(CutBalance, ABalancedCutIsLeftAlone) {
   EXPECT_EQ(graded, graded_before);
 }
 
-// Space with no node joins no triangles: a coarse cell across empty space
-// from a fine one is not split.
-TEST(CutBalance, EmptySpaceDoesNotPropagate) {
-  const int Q = 3;
-  // Two clusters of nodes at opposite corners of the root, far apart.
-  std::vector<std::vector<uint64_t>> codes(Q + 1);
-  codes[0] = {0};
-  codes[1] = {0, 7};
-  codes[2] = {0, 63};
-  codes[3] = {0, 511};
-  auto collapsed = none_collapsed(codes);
-  collapse(codes, collapsed, 1, 0);   // coarse, at the origin corner
-  collapse(codes, collapsed, 3, 511); // fine, at the far corner
-  const auto before = collapsed;
-  EXPECT_EQ(balance_cut(codes, collapsed), 0u);
-  EXPECT_EQ(collapsed, before);
+// A coarse cut cell is split when its box touches a fine one, even where
+// the space inside it next to the fine cell holds no node (its
+// representative's triangles may reach across); a coarse cell that does not
+// touch stays whole.
+TEST(CutBalance, TouchingCountsThroughEmptySpaceInsideACell) {
+  const int Q = 4;
+  // Level-4 coordinates. The fine cut cell (8, 0, 0) of level 4; the coarse
+  // cut cell (0, 0, 0) of level 1 is [0, 8)^3 and touches it at x = 8; the
+  // coarse cut cell (0, 1, 0) of level 1, [0, 8) x [8, 16) x [0, 8), does not.
+  for (bool bridge : {false, true}) {
+    std::vector<std::vector<uint64_t>> codes(Q + 1);
+    auto add = [&](uint32_t x, uint32_t y, uint32_t z) {
+      const uint64_t code = morton_encode(x, y, z);
+      for (int L = Q; L >= 0; --L) codes[size_t(L)].push_back(code >> (3 * (Q - L)));
+    };
+    add(8, 0, 0);
+    add(0, 0, 0);   // far from the fine cell, inside the touching coarse cell
+    add(0, 12, 0);  // inside the coarse cell that does not touch
+    // Without the bridge, the coarse cell holds no node next to the fine
+    // cell (its level-2 cell (1, 0, 0) is empty); with it, it does.
+    if (bridge) add(7, 0, 0);
+    for (auto& level : codes) {
+      std::sort(level.begin(), level.end());
+      level.erase(std::unique(level.begin(), level.end()), level.end());
+    }
+    auto collapsed = none_collapsed(codes);
+    collapse(codes, collapsed, 4, morton_encode(8, 0, 0));
+    collapse(codes, collapsed, 1, morton_encode(0, 0, 0));
+    collapse(codes, collapsed, 1, morton_encode(0, 1, 0));
+    // Without the bridge one split (the level-1 cell; its one child,
+    // [0, 4)^3, does not touch); with it two (then its child [4, 8) x
+    // [0, 4) x [0, 4), which touches).
+    EXPECT_EQ(balance_cut(codes, collapsed), bridge ? 2u : 1u) << "bridge " << bridge;
+    const auto cells = brute_cut_cells(codes, collapsed);
+    EXPECT_EQ(unbalanced_pairs(cells, Q), 0u);
+    size_t at[Q + 1] = {};
+    for (const CutCell& c : cells) ++at[c.level];
+    EXPECT_EQ(at[1], 1u) << "the coarse cell that does not touch stays whole";
+    EXPECT_EQ(at[2], 1u);
+    EXPECT_EQ(at[3], bridge ? 1u : 0u);
+    EXPECT_EQ(at[4], 1u);
+  }
 }
 
 // Property (seeded): random sparse trees and random cuts, balanced, have no
@@ -167,9 +193,30 @@ TEST(CutBalance, RandomCutsComeOutGradedBySplittingOnly) {
       for (uint64_t c : codes[size_t(L)])
         if (rng() % 4 == 0) collapse(codes, collapsed, L, c);
     const auto before = collapsed;
+    // The least graded refinement is unique: split whatever cut cell
+    // touches one two or more levels finer, by brute force, until none does.
+    auto fixpoint = collapsed;
+    for (bool changed = true; changed;) {
+      changed = false;
+      const auto now = brute_cut_cells(codes, fixpoint);
+      for (const CutCell& a : now)
+        for (const CutCell& b : now)
+          if (b.level - a.level > 1 && touch(a, b, Q)) {
+            const auto& level = codes[size_t(a.level)];
+            fixpoint[size_t(a.level)][size_t(std::lower_bound(level.begin(), level.end(), a.code) - level.begin())] = 0;
+            changed = true;
+          }
+    }
     balance_cut(codes, collapsed);
-    const auto cells = cut_cells(codes, collapsed);
+    EXPECT_EQ(collapsed, fixpoint) << "trial " << trial << ": not the least graded refinement";
+    const auto cells = brute_cut_cells(codes, collapsed);
     EXPECT_EQ(unbalanced_pairs(cells, Q), 0u) << "trial " << trial;
+    const std::vector<CellKey> listed = cut_cells(codes, collapsed);
+    ASSERT_EQ(listed.size(), cells.size());
+    for (size_t k = 0; k < cells.size(); ++k) {
+      EXPECT_EQ(int(listed[k].level), cells[k].level);
+      EXPECT_EQ(listed[k].code, cells[k].code);
+    }
     for (size_t L = 0; L <= size_t(Q); ++L)
       for (size_t i = 0; i < codes[L].size(); ++i) {
         // Splitting clears a cut cell's flag and leaves its children's.
