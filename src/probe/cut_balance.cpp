@@ -80,21 +80,25 @@ uint64_t balance_cut(const std::vector<std::vector<uint64_t>>& codes, std::vecto
   return splits;
 }
 
+std::vector<char> flagged_parents(const std::vector<uint64_t>& codes, const std::vector<uint64_t>& parents,
+                                  const std::vector<char>& parent_flags) {
+  std::vector<char> flagged(codes.size(), 0);
+  size_t j = 0;  // parents walked alongside (both sorted)
+  for (size_t i = 0; i < codes.size(); ++i) {
+    while (j < parents.size() && parents[j] < (codes[i] >> 3)) ++j;
+    flagged[i] = j < parents.size() && parents[j] == (codes[i] >> 3) && parent_flags[j];
+  }
+  return flagged;
+}
+
 std::vector<CellKey> cut_cells(const std::vector<std::vector<uint64_t>>& codes,
                                const std::vector<std::vector<char>>& collapsed) {
   std::vector<CellKey> cells;
   for (size_t L = 0; L < codes.size(); ++L) {
-    const std::vector<uint64_t>& level = codes[L];
-    size_t j = 0;  // parents walked alongside (both sorted)
-    for (size_t i = 0; i < level.size(); ++i) {
-      if (!collapsed[L][i]) continue;
-      if (L > 0) {
-        const std::vector<uint64_t>& parents = codes[L - 1];
-        while (j < parents.size() && parents[j] < (level[i] >> 3)) ++j;
-        if (j < parents.size() && parents[j] == (level[i] >> 3) && collapsed[L - 1][j]) continue;
-      }
-      cells.push_back(CellKey{uint32_t(L), level[i]});
-    }
+    const std::vector<char> inside =
+        L > 0 ? flagged_parents(codes[L], codes[L - 1], collapsed[L - 1]) : std::vector<char>(codes[L].size(), 0);
+    for (size_t i = 0; i < codes[L].size(); ++i)
+      if (collapsed[L][i] && !inside[i]) cells.push_back(CellKey{uint32_t(L), codes[L][i]});
   }
   return cells;
 }

@@ -27,8 +27,13 @@ namespace raylod {
 // split.
 uint64_t balance_cut(const std::vector<std::vector<uint64_t>>& codes, std::vector<std::vector<char>>& collapsed);
 
-// The cut cells of `collapsed` (as above), level by level in code order: one
-// merge walk per level.
+// For each of a level's sorted `codes`, whether its parent among the level
+// above's sorted `parents` exists and is flagged in `parent_flags`: one
+// merge walk.
+std::vector<char> flagged_parents(const std::vector<uint64_t>& codes, const std::vector<uint64_t>& parents,
+                                  const std::vector<char>& parent_flags);
+
+// The cut cells of `collapsed` (as above), level by level in code order.
 std::vector<CellKey> cut_cells(const std::vector<std::vector<uint64_t>>& codes,
                                const std::vector<std::vector<char>>& collapsed);
 

@@ -1121,15 +1121,8 @@ StatusOr<ProbeResult> CutSelection::select(const ProbeConfig& config) {
       collapsed[size_t(L)].assign(nodes.size(), 0);
       const double diag = st.cell_diagonal(L);
       // 1 = inside a collapsed parent, 0 = to decide.
-      std::vector<char> inside(nodes.size(), 0);
-      if (L > 0) {
-        const std::vector<uint64_t>& parents = codes_at[size_t(L) - 1];
-        size_t j = 0;
-        for (size_t i = 0; i < nodes.size(); ++i) {
-          while (j < parents.size() && parents[j] < (codes[i] >> 3)) ++j;
-          inside[i] = j < parents.size() && parents[j] == (codes[i] >> 3) && collapsed[size_t(L) - 1][j];
-        }
-      }
+      const std::vector<char> inside = L > 0 ? flagged_parents(codes, codes_at[size_t(L) - 1], collapsed[size_t(L) - 1])
+                                             : std::vector<char>(nodes.size(), 0);
       // 0 = keep, 1 = collapse, 2 = kept for its deviation, 3 = for its
       // normal, 4 = for an open boundary in it, 5 = for a fold in it, 6 =
       // for a crease in it (mirrors and glass).

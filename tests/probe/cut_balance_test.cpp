@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <random>
 
+#include "cut_grading_check.h"
 #include "streaming/octree_store.h"
 
 namespace raylod {
@@ -20,15 +21,11 @@ std::vector<std::vector<uint64_t>> full_tree(int Q) {
   return codes;
 }
 
-// A cut cell: a collapsed node whose parent is not collapsed.
-struct CutCell {
-  int level;
-  uint64_t code;
-};
-
-std::vector<CutCell> brute_cut_cells(const std::vector<std::vector<uint64_t>>& codes,
-                               const std::vector<std::vector<char>>& collapsed) {
-  std::vector<CutCell> cells;
+// A cut cell: a collapsed node whose parent is not collapsed. Found here
+// by a search per node, apart from cut_cells' merge walk.
+std::vector<CellKey> brute_cut_cells(const std::vector<std::vector<uint64_t>>& codes,
+                                     const std::vector<std::vector<char>>& collapsed) {
+  std::vector<CellKey> cells;
   for (size_t L = 0; L < codes.size(); ++L)
     for (size_t i = 0; i < codes[L].size(); ++i) {
       if (!collapsed[L][i]) continue;
@@ -38,33 +35,9 @@ std::vector<CutCell> brute_cut_cells(const std::vector<std::vector<uint64_t>>& c
         auto it = std::lower_bound(p.begin(), p.end(), codes[L][i] >> 3);
         top = !(it != p.end() && *it == (codes[L][i] >> 3) && collapsed[L - 1][size_t(it - p.begin())]);
       }
-      if (top) cells.push_back({int(L), codes[L][i]});
+      if (top) cells.push_back(CellKey{uint32_t(L), codes[L][i]});
     }
   return cells;
-}
-
-// Whether the closed boxes of two cells touch (at a face, an edge or a
-// corner, or overlap), in units of the level-Q cells.
-bool touch(const CutCell& a, const CutCell& b, int Q) {
-  uint32_t p[2][3];
-  morton_decode(a.code, p[0][0], p[0][1], p[0][2]);
-  morton_decode(b.code, p[1][0], p[1][1], p[1][2]);
-  const int64_t sa = int64_t(1) << (Q - a.level), sb = int64_t(1) << (Q - b.level);
-  for (int k = 0; k < 3; ++k) {
-    const int64_t alo = p[0][k] * sa, ahi = alo + sa, blo = p[1][k] * sb, bhi = blo + sb;
-    if (alo > bhi || blo > ahi) return false;
-  }
-  return true;
-}
-
-// Brute force: the pairs of cut cells that touch and whose levels differ by
-// more than one.
-size_t unbalanced_pairs(const std::vector<CutCell>& cells, int Q) {
-  size_t bad = 0;
-  for (size_t a = 0; a < cells.size(); ++a)
-    for (size_t b = a + 1; b < cells.size(); ++b)
-      bad += std::abs(cells[a].level - cells[b].level) > 1 && touch(cells[a], cells[b], Q);
-  return bad;
 }
 
 // Marks node (L, code) and everything below it collapsed.
@@ -92,12 +65,12 @@ TEST(CutBalance, CoarseCellsBesideFineOnesSplitOnce) {
   auto collapsed = none_collapsed(codes);
   for (uint64_t c = 0; c < 7; ++c) collapse(codes, collapsed, 1, c);
   for (uint64_t c = 0; c < 64; ++c) collapse(codes, collapsed, 3, (uint64_t(7) << 6) | c);
-  ASSERT_GT(unbalanced_pairs(brute_cut_cells(codes, collapsed), Q), 0u);
+  ASSERT_GT(test::ungraded_pairs(brute_cut_cells(codes, collapsed), Q), 0u);
   EXPECT_EQ(balance_cut(codes, collapsed), 7u);
   const auto cells = brute_cut_cells(codes, collapsed);
-  EXPECT_EQ(unbalanced_pairs(cells, Q), 0u);
+  EXPECT_EQ(test::ungraded_pairs(cells, Q), 0u);
   size_t at[4] = {};
-  for (const CutCell& c : cells) ++at[c.level];
+  for (const CellKey& c : cells) ++at[c.level];
   EXPECT_EQ(at[1], 0u);
   EXPECT_EQ(at[2], 7u * 8u);
   EXPECT_EQ(at[3], 64u);
@@ -155,9 +128,9 @@ TEST(CutBalance, TouchingCountsThroughEmptySpaceInsideACell) {
     // [0, 4) x [0, 4), which touches).
     EXPECT_EQ(balance_cut(codes, collapsed), bridge ? 2u : 1u) << "bridge " << bridge;
     const auto cells = brute_cut_cells(codes, collapsed);
-    EXPECT_EQ(unbalanced_pairs(cells, Q), 0u);
+    EXPECT_EQ(test::ungraded_pairs(cells, Q), 0u);
     size_t at[Q + 1] = {};
-    for (const CutCell& c : cells) ++at[c.level];
+    for (const CellKey& c : cells) ++at[c.level];
     EXPECT_EQ(at[1], 1u) << "the coarse cell that does not touch stays whole";
     EXPECT_EQ(at[2], 1u);
     EXPECT_EQ(at[3], bridge ? 1u : 0u);
@@ -199,9 +172,9 @@ TEST(CutBalance, RandomCutsComeOutGradedBySplittingOnly) {
     for (bool changed = true; changed;) {
       changed = false;
       const auto now = brute_cut_cells(codes, fixpoint);
-      for (const CutCell& a : now)
-        for (const CutCell& b : now)
-          if (b.level - a.level > 1 && touch(a, b, Q)) {
+      for (const CellKey& a : now)
+        for (const CellKey& b : now)
+          if (int(b.level) - int(a.level) > 1 && test::cells_touch(a, b, Q)) {
             const auto& level = codes[size_t(a.level)];
             fixpoint[size_t(a.level)][size_t(std::lower_bound(level.begin(), level.end(), a.code) - level.begin())] = 0;
             changed = true;
@@ -210,13 +183,8 @@ TEST(CutBalance, RandomCutsComeOutGradedBySplittingOnly) {
     balance_cut(codes, collapsed);
     EXPECT_EQ(collapsed, fixpoint) << "trial " << trial << ": not the least graded refinement";
     const auto cells = brute_cut_cells(codes, collapsed);
-    EXPECT_EQ(unbalanced_pairs(cells, Q), 0u) << "trial " << trial;
-    const std::vector<CellKey> listed = cut_cells(codes, collapsed);
-    ASSERT_EQ(listed.size(), cells.size());
-    for (size_t k = 0; k < cells.size(); ++k) {
-      EXPECT_EQ(int(listed[k].level), cells[k].level);
-      EXPECT_EQ(listed[k].code, cells[k].code);
-    }
+    EXPECT_EQ(test::ungraded_pairs(cells, Q), 0u) << "trial " << trial;
+    EXPECT_EQ(cut_cells(codes, collapsed), cells) << "trial " << trial;
     for (size_t L = 0; L <= size_t(Q); ++L)
       for (size_t i = 0; i < codes[L].size(); ++i) {
         // Splitting clears a cut cell's flag and leaves its children's.

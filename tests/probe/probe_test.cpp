@@ -31,6 +31,7 @@
 #include "streaming/cut_file.h"
 #include "streaming/mesh_writer.h"
 #include "streaming/octree_store.h"
+#include "cut_grading_check.h"
 #include "one_object_scene.h"
 #include "test_scenes.h"
 #include "test_tmp.h"
@@ -1165,25 +1166,16 @@ TEST(ProbeDeviation, AngleToleranceLoosensOnlyMirrorAndGlass) {
   EXPECT_NE(rejected.status().message().find("angle tolerance"), std::string::npos) << rejected.status().message();
 }
 
-// Pairs of cut cells that touch (closed boxes, in finest-level units) and
-// whose levels differ by more than one: brute force over all pairs.
+// The cut's pairs of touching cells more than one level apart
+// (cut_grading_check.h).
 size_t ungraded_pairs(const Cut& cut) {
+  std::vector<CellKey> cells;
   int Q = 0;
-  for (const CollapsedCell& c : cut.cells) Q = std::max(Q, int(c.key.level));
-  size_t bad = 0;
-  for (size_t a = 0; a < cut.cells.size(); ++a)
-    for (size_t b = a + 1; b < cut.cells.size(); ++b) {
-      const CellKey &ka = cut.cells[a].key, &kb = cut.cells[b].key;
-      if (std::abs(int(ka.level) - int(kb.level)) <= 1) continue;
-      uint32_t pa[3], pb[3];
-      morton_decode(ka.code, pa[0], pa[1], pa[2]);
-      morton_decode(kb.code, pb[0], pb[1], pb[2]);
-      const int64_t sa = int64_t(1) << (Q - int(ka.level)), sb = int64_t(1) << (Q - int(kb.level));
-      bool touch = true;
-      for (int k = 0; k < 3; ++k) touch = touch && pa[k] * sa <= (pb[k] + 1) * sb && pb[k] * sb <= (pa[k] + 1) * sa;
-      bad += touch;
-    }
-  return bad;
+  for (const CollapsedCell& c : cut.cells) {
+    cells.push_back(c.key);
+    Q = std::max(Q, int(c.key.level));
+  }
+  return test::ungraded_pairs(cells, Q);
 }
 
 // The cut is graded (no cut cell touches one two or more levels coarser)
