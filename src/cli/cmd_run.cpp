@@ -21,6 +21,16 @@
 namespace raylod::cli {
 namespace {
 
+// One line per simplified mesh under the summary's simplify line; with more
+// than one mesh each line names its mesh.
+void print_cache_note(const SimplifiedMesh& m, size_t meshes) {
+  if (meshes > 1)
+    std::printf("             %s: %llu triangles, %s\n", m.name.c_str(), (unsigned long long)m.triangles,
+                m.cache_note.c_str());
+  else
+    std::printf("             %s\n", m.cache_note.c_str());
+}
+
 // The terminal summary of a view sequence, and its --stats-json.
 Status report_views(const Args& args, const ViewsResult& r, const RunOptions& opts, const std::filesystem::path& output) {
   const bool shared = r.shared_cut;
@@ -36,7 +46,7 @@ Status report_views(const Args& args, const ViewsResult& r, const RunOptions& op
     for (const SimplifiedMesh& m : r.shared_meshes) triangles += m.triangles;
     std::printf("  shared cut %7.2f s  (select over all views' test rays), simplify %.2f s: %llu triangles\n",
                 r.shared_select_seconds, r.shared_simplify_seconds, (unsigned long long)triangles);
-    for (const SimplifiedMesh& m : r.shared_meshes) std::printf("             %s\n", m.cache_note.c_str());
+    for (const SimplifiedMesh& m : r.shared_meshes) print_cache_note(m, r.shared_meshes.size());
   }
   std::printf("  view  triangles  mesh    probe s  simplify s  render s  image\n");
   for (size_t i = 0; i < r.views.size(); ++i) {
@@ -211,7 +221,7 @@ Status run_run(int argc, char** argv, bool& help) {
     std::printf("  probe      %7.2f s  (%llu test rays, K = %g%s%s)\n", r.seconds.probe, (unsigned long long)opts.rays,
                 r.footprint_scale, tolerance, r.coarsening_steps ? ", coarsened to fit the memory limit" : "");
     std::printf("  simplify   %7.2f s  (%s)\n", r.seconds.simplify, r.cache_hit ? "from cache" : "simplified");
-    for (const auto& m : r.meshes) std::printf("             %s\n", m.cache_note.c_str());
+    for (const SimplifiedMesh& m : r.meshes) print_cache_note(m, r.meshes.size());
     std::printf("  render     %7.2f s  (load %.2f s, BVH %.2f s, trace %.2f s)\n", r.seconds.render,
                 r.render.stats.load_seconds, r.render.stats.bvh_seconds, r.render.stats.render_seconds);
     std::printf("  total      %7.2f s, peak memory %s\n", r.seconds.total(), format_bytes(r.peak_rss).c_str());

@@ -759,6 +759,7 @@ StatusOr<StagedMeshes> simplify_or_reuse(RunSession& session, const Scene& scene
       if (sm.triangles == 0) {
         // Nothing to cache or render: the object is left out, and the user told why.
         sm.cache_note = "not cached (no triangles)";
+        sm.name = stores.meshes[i].filename().string();
         session.warnings.push_back(stores.meshes[i].string() + ": " + sm.empty_reason + "; it is left out of the image");
         out.meshes.push_back(sm);
         continue;
@@ -782,6 +783,7 @@ StatusOr<StagedMeshes> simplify_or_reuse(RunSession& session, const Scene& scene
     }
     std::error_code ec;
     sm.drc_bytes = fs::file_size(sm.drc, ec);
+    sm.name = stores.meshes[i].filename().string();
     out.triangles += sm.triangles;
     say(log, stores.meshes[i].filename().string() + ": " + std::to_string(stores.stores[i]->header().triangle_count) +
                  " -> " + std::to_string(sm.triangles) + " triangles; " + sm.cache_note);
@@ -900,7 +902,7 @@ std::string run_stats_json(const RunResult& r, const RunOptions& options) {
   j["rays"] = options.rays;
   nlohmann::json meshes = nlohmann::json::array();
   for (const auto& m : r.meshes)
-    meshes.push_back({{"triangles", m.triangles}, {"drc_bytes", m.drc_bytes},
+    meshes.push_back({{"mesh", m.name}, {"triangles", m.triangles}, {"drc_bytes", m.drc_bytes},
                       {"position_bits", m.position_bits}, {"max_position_error", m.max_position_error},
                       {"cache_hit", m.cache_hit}, {"cache_note", m.cache_note}});
   j["meshes"] = meshes;

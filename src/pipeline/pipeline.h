@@ -83,6 +83,7 @@ struct StageTimes {
 };
 
 struct SimplifiedMesh {
+  std::string name;                   // the input mesh's file name, for messages
   std::filesystem::path drc;          // the mesh rendered (in the cache or a temporary); empty if no triangles
   uint64_t triangles = 0;
   std::string empty_reason;           // why there are no triangles (why_simplified_mesh_is_empty)

@@ -112,6 +112,9 @@ TEST(Run, SecondRunOfTheSameViewHitsTheCache) {
   for (const char* stage : {"build", "probe", "simplify", "render"}) EXPECT_GE(a["seconds"][stage].get<double>(), 0.0);
   EXPECT_GT(a["peak_rss_bytes"].get<uint64_t>(), 0u);
   EXPECT_TRUE(fs::exists(work_dir() / "a.png"));
+  // Each simplified mesh's statistics name the mesh they are about.
+  ASSERT_EQ(a["meshes"].size(), 1u);
+  EXPECT_EQ(a["meshes"][0]["mesh"].get<std::string>(), "teapot-20000.ply") << a["meshes"].dump();
 
   ASSERT_EQ(raylod(common + "-o '" + (work_dir() / "b.png").string() + "' --stats-json '" +
                    (work_dir() / "b.json").string() + "'", &out), 0) << out;
