@@ -1,0 +1,231 @@
+// A scene around one mesh (scene/mesh_framing.h): the camera frames the
+// bounds, the up axis becomes +Y as the scene format rotates it, the ground
+// lies just below the mesh, the light scales with the camera; and `raylod
+// scene` writes a scene that loads and renders, or a clear error and no file.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdint>
+#include <filesystem>
+#include <fstream>
+#include <random>
+
+#include "run_command.h"
+#include "scene/mesh_framing.h"
+#include "scene/scene.h"
+#include "test_tmp.h"
+
+namespace raylod {
+namespace {
+
+namespace fs = std::filesystem;
+
+fs::path temp_dir() { return test::scratch_dir("mesh-framing-test"); }
+
+std::array<Vec3d, 8> corners_of(const Bbox& b) {
+  std::array<Vec3d, 8> c;
+  for (int i = 0; i < 8; ++i)
+    c[size_t(i)] = Vec3d((i & 1) ? b.hi.x : b.lo.x, (i & 2) ? b.hi.y : b.lo.y, (i & 4) ? b.hi.z : b.lo.z);
+  return c;
+}
+
+// Where p lands in the camera's frame, as fractions of the half-width and
+// half-height (x, y), and its depth (z): a pinhole camera's projection.
+Vec3d frame_position(const Camera& cam, const Vec3d& p) {
+  const Vec3d forward = glm::normalize(cam.look_at - cam.eye);
+  const Vec3d right = glm::normalize(glm::cross(forward, cam.up));
+  const Vec3d up = glm::cross(right, forward);
+  const double ty = std::tan(cam.fov_y_deg * M_PI / 360.0), tx = ty * cam.width / cam.height;
+  const Vec3d d = p - cam.eye;
+  const double depth = glm::dot(d, forward);
+  return Vec3d(glm::dot(d, right) / depth / tx, glm::dot(d, up) / depth / ty, depth);
+}
+
+TEST(MeshFraming, EveryCornerIsInTheFrameAndTheTightestTouchesTheFill) {
+  std::mt19937_64 rng(11);
+  std::uniform_real_distribution<double> size(0.01, 50), where(-1e4, 1e4);
+  for (int trial = 0; trial < 200; ++trial) {
+    Bbox b;
+    b.lo = Vec3d(where(rng), where(rng), where(rng));
+    b.hi = b.lo + Vec3d(size(rng), size(rng), size(rng));
+    FramingOptions o;
+    o.up = UpAxis(trial % 6);
+    o.width = trial % 2 ? 1280 : 300;
+    o.height = trial % 3 ? 960 : 700;
+    auto f = frame_mesh(b, o);
+    ASSERT_TRUE(f.is_ok()) << f.status().message();
+    const Camera& cam = f->camera;
+    double widest = 0;
+    for (const Vec3d& c : corners_of(f->bounds)) {
+      const Vec3d s = frame_position(cam, c);
+      ASSERT_GT(s.z, 0) << "a corner behind the eye, trial " << trial;
+      EXPECT_LE(std::abs(s.x), o.fill + 1e-9) << trial;
+      EXPECT_LE(std::abs(s.y), o.fill + 1e-9) << trial;
+      widest = std::max({widest, std::abs(s.x), std::abs(s.y)});
+    }
+    EXPECT_GT(widest, o.fill - 1e-6) << "framed looser than it has to be, trial " << trial;
+    EXPECT_FALSE(f->bounds.contains(f->camera.eye));
+    EXPECT_NEAR(glm::length(f->camera.look_at - f->bounds.center()), 0.0, 1e-9 * (1 + glm::length(b.lo)));
+  }
+}
+
+TEST(MeshFraming, TheUpAxisBecomesPlusYAsTheSceneFormatRotatesIt) {
+  const Bbox b{Vec3d(1, 2, 3), Vec3d(2, 4, 6)};
+  std::ofstream(temp_dir() / "part.stl") << "";  // the scene loader checks that the mesh is there
+  const std::array<std::pair<UpAxis, Vec3d>, 6> axes{{{UpAxis::PosX, Vec3d(1, 0, 0)},
+                                                      {UpAxis::NegX, Vec3d(-1, 0, 0)},
+                                                      {UpAxis::PosY, Vec3d(0, 1, 0)},
+                                                      {UpAxis::NegY, Vec3d(0, -1, 0)},
+                                                      {UpAxis::PosZ, Vec3d(0, 0, 1)},
+                                                      {UpAxis::NegZ, Vec3d(0, 0, -1)}}};
+  for (const auto& [up, axis] : axes) {
+    FramingOptions o;
+    o.up = up;
+    auto f = frame_mesh(b, o);
+    ASSERT_TRUE(f.is_ok());
+    const fs::path file = temp_dir() / (std::string("up") + to_string(up) + ".json");
+    std::ofstream(file) << scene_json_for_mesh("part.stl", *f, MaterialPreset::Glossy, 4, "test");
+    auto scene = load_scene(file);
+    ASSERT_TRUE(scene.is_ok()) << scene.status().message();
+    ASSERT_EQ(scene->objects.size(), 1u);
+    const glm::dmat4& m = scene->objects[0].transform;
+    const Vec3d turned = Vec3d(m * glm::dvec4(axis, 0.0));
+    EXPECT_NEAR(glm::length(turned - Vec3d(0, 1, 0)), 0.0, 1e-12) << to_string(up);
+    // The framing's bounds are the mesh's as the scene places it.
+    Bbox placed;
+    for (const Vec3d& c : corners_of(b)) placed.expand(Vec3d(m * glm::dvec4(c, 1.0)));
+    EXPECT_NEAR(glm::length(placed.lo - f->bounds.lo), 0.0, 1e-12) << to_string(up);
+    EXPECT_NEAR(glm::length(placed.hi - f->bounds.hi), 0.0, 1e-12) << to_string(up);
+    EXPECT_EQ(scene->objects[0].mesh, temp_dir() / "part.stl");
+    EXPECT_EQ(scene->spp, 4);
+  }
+}
+
+TEST(MeshFraming, TheGroundLiesJustBelowTheLowestPointAndReachesTheHorizon) {
+  for (const Bbox& b : {Bbox{Vec3d(0), Vec3d(1)}, Bbox{Vec3d(-5, -300, 2), Vec3d(5, -299.5, 9)},
+                        Bbox{Vec3d(1e7, 1e7, 1e7), Vec3d(1e7 + 1e-3, 1e7 + 2e-3, 1e7 + 1e-3)}}) {
+    auto f = frame_mesh(b, {});
+    ASSERT_TRUE(f.is_ok()) << f.status().message();
+    const double gap = f->bounds.lo.y - f->ground_height, diag = f->bounds.diagonal();
+    EXPECT_GT(gap, 0.0);  // never on a face of the mesh
+    EXPECT_LE(gap, 1.001e-3 * diag);
+    EXPECT_GE(f->ground_size, 100 * diag);
+  }
+}
+
+TEST(MeshFraming, TheLightScalesWithTheCamera) {
+  const Bbox small{Vec3d(0), Vec3d(1, 2, 3)}, big{Vec3d(0), Vec3d(10, 20, 30)};
+  auto a = frame_mesh(small, {}), b = frame_mesh(big, {});
+  ASSERT_TRUE(a.is_ok() && b.is_ok());
+  const double da = glm::length(a->camera.eye - a->camera.look_at), db = glm::length(b->camera.eye - b->camera.look_at);
+  EXPECT_NEAR(db / da, 10.0, 1e-9);
+  EXPECT_NEAR(b->light_intensity / a->light_intensity, 100.0, 1e-6);
+  EXPECT_NEAR(glm::length(b->light_position - b->camera.look_at) / glm::length(a->light_position - a->camera.look_at),
+              10.0, 1e-9);
+  // The point light is above the mesh and lights the side the camera sees.
+  EXPECT_GT(a->light_position.y, a->bounds.hi.y);
+  EXPECT_GT(glm::dot(a->light_position - a->camera.look_at, a->camera.eye - a->camera.look_at), 0.0);
+}
+
+TEST(MeshFraming, NothingToFrameIsAnError) {
+  EXPECT_FALSE(frame_mesh(Bbox{}, {}).is_ok());
+  EXPECT_FALSE(frame_mesh(Bbox{Vec3d(1, 2, 3), Vec3d(1, 2, 3)}, {}).is_ok());
+  EXPECT_FALSE(frame_mesh(Bbox{Vec3d(0), Vec3d(NAN, 1, 1)}, {}).is_ok());
+  EXPECT_FALSE(frame_mesh(Bbox{Vec3d(0), Vec3d(1, INFINITY, 1)}, {}).is_ok());
+  FramingOptions o;
+  o.fill = 0;
+  EXPECT_FALSE(frame_mesh(Bbox{Vec3d(0), Vec3d(1)}, o).is_ok());
+  EXPECT_FALSE(parse_up_axis("w").is_ok());
+  auto z = parse_up_axis("Z"), mx = parse_up_axis("-x");
+  ASSERT_TRUE(z.is_ok() && mx.is_ok());
+  EXPECT_EQ(*z, UpAxis::PosZ);
+  EXPECT_EQ(*mx, UpAxis::NegX);
+  EXPECT_FALSE(parse_material_preset("chrome").is_ok());
+}
+
+// A binary STL of an axis-aligned box, `lo` to `hi` (12 triangles, outward).
+void write_box_stl(const fs::path& path, const Vec3d& lo, const Vec3d& hi) {
+  std::ofstream f(path, std::ios::binary);
+  char header[80] = {};
+  f.write(header, 80);
+  const uint32_t n = 12;
+  f.write(reinterpret_cast<const char*>(&n), 4);
+  auto corner = [&](int i) {
+    return Vec3((i & 1) ? hi.x : lo.x, (i & 2) ? hi.y : lo.y, (i & 4) ? hi.z : lo.z);
+  };
+  const int quads[6][4] = {{0, 2, 3, 1}, {4, 5, 7, 6}, {0, 1, 5, 4}, {2, 6, 7, 3}, {0, 4, 6, 2}, {1, 3, 7, 5}};
+  for (const auto& q : quads)
+    for (const auto& t : {std::array<int, 3>{q[0], q[1], q[2]}, std::array<int, 3>{q[0], q[2], q[3]}}) {
+      float rec[12] = {};
+      for (int k = 0; k < 3; ++k) {
+        const Vec3 p = corner(t[size_t(k)]);
+        rec[3 + 3 * k] = p.x;
+        rec[4 + 3 * k] = p.y;
+        rec[5 + 3 * k] = p.z;
+      }
+      f.write(reinterpret_cast<const char*>(rec), 48);
+      const uint16_t attr = 0;
+      f.write(reinterpret_cast<const char*>(&attr), 2);
+    }
+}
+
+TEST(SceneCommand, WritesASceneThatFramesTheMeshAndRenders) {
+  const fs::path dir = temp_dir() / "cli";
+  fs::create_directories(dir / "parts");
+  // A Z-up plate far from the origin, in its own folder below the scene's.
+  write_box_stl(dir / "parts" / "plate.stl", Vec3d(5000, 7000, 100), Vec3d(5040, 7010, 102));
+  std::string out;
+  ASSERT_EQ(test::run_raylod("scene '" + (dir / "parts" / "plate.stl").string() + "' --up z --width 80 --height 60 --spp 1 -o '" +
+                                 (dir / "plate.json").string() + "'",
+                             out),
+            0)
+      << out;
+  auto scene = load_scene(dir / "plate.json");
+  ASSERT_TRUE(scene.is_ok()) << scene.status().message();
+  // Named relative to the scene, so that the folder can move as a whole.
+  std::ifstream text(dir / "plate.json");
+  const std::string json((std::istreambuf_iterator<char>(text)), std::istreambuf_iterator<char>());
+  EXPECT_NE(json.find("\"mesh\": \"parts/plate.stl\""), std::string::npos) << json;
+  ASSERT_TRUE(scene->ground.has_value());
+  const glm::dmat4& m = scene->objects[0].transform;
+  Bbox placed;
+  for (const Vec3d& c : corners_of(Bbox{Vec3d(5000, 7000, 100), Vec3d(5040, 7010, 102)}))
+    placed.expand(Vec3d(m * glm::dvec4(c, 1.0)));
+  EXPECT_NEAR(placed.extent().y, 2.0, 1e-9);  // the plate lies flat
+  EXPECT_LT(scene->ground->height, placed.lo.y);
+  EXPECT_EQ(scene->camera.width, 80);
+  EXPECT_EQ(scene->spp, 1);
+  ASSERT_EQ(test::run_raylod("render '" + (dir / "plate.json").string() + "' -q -o '" + (dir / "plate.png").string() + "'",
+                             out),
+            0)
+      << out;
+  EXPECT_TRUE(fs::exists(dir / "plate.png"));
+}
+
+TEST(SceneCommand, BadInputIsAClearErrorAndWritesNothing) {
+  const fs::path dir = temp_dir() / "bad";
+  fs::create_directories(dir);
+  std::string out;
+  const fs::path scene = dir / "s.json";
+  EXPECT_NE(test::run_raylod("scene '" + (dir / "missing.stl").string() + "' -o '" + scene.string() + "'", out), 0);
+  EXPECT_NE(out.find("missing.stl"), std::string::npos) << out;
+  std::ofstream(dir / "broken.stl") << "solid x\nfacet normal 0 0 1\n";
+  out.clear();
+  EXPECT_NE(test::run_raylod("scene '" + (dir / "broken.stl").string() + "' -o '" + scene.string() + "'", out), 0);
+  EXPECT_NE(out.find("broken.stl"), std::string::npos) << out;
+  write_box_stl(dir / "box.stl", Vec3d(0), Vec3d(1));
+  out.clear();
+  EXPECT_NE(test::run_raylod("scene '" + (dir / "box.stl").string() + "' --up w -o '" + scene.string() + "'", out), 0);
+  EXPECT_NE(out.find("--up"), std::string::npos) << out;
+  out.clear();
+  EXPECT_NE(test::run_raylod("scene '" + (dir / "box.stl").string() + "' -o '" + (dir / "box.stl").string() + "'", out), 0);
+  EXPECT_FALSE(fs::exists(scene));
+  // Only the inputs are left: no scene and no temporary.
+  size_t files = 0;
+  for (const auto& e : fs::directory_iterator(dir)) files += e.is_regular_file();
+  EXPECT_EQ(files, 2u);
+  EXPECT_EQ(fs::file_size(dir / "box.stl"), 84u + 12u * 50u);
+}
+
+}  // namespace
+}  // namespace raylod
