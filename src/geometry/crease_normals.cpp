@@ -115,6 +115,28 @@ Vec3d NormalClusterPool::resolve(uint32_t v, const Vec3d& key, double cos_crease
   return unit_or_zero(sum);
 }
 
+Vec3d NormalClusterPool::flat_side(uint32_t v, const Vec3d& key, double cos_near, double share,
+                                    uint32_t min_others) const {
+  uint32_t own = kNoCluster;
+  for (uint32_t c = heads_[v]; c != kNoCluster && own == kNoCluster; c = pool_[c].next)
+    if (pool_[c].seed != Vec3(0) && glm::dot(Vec3d(pool_[c].seed), key) >= kCosMerge) own = c;
+  if (own == kNoCluster) return Vec3d(0);
+  const Vec3d dir = unit_or_zero(Vec3d(pool_[own].sum));
+  const double w = glm::length(Vec3d(pool_[own].sum));
+  double near = 0;
+  Vec3d sum(0);
+  uint32_t others = 0;
+  for (uint32_t c = heads_[v]; c != kNoCluster; c = pool_[c].next) {
+    if (pool_[c].seed == Vec3(0)) continue;
+    const Vec3d s(pool_[c].sum);
+    if (glm::dot(unit_or_zero(s), dir) < cos_near) continue;
+    near += glm::length(s);
+    sum += s;
+    others += c != own;
+  }
+  return w >= share * near && others >= min_others ? unit_or_zero(sum) : Vec3d(0);
+}
+
 Vec3d NormalClusterPool::mean(uint32_t v) const {
   Vec3d sum(0);
   for (uint32_t c = heads_[v]; c != kNoCluster; c = pool_[c].next) sum += Vec3d(pool_[c].sum);

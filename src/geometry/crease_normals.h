@@ -91,6 +91,15 @@ class NormalClusterPool {
   Vec3d resolve(uint32_t v, const Vec3d& key, double cos_crease) const;
   // The normalised sum of all of v's clusters (zero if they cancel).
   Vec3d mean(uint32_t v) const;
+  // A flat side at v: the direction of v's cluster within the merge angle of
+  // `key` if it holds at least `share` of the weight of the clusters within
+  // the angle whose cosine is cos_near of it, and at least `min_others`
+  // other clusters lie there (a flat face beside which only slivers lie: the
+  // many thin first rows of a small fillet); zero otherwise (a curved
+  // tessellation's rows hold comparable weights, a face across a fold holds
+  // no such rows, and a cell of a few triangles of a scan may have one large
+  // one beside a few small ones).
+  Vec3d flat_side(uint32_t v, const Vec3d& key, double cos_near, double share, uint32_t min_others) const;
   uint64_t memory_bytes() const {
     return (heads_.capacity() + recent_.capacity()) * 4 + pool_.capacity() * sizeof(NormalCluster);
   }

@@ -183,6 +183,13 @@ uint32_t CutLookup::find_code(uint64_t code) const {
 // seeds cover the directions.
 constexpr uint32_t kRepresentativeClusters = 64;
 
+// A flat side (NormalClusterPool::flat_side): its own cluster holds at least
+// this share of the weight within 10 degrees of it, beside at least this
+// many other clusters there (the first rows of a fillet).
+const double kFlatSideCos = std::cos(10.0 * M_PI / 180.0);
+constexpr double kFlatSideShare = 0.8;
+constexpr uint32_t kFlatSideSlivers = 4;
+
 CollapseBuilder::CollapseBuilder(std::span<const Representative> reps, bool input_has_normals,
                                  double crease_angle_deg)
     : reps_(reps), has_normals_(input_has_normals), cos_crease_(crease_cosine(crease_angle_deg)),
@@ -638,7 +645,17 @@ IndexedMesh CollapseBuilder::finish(CollapseStats* stats_out) {
       if (v >= nreps && has_normals_) {
         unit = kept_normal_[v - nreps];  // input normals are kept exactly
       } else {
-        Vec3d nd = glm::length(key) > 0 ? clusters_.resolve(v, key, cos_crease_) : Vec3d(0);
+        Vec3d nd(0);
+        // Without input normals, a representative on a flat face that only
+        // slivers border (a pin's flat end beside the strips of its small
+        // fillet) keeps the face's own normal: the crease angle's band
+        // would tilt it towards the fillet by as much as the cell holds
+        // of it, differently from cell to cell (radial streaks).
+        // (Not for crease angles of 90 degrees or more, which ask to smooth
+        // across real edges: a box's faces at a corner are no slivers.)
+        if (v < nreps && !has_normals_ && cos_crease_ > 0 && glm::length(key) > 0)
+          nd = clusters_.flat_side(v, key, kFlatSideCos, kFlatSideShare, kFlatSideSlivers);
+        if (glm::length(nd) == 0 && glm::length(key) > 0) nd = clusters_.resolve(v, key, cos_crease_);
         if (glm::length(nd) == 0) nd = clusters_.mean(v);
         if (glm::length(nd) == 0) {
           ++stats_.normal_fallbacks;

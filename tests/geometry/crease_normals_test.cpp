@@ -86,6 +86,36 @@ TEST(CreaseNormals, ClusterPoolResolvesByKeyAndCapsClusters) {
   EXPECT_NEAR(crease_cosine(500), -1.0, 1e-12);
 }
 
+TEST(CreaseNormals, AFlatSideIsItsOwnClusterWhenOnlySliversLieNearIt) {
+  const double c10 = std::cos(10.0 * M_PI / 180.0);
+  auto tilt = [](double deg) { return Vec3d(std::sin(deg * M_PI / 180.0), 0, std::cos(deg * M_PI / 180.0)); };
+  // A flat face (+z, weight 10) and the rows of a small fillet beside it
+  // (1.5 to 43.5 degrees, weight 0.1 each): the face with the rows within
+  // 10 degrees of it (1.5 to 9.5), not the crease angle's band.
+  NormalClusterPool pool(3);
+  pool.add(0, Vec3d(0, 0, 1), 10, 64);
+  for (double deg = 1.5; deg <= 45; deg += 2) pool.add(0, tilt(deg), 0.1, 64);
+  Vec3d near = 10.0 * Vec3d(0, 0, 1);
+  for (double deg = 1.5; deg <= 10; deg += 2) near += 0.1 * tilt(deg);
+  EXPECT_NEAR(glm::distance(pool.flat_side(0, Vec3d(0, 0, 1), c10, 0.8, 4), glm::normalize(near)), 0.0, 1e-6);
+  // The band of the crease angle would tilt it: what flat_side replaces.
+  const Vec3d band = pool.resolve(0, Vec3d(0, 0, 1), crease_cosine(30));
+  EXPECT_GT(std::acos(std::min(1.0, band.z)), 0.02);
+  // A fillet row's own cluster is no flat side.
+  EXPECT_EQ(glm::length(pool.flat_side(0, tilt(19.5), c10, 0.8, 4)), 0.0);
+  // Two rows of a curved tessellation 6 degrees apart, 60 and 40: neither.
+  pool.add(1, tilt(0), 6, 64);
+  pool.add(1, tilt(6), 4, 64);
+  EXPECT_EQ(glm::length(pool.flat_side(1, tilt(0), c10, 0.8, 4)), 0.0);
+  EXPECT_EQ(glm::length(pool.flat_side(1, tilt(6), c10, 0.8, 4)), 0.0);
+  // Fewer rows than asked for: a small cell of a scan, one large triangle
+  // beside a few small ones.
+  EXPECT_EQ(glm::length(pool.flat_side(0, Vec3d(0, 0, 1), c10, 0.8, 20)), 0.0);
+  // No cluster in the key's direction: nothing to stand for it.
+  pool.add(2, tilt(20), 1, 64);
+  EXPECT_EQ(glm::length(pool.flat_side(2, Vec3d(0, 0, 1), c10, 0.8, 4)), 0.0);
+}
+
 TEST(CreaseNormals, AFullClusterListNeverSmearsAroundACylinder) {
   // A cell holding a flat ring face and the whole bore through it: normals
   // all around the bore, far more than the cluster cap. Merging by a drifting
