@@ -16,7 +16,8 @@
 #
 # Larger meshes are read from ../shared: the OpenCASCADE tessellations are made
 # by ../shared/tools/make-cad-tests.sh (into the work folder), the bunny from
-# ../shared/data/stanford. Rows whose input is missing are skipped with a note.
+# ../shared/data/stanford, the ABC parts from ../shared/data/abc (their scenes
+# made by raylod scene). Rows whose input is missing are skipped with a note.
 set -euo pipefail
 repo=$(cd "$(dirname "$0")/.." && pwd)
 shared=$repo/../shared
@@ -67,6 +68,21 @@ rows+=(
   "glass bottle, 1,054,066|paper's|$repo/data/paper_bottle_scene.json|"
   "glass teapot + mirror bottle, 2,200,560|default|$repo/data/glass_scene.json|"
 )
+# Parts of the ABC dataset (../shared/data/abc), in scenes that `raylod
+# scene` frames around each (Z up; 1280 x 960, 4 spp, glossy steel).
+if [ -d "$shared/data/abc" ]; then
+  mkdir -p "$work/abc"
+  for part in abc1 abc3 abc5; do
+    stl=$shared/data/abc/$part.stl
+    [ -f "$stl" ] || continue
+    if "$raylod" scene "$stl" --up z -o "$work/abc/$part.json" > "$work/abc/$part.log" 2>&1; then
+      count=$(python3 -c "import struct,sys; f=open(sys.argv[1],'rb'); f.seek(80); print('{:,}'.format(struct.unpack('<I', f.read(4))[0]))" "$stl")
+      rows+=("ABC $part.stl, $count|whole (raylod scene --up z)|$work/abc/$part.json|")
+    else
+      echo "note: raylod scene failed for $stl (see $work/abc/$part.log)" >&2
+    fi
+  done
+fi
 
 summary() {  # stats.json -> "triangles (reduction)|psnr|floor|within"
   python3 - "$1" <<'PY'
