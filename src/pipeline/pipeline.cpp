@@ -28,6 +28,7 @@
 #include "core/system.h"
 #include "gen/generate.h"
 #include "pipeline/simplified_cache.h"
+#include "scene/mesh_framing.h"
 #include "streaming/draco_io.h"
 #include "streaming/gltf_io.h"
 
@@ -442,6 +443,21 @@ StatusOr<RunSession> open_run_session(Scene& scene, const RunOptions& options, c
     RAYLOD_RETURN_IF_ERROR(cluster::agree(stores.status()));
   }
   session.stores = std::move(stores.value());
+  // A mesh put in place of the first object of a scene made for another:
+  // say if that scene's camera and ground do not show it.
+  if (options.mesh_override && !session.stores.objects.empty()) {
+    const ProbeObject& obj = session.stores.objects[0];
+    const StoreHeader& h = session.stores.stores[obj.store]->header();
+    const glm::dmat4 m = obj.transform * glm::translate(glm::dmat4(1.0), h.mesh_origin);
+    Bbox world;
+    for (int i = 0; i < 8 && !h.bounds.empty(); ++i)
+      world.expand(Vec3d(m * glm::dvec4((i & 1) ? h.bounds.hi.x : h.bounds.lo.x, (i & 2) ? h.bounds.hi.y : h.bounds.lo.y,
+                                        (i & 4) ? h.bounds.hi.z : h.bounds.lo.z, 1.0)));
+    if (const std::string problem = placement_problem(scene, world); !problem.empty())
+      session.warnings.push_back(options.mesh_override->string() + " " + problem +
+                                 " in this scene; `raylod scene " + options.mesh_override->string() +
+                                 "` writes a scene that frames it");
+  }
   say(log, "stores ready: " + std::to_string(session.stores.triangles) + " triangles in " +
                std::to_string(session.stores.stores.size()) + " store(s), " + fmt("%.2f s", session.stores.seconds));
   if (options.use_cache) {

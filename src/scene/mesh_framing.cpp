@@ -4,6 +4,7 @@
 #include <array>
 #include <cctype>
 #include <cmath>
+#include <cstdio>
 
 #include <glm/gtc/matrix_transform.hpp>
 #include <nlohmann/json.hpp>
@@ -213,6 +214,42 @@ std::string scene_json_for_mesh(const std::string& mesh_path, const MeshFraming&
   std::string out;
   write_json(j, 0, out);
   return out + "\n";
+}
+
+std::string placement_problem(const Scene& scene, const Bbox& bounds) {
+  if (bounds.empty()) return "";
+  char text[256];
+  if (scene.ground && bounds.hi.y <= scene.ground->height) {
+    std::snprintf(text, sizeof text, "lies at or under the ground plane (its top at y = %.6g, the ground at y = %.6g)",
+                  bounds.hi.y, scene.ground->height);
+    return text;
+  }
+  // The pinhole projection of the bounds' corners (scene/scene.h's camera:
+  // look_at - eye forward, fov_y vertical).
+  const Camera& cam = scene.camera;
+  const Vec3d forward = glm::normalize(cam.look_at - cam.eye);
+  const Vec3d right = glm::normalize(glm::cross(forward, cam.up));
+  const Vec3d up = glm::cross(right, forward);
+  const double ty = std::tan(glm::radians(0.5 * cam.fov_y_deg)), tx = ty * cam.width / cam.height;
+  Bbox frame;  // in pixels
+  for (int i = 0; i < 8; ++i) {
+    const Vec3d p((i & 1) ? bounds.hi.x : bounds.lo.x, (i & 2) ? bounds.hi.y : bounds.lo.y,
+                  (i & 4) ? bounds.hi.z : bounds.lo.z);
+    const Vec3d d = p - cam.eye;
+    const double depth = glm::dot(d, forward);
+    if (!(depth > 0)) return "";  // around or behind the eye: no size to judge
+    frame.expand(Vec3d((1 + glm::dot(d, right) / depth / tx) * 0.5 * cam.width,
+                       (1 - glm::dot(d, up) / depth / ty) * 0.5 * cam.height, 0));
+  }
+  if (frame.hi.x < 0 || frame.lo.x > cam.width || frame.hi.y < 0 || frame.lo.y > cam.height)
+    return "is outside the camera's view";
+  const double w = frame.hi.x - frame.lo.x, h = frame.hi.y - frame.lo.y;
+  if (std::max(w, h) < 0.1 * cam.height) {
+    std::snprintf(text, sizeof text, "covers at most %.0f x %.0f pixels of the %d x %d view", std::ceil(w),
+                  std::ceil(h), cam.width, cam.height);
+    return text;
+  }
+  return "";
 }
 
 }  // namespace raylod

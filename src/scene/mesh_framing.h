@@ -60,4 +60,12 @@ StatusOr<MaterialPreset> parse_material_preset(std::string_view text);
 std::string scene_json_for_mesh(const std::string& mesh_path, const MeshFraming& framing, MaterialPreset material,
                                 int spp, const std::string& comment);
 
+// Whether a scene shows a mesh placed in it with world bounds `bounds`: empty
+// if it does, else what is wrong, for a warning ("lies at or under the ground
+// plane (its top at y = 0, the ground at y = 0)", "covers at most 12 x 3
+// pixels of the 1280 x 960 view", "is outside the camera's view"). Used where
+// a mesh replaces the first object of a scene made for another (run --mesh),
+// whose camera and ground may not suit it.
+std::string placement_problem(const Scene& scene, const Bbox& bounds);
+
 }  // namespace raylod

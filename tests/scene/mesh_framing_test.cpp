@@ -143,6 +143,30 @@ TEST(MeshFraming, NothingToFrameIsAnError) {
   EXPECT_FALSE(parse_material_preset("chrome").is_ok());
 }
 
+TEST(MeshFraming, APlacementProblemIsNamedAndAFramedMeshHasNone) {
+  Scene scene;
+  scene.camera.eye = Vec3d(0, 2, 10);
+  scene.camera.look_at = Vec3d(0, 1, 0);
+  scene.camera.fov_y_deg = 40;
+  scene.camera.width = 800;
+  scene.camera.height = 600;
+  scene.ground = Ground{0.0, 100.0, 0};
+  EXPECT_EQ(placement_problem(scene, Bbox{Vec3d(-1, 0, -1), Vec3d(1, 2, 1)}), "");
+  EXPECT_NE(placement_problem(scene, Bbox{Vec3d(-1, -1, -1), Vec3d(1, 0, 1)}).find("under the ground plane"),
+            std::string::npos);
+  EXPECT_NE(placement_problem(scene, Bbox{Vec3d(0, 1, 0), Vec3d(0.01, 1.01, 0.01)}).find("covers at most"),
+            std::string::npos);
+  EXPECT_EQ(placement_problem(scene, Bbox{Vec3d(50, 1, 0), Vec3d(52, 3, 2)}), "is outside the camera's view");
+  EXPECT_EQ(placement_problem(scene, Bbox{Vec3d(-1, 0, 9), Vec3d(1, 3, 11)}), "");  // around the eye: not judged
+  // Whatever frame_mesh makes of a box, the box is shown.
+  auto f = frame_mesh(Bbox{Vec3d(3, 4, 5), Vec3d(3.5, 4.1, 5.02)}, {});
+  ASSERT_TRUE(f.is_ok());
+  Scene framed;
+  framed.camera = f->camera;
+  framed.ground = Ground{f->ground_height, f->ground_size, 0};
+  EXPECT_EQ(placement_problem(framed, f->bounds), "");
+}
+
 // A binary STL of an axis-aligned box, `lo` to `hi` (12 triangles, outward).
 void write_box_stl(const fs::path& path, const Vec3d& lo, const Vec3d& hi) {
   std::ofstream f(path, std::ios::binary);
@@ -200,6 +224,33 @@ TEST(SceneCommand, WritesASceneThatFramesTheMeshAndRenders) {
             0)
       << out;
   EXPECT_TRUE(fs::exists(dir / "plate.png"));
+}
+
+TEST(SceneCommand, RunWithAMeshItsSceneDoesNotShowSaysSoAndPointsHere) {
+  const fs::path dir = temp_dir() / "placement";
+  fs::create_directories(dir);
+  // Against the default scene (camera on a 3-unit teapot, ground at y = 0):
+  // a plate under the ground, a 2 cm cube in view, a part the size of the
+  // teapot.
+  write_box_stl(dir / "under.stl", Vec3d(0, -0.25, 0), Vec3d(0.6, 0, 0.03));
+  write_box_stl(dir / "tiny.stl", Vec3d(0, 1, 0), Vec3d(0.02, 1.02, 0.02));
+  write_box_stl(dir / "fits.stl", Vec3d(-1.5, 0.01, -1), Vec3d(1.5, 2.5, 1));
+  auto run = [&](const std::string& mesh) {
+    std::string out;
+    EXPECT_EQ(test::run_raylod("run --mesh '" + (dir / mesh).string() + "' --rays 200 --no-cache -o '" +
+                                   (dir / (mesh + ".png")).string() + "'",
+                               out),
+              0)
+        << out;
+    return out;
+  };
+  const std::string under = run("under.stl");
+  EXPECT_NE(under.find("lies at or under the ground plane"), std::string::npos) << under;
+  EXPECT_NE(under.find("raylod scene"), std::string::npos) << under;
+  const std::string tiny = run("tiny.stl");
+  EXPECT_NE(tiny.find("covers at most"), std::string::npos) << tiny;
+  const std::string fits = run("fits.stl");
+  EXPECT_EQ(fits.find("raylod scene"), std::string::npos) << fits;
 }
 
 TEST(SceneCommand, BadInputIsAClearErrorAndWritesNothing) {
