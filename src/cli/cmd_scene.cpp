@@ -1,11 +1,14 @@
 // raylod scene MESH [-o SCENE.json] [--up AXIS] [--material NAME] [--width W] [--height H] [--spp N]
 #include <cstdio>
 #include <filesystem>
+#include <optional>
+#include <vector>
 
 #include "cli/cli.h"
 #include "core/system.h"
 #include "scene/mesh_framing.h"
 #include "scene/scene.h"
+#include "streaming/gltf_io.h"
 #include "streaming/mesh_reader.h"
 
 namespace raylod::cli {
@@ -23,6 +26,44 @@ std::string mesh_path_in_scene(const fs::path& mesh, const fs::path& scene) {
   return m.generic_string();
 }
 
+struct PlacedMesh {
+  Bbox bounds;              // as the scene will place it, before --up
+  uint64_t triangles = 0;   // placed: a glTF mesh counts once per node using it
+};
+
+// The mesh's bounds as a scene object naming it places it: a mesh file's own
+// bounds, or, for a whole glTF file, the union over the nodes of its default
+// scene of each node's mesh bounds under the node's transform (the scene
+// format makes one object per node instance, scene.h).
+StatusOr<PlacedMesh> placed_mesh(const fs::path& mesh) {
+  PlacedMesh out;
+  const MeshRef ref = parse_mesh_ref(mesh);
+  auto format = mesh_format_from_extension(ref.file);
+  if (format.is_ok() && *format == MeshFormat::Gltf && ref.gltf_mesh < 0) {
+    RAYLOD_ASSIGN_OR_RETURN(GltfSummary gltf, describe_gltf(mesh));
+    std::vector<std::optional<MeshSummary>> summaries(gltf.meshes.size());
+    for (const GltfInstance& inst : gltf.instances) {
+      if (gltf.meshes[size_t(inst.mesh)].triangle_primitives == 0) continue;
+      std::optional<MeshSummary>& m = summaries[size_t(inst.mesh)];
+      if (!m) {
+        RAYLOD_ASSIGN_OR_RETURN(MeshSummary read, summarize_mesh(gltf_mesh_path(mesh, inst.mesh)));
+        m = read;
+      }
+      out.triangles += m->triangle_count;
+      for (int i = 0; i < 8 && !m->bounds.empty(); ++i) {
+        const Bbox& b = m->bounds;
+        out.bounds.expand(Vec3d(inst.transform * glm::dvec4((i & 1) ? b.hi.x : b.lo.x, (i & 2) ? b.hi.y : b.lo.y,
+                                                            (i & 4) ? b.hi.z : b.lo.z, 1.0)));
+      }
+    }
+    return out;
+  }
+  RAYLOD_ASSIGN_OR_RETURN(MeshSummary summary, summarize_mesh(mesh));
+  out.bounds = summary.bounds;
+  out.triangles = summary.triangle_count;
+  return out;
+}
+
 Status write_scene_for_mesh(const Args& args) {
   if (args.positionals().size() != 1) return Status::error("expected one MESH (see raylod scene --help)");
   const fs::path mesh = args.positionals()[0];
@@ -36,11 +77,11 @@ Status write_scene_for_mesh(const Args& args) {
   options.width = int(width);
   options.height = int(height);
   RAYLOD_RETURN_IF_ERROR(check_outputs_apart({{out, "the scene (-o)"}}, {{mesh, "the mesh"}}));
-  RAYLOD_RETURN_IF_ERROR(check_regular_file(mesh));
+  RAYLOD_RETURN_IF_ERROR(check_regular_file(parse_mesh_ref(mesh).file));
 
   // The whole mesh is read once for its bounds.
-  RAYLOD_ASSIGN_OR_RETURN(MeshSummary summary, summarize_mesh(mesh));
-  if (summary.triangle_count == 0) return Status::error(mesh.string() + ": has no triangles: nothing to frame");
+  RAYLOD_ASSIGN_OR_RETURN(PlacedMesh summary, placed_mesh(mesh));
+  if (summary.triangles == 0) return Status::error(mesh.string() + ": has no triangles: nothing to frame");
   StatusOr<MeshFraming> framing = frame_mesh(summary.bounds, options);
   if (!framing) return Status::error(mesh.string() + ": " + framing.status().message());
   const MeshFraming& f = *framing;
@@ -49,7 +90,7 @@ Status write_scene_for_mesh(const Args& args) {
   std::snprintf(comment, sizeof comment,
                 "Made by raylod scene from %s (%llu triangles, up %s): the camera frames its bounds, the ground is "
                 "%.6g below its lowest point (y = %.9g).",
-                mesh.filename().string().c_str(), (unsigned long long)summary.triangle_count, to_string(options.up),
+                mesh.filename().string().c_str(), (unsigned long long)summary.triangles, to_string(options.up),
                 f.bounds.lo.y - f.ground_height, f.bounds.lo.y);
   const std::string text = scene_json_for_mesh(mesh_path_in_scene(mesh, out), f, material, int(spp), comment);
   // What is written must load as a scene (a mesh path the format cannot take
@@ -64,7 +105,7 @@ Status write_scene_for_mesh(const Args& args) {
   }
   std::printf("wrote %s\n", out.string().c_str());
   std::printf("  mesh       %s (%llu triangles, up %s)\n", mesh.string().c_str(),
-              (unsigned long long)summary.triangle_count, to_string(options.up));
+              (unsigned long long)summary.triangles, to_string(options.up));
   const Vec3d e = f.bounds.extent();
   std::printf("  bounds     %.6g x %.6g x %.6g (rotated to y up), centre (%.6g, %.6g, %.6g)\n", e.x, e.y, e.z,
               f.camera.look_at.x, f.camera.look_at.y, f.camera.look_at.z);

@@ -11,6 +11,7 @@
 #include <random>
 
 #include "run_command.h"
+#include "streaming/gltf_test_util.h"
 #include "scene/mesh_framing.h"
 #include "scene/scene.h"
 #include "test_tmp.h"
@@ -251,6 +252,33 @@ TEST(SceneCommand, RunWithAMeshItsSceneDoesNotShowSaysSoAndPointsHere) {
   EXPECT_NE(tiny.find("covers at most"), std::string::npos) << tiny;
   const std::string fits = run("fits.stl");
   EXPECT_EQ(fits.find("raylod scene"), std::string::npos) << fits;
+}
+
+TEST(SceneCommand, AGltfFileIsFramedAsItsNodesPlaceItsMeshes) {
+  // One unit square placed twice: at x = 10, and scaled by 2 at the origin.
+  const fs::path dir = temp_dir() / "gltf";
+  fs::create_directories(dir);
+  test::GltfBuilder b;
+  const int pos = b.positions({{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0}});
+  const int mesh = b.mesh({test::GltfBuilder::primitive(pos, b.indices({0, 1, 2, 0, 2, 3}))});
+  b.doc["nodes"] = nlohmann::json::array({{{"mesh", mesh}, {"translation", {10, 0, 0}}},
+                                          {{"mesh", mesh}, {"scale", {2, 2, 2}}}});
+  b.doc["scenes"] = nlohmann::json::array({{{"nodes", {0, 1}}}});
+  b.doc["scene"] = 0;
+  std::ofstream(dir / "two.gltf") << b.gltf();
+  std::string out;
+  ASSERT_EQ(test::run_raylod("scene '" + (dir / "two.gltf").string() + "' -o '" + (dir / "two.json").string() + "'",
+                             out),
+            0)
+      << out;
+  auto scene = load_scene(dir / "two.json");
+  ASSERT_TRUE(scene.is_ok()) << scene.status().message();
+  ASSERT_EQ(scene->objects.size(), 2u);  // one per node
+  // The bounds of both placements, x 0 to 11, y 0 to 2.
+  EXPECT_NEAR(glm::length(scene->camera.look_at - Vec3d(5.5, 1, 0)), 0.0, 1e-9);
+  ASSERT_TRUE(scene->ground.has_value());
+  EXPECT_LT(scene->ground->height, 0.0);
+  EXPECT_NE(out.find("4 triangles"), std::string::npos) << out;
 }
 
 TEST(SceneCommand, BadInputIsAClearErrorAndWritesNothing) {
