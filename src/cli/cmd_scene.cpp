@@ -50,11 +50,7 @@ StatusOr<PlacedMesh> placed_mesh(const fs::path& mesh) {
         m = read;
       }
       out.triangles += m->triangle_count;
-      for (int i = 0; i < 8 && !m->bounds.empty(); ++i) {
-        const Bbox& b = m->bounds;
-        out.bounds.expand(Vec3d(inst.transform * glm::dvec4((i & 1) ? b.hi.x : b.lo.x, (i & 2) ? b.hi.y : b.lo.y,
-                                                            (i & 4) ? b.hi.z : b.lo.z, 1.0)));
-      }
+      out.bounds.expand(world_bounds(inst.transform, m->bounds));
     }
     return out;
   }

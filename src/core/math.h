@@ -4,6 +4,7 @@
 #pragma once
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdint>
 #include <limits>
@@ -44,6 +45,27 @@ struct Bbox {
     return Bbox{c - Vec3d(h), c + Vec3d(h)};
   }
 };
+
+// The corners of box b under the affine transform M, corner i taking hi on
+// axis k where bit k of i is set. M * (x, y, z, 1) is (M[0] x + M[1] y) +
+// (M[2] z + M[3]) as glm evaluates it; each product takes one of two values
+// per axis, so the corners are sums of those: the same values, with a
+// quarter of the multiplications.
+inline std::array<Vec3d, 8> world_corners(const glm::dmat4& M, const Bbox& b) {
+  const glm::dvec4 px[2] = {M[0] * b.lo.x, M[0] * b.hi.x}, py[2] = {M[1] * b.lo.y, M[1] * b.hi.y};
+  const glm::dvec4 zw[2] = {M[2] * b.lo.z + M[3], M[2] * b.hi.z + M[3]};
+  std::array<Vec3d, 8> c;
+  for (int i = 0; i < 8; ++i) c[size_t(i)] = Vec3d((px[i & 1] + py[(i >> 1) & 1]) + zw[(i >> 2) & 1]);
+  return c;
+}
+
+// The box around b's corners under M (empty if b is).
+inline Bbox world_bounds(const glm::dmat4& M, const Bbox& b) {
+  Bbox out;
+  if (b.empty()) return out;
+  for (const Vec3d& c : world_corners(M, b)) out.expand(c);
+  return out;
+}
 
 // Unit normal of triangle (a, b, c) by the right-hand rule, or zero if degenerate.
 inline Vec3d face_normal(const Vec3d& a, const Vec3d& b, const Vec3d& c) {

@@ -448,11 +448,7 @@ StatusOr<RunSession> open_run_session(Scene& scene, const RunOptions& options, c
   if (options.mesh_override && !session.stores.objects.empty()) {
     const ProbeObject& obj = session.stores.objects[0];
     const StoreHeader& h = session.stores.stores[obj.store]->header();
-    const glm::dmat4 m = obj.transform * glm::translate(glm::dmat4(1.0), h.mesh_origin);
-    Bbox world;
-    for (int i = 0; i < 8 && !h.bounds.empty(); ++i)
-      world.expand(Vec3d(m * glm::dvec4((i & 1) ? h.bounds.hi.x : h.bounds.lo.x, (i & 2) ? h.bounds.hi.y : h.bounds.lo.y,
-                                        (i & 4) ? h.bounds.hi.z : h.bounds.lo.z, 1.0)));
+    const Bbox world = world_bounds(obj.transform * glm::translate(glm::dmat4(1.0), h.mesh_origin), h.bounds);
     if (const std::string problem = placement_problem(scene, world); !problem.empty())
       session.warnings.push_back(options.mesh_override->string() + " " + problem +
                                  " in this scene; `raylod scene " + options.mesh_override->string() +

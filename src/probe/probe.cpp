@@ -743,19 +743,6 @@ class GroundSeen {
   std::vector<uint32_t> sum_;
 };
 
-// The corners of box b under the transform M, corner i taking hi on axis k
-// where bit k of i is set. M * (x, y, z, 1) is (M[0] x + M[1] y) + (M[2] z +
-// M[3]) as glm evaluates it; each product takes one of two values per axis,
-// so the corners are sums of those: the same values, with a quarter of the
-// multiplications.
-std::array<Vec3d, 8> world_corners(const glm::dmat4& M, const Bbox& b) {
-  const glm::dvec4 px[2] = {M[0] * b.lo.x, M[0] * b.hi.x}, py[2] = {M[1] * b.lo.y, M[1] * b.hi.y};
-  const glm::dvec4 zw[2] = {M[2] * b.lo.z + M[3], M[2] * b.hi.z + M[3]};
-  std::array<Vec3d, 8> c;
-  for (int i = 0; i < 8; ++i) c[i] = Vec3d((px[i & 1] + py[(i >> 1) & 1]) + zw[(i >> 2) & 1]);
-  return c;
-}
-
 // What the unreached-cell policy needs of one view (probe.h).
 struct ViewFacts {
   const ProbeTrace* trace = nullptr;

@@ -122,14 +122,8 @@ StatusOr<MeshFraming> frame_mesh(const Bbox& bounds, const FramingOptions& optio
 
   MeshFraming f;
   f.rotate_deg = up_rotation_deg(options.up);
-  const glm::dmat4 r = rotation_matrix(f.rotate_deg);
-  std::array<Vec3d, 8> corners;
-  for (int i = 0; i < 8; ++i) {
-    const Vec3d p((i & 1) ? bounds.hi.x : bounds.lo.x, (i & 2) ? bounds.hi.y : bounds.lo.y,
-                  (i & 4) ? bounds.hi.z : bounds.lo.z);
-    corners[size_t(i)] = Vec3d(r * glm::dvec4(p, 1.0));
-    f.bounds.expand(corners[size_t(i)]);
-  }
+  const std::array<Vec3d, 8> corners = world_corners(rotation_matrix(f.rotate_deg), bounds);
+  for (const Vec3d& c : corners) f.bounds.expand(c);
   const double diag = f.bounds.diagonal();
   // Relative to where the mesh is: a part far from the origin is still a
   // part, but one whose extent rounds away is a point.
@@ -232,9 +226,7 @@ std::string placement_problem(const Scene& scene, const Bbox& bounds) {
   const Vec3d up = glm::cross(right, forward);
   const double ty = std::tan(glm::radians(0.5 * cam.fov_y_deg)), tx = ty * cam.width / cam.height;
   Bbox frame;  // in pixels
-  for (int i = 0; i < 8; ++i) {
-    const Vec3d p((i & 1) ? bounds.hi.x : bounds.lo.x, (i & 2) ? bounds.hi.y : bounds.lo.y,
-                  (i & 4) ? bounds.hi.z : bounds.lo.z);
+  for (const Vec3d& p : world_corners(glm::dmat4(1.0), bounds)) {
     const Vec3d d = p - cam.eye;
     const double depth = glm::dot(d, forward);
     if (!(depth > 0)) return "";  // around or behind the eye: no size to judge
