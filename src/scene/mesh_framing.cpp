@@ -26,14 +26,10 @@ std::string lower(std::string_view s) {
   return out;
 }
 
-// The same matrix the scene format builds from rotate_deg (scene.cpp: Z, then
-// Y, then X applied first).
+// The scene format's matrix for rotate_deg (rotate_euler_deg), exact: quarter
+// turns are permutations, where cos(90 degrees) rounds to 6e-17, not 0.
 glm::dmat4 rotation_matrix(const Vec3d& deg) {
-  glm::dmat4 m(1.0);
-  m = glm::rotate(m, glm::radians(deg.z), Vec3d(0, 0, 1));
-  m = glm::rotate(m, glm::radians(deg.y), Vec3d(0, 1, 0));
-  m = glm::rotate(m, glm::radians(deg.x), Vec3d(1, 0, 0));
-  // Quarter turns are permutations: cos(90 degrees) rounds to 6e-17, not 0.
+  glm::dmat4 m = rotate_euler_deg(glm::dmat4(1.0), deg);
   for (int c = 0; c < 4; ++c)
     for (int r = 0; r < 4; ++r)
       if (std::abs(m[c][r] - std::round(m[c][r])) < 1e-12) m[c][r] = std::round(m[c][r]);

@@ -18,6 +18,12 @@
 
 namespace raylod {
 
+glm::dmat4 rotate_euler_deg(const glm::dmat4& m, const Vec3d& deg) {
+  glm::dmat4 r = glm::rotate(m, glm::radians(deg.z), Vec3d(0, 0, 1));
+  r = glm::rotate(r, glm::radians(deg.y), Vec3d(0, 1, 0));
+  return glm::rotate(r, glm::radians(deg.x), Vec3d(1, 0, 0));
+}
+
 using nlohmann::json;
 
 const char* to_string(MaterialType t) {
@@ -235,11 +241,7 @@ Status parse_transform(const Parser& p, const json& j, const std::string& where,
       else RAYLOD_RETURN_IF_ERROR(p.vec3(j["scale"], where + ".scale", s));
     }
     if (j.contains("rotate_deg")) RAYLOD_RETURN_IF_ERROR(p.vec3(j["rotate_deg"], where + ".rotate_deg", rdeg));
-    glm::dmat4 m = glm::translate(glm::dmat4(1.0), t);
-    m = glm::rotate(m, glm::radians(rdeg.z), Vec3d(0, 0, 1));
-    m = glm::rotate(m, glm::radians(rdeg.y), Vec3d(0, 1, 0));
-    m = glm::rotate(m, glm::radians(rdeg.x), Vec3d(1, 0, 0));
-    out = glm::scale(m, s);
+    out = glm::scale(rotate_euler_deg(glm::translate(glm::dmat4(1.0), t), rdeg), s);
   }
   // Singular relative to its own scale (a uniform scale of 1e-6, micrometres
   // to metres, is fine): |det| against the product of the column lengths,

@@ -110,6 +110,10 @@ struct Scene {
   bool any_refraction() const;
 };
 
+// A transform's rotate_deg (XYZ Euler angles in degrees) applied to m: m
+// times the rotation about Z, then Y, then X (X applied to a point first).
+glm::dmat4 rotate_euler_deg(const glm::dmat4& m, const Vec3d& deg);
+
 // Parses a scene from JSON text; base_dir resolves relative mesh paths and
 // source_name is used in error messages. Checks referenced mesh files exist,
 // except the first object's when first_mesh_replaced (a command's --mesh
