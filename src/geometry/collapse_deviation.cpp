@@ -8,12 +8,20 @@ namespace raylod {
 namespace {
 
 // One-sided normals give |s.e| >= lambda (collapse_deviation.h); below this
-// fraction of lambda, part of the cell faces the other way.
-constexpr double kFoldMargin = 0.9;
+// fraction of lambda, part of the cell faces the other way. Where s sums the
+// face normals A is made of, the inequality is exact and the margin only
+// absorbs rounding; smooth input normals need room.
+constexpr double kFaceFoldMargin = 1.0 - 1e-6;
+constexpr double kInputNormalFoldMargin = 0.9;
+// How far a fold's edge may move, over sqrt(12 residual / lambda) along the
+// weakest direction solved (collapse_deviation.h: 1.12 for a groove leaving
+// a face tangentially, 0.8 to 1.1 over the arcs and facet counts tried).
+constexpr double kEdgeSafety = 2.0;
 
 }  // namespace
 
-CollapseDeviation collapse_deviation(const NodeRecord& node, const Bbox& cell, const QemSolveConfig& config) {
+CollapseDeviation collapse_deviation(const NodeRecord& node, const Bbox& cell, NodeNormals normals,
+                                     const QemSolveConfig& config) {
   CollapseDeviation d;
   const Quadric& q = node.quadric;
   const double weight = q.a00 + q.a11 + q.a22;
@@ -33,9 +41,15 @@ CollapseDeviation collapse_deviation(const NodeRecord& node, const Bbox& cell, c
   const double from_spread = 2.0 * (1.0 - resultant);
   d.normal = std::min({M_PI, from_side, from_spread});
   d.crease = from_spread > 0.05 && from_side < 0.1 * from_spread;
+  const SymmetricEigen3 e = symmetric_eigen(q);
+  const double margin = normals == NodeNormals::Faces ? kFaceFoldMargin : kInputNormalFoldMargin;
+  const bool opposite = std::abs(glm::dot(node.normal_sum, e.vectors[0])) < margin * e.values[0];
   if (s.rank <= 1) {
-    const SymmetricEigen3 e = symmetric_eigen(q);
-    d.folded = std::abs(glm::dot(node.normal_sum, e.vectors[0])) < kFoldMargin * e.values[0];
+    d.folded = opposite;
+  } else if (opposite && residual > 0) {
+    // Opposite sheets whose edge the weaker planes pin (collapse_deviation.h).
+    const double weakest = e.values[s.rank - 1];
+    if (weakest > 0) d.position = std::max(d.position, kEdgeSafety * std::sqrt(12.0 * residual / weakest));
   }
   return d;
 }

@@ -38,19 +38,33 @@
 // vertex (OctreeStore::touches_boundary), and the cut lets such a cell
 // collapse only while the whole cell is within the tolerance (probe.h).
 //
-// Nor folds: sheets facing opposite ways that the solve takes for one plane
-// (rank 1), such as a knife edge (two faces meeting at a 0-degree dihedral)
-// or a plate thinner than the cell. The representative then lies anywhere
-// along that plane (at the mean of the cell's corners), so the fold's edge
-// moves inwards by up to the cell's size while the quadric reports no
-// deviation across it. `folded` says so, and the cut treats such a cell as
-// it treats a rim. The test, from the sums the store keeps: with A = sum w n
-// n^T, its largest eigenpair (lambda, e) and s = sum w n, normals all on
-// one side of the plane (n.e >= 0) give s.e = sum w (n.e) >= sum w (n.e)^2 =
-// lambda, since |n.e| <= 1; so |s.e| < lambda means that some of the cell's
-// area faces the other way. A margin of 10% of lambda keeps smooth input
-// normals (summed in s, where A has the face normals) from flagging a
-// one-sided patch.
+// Nor folds: sheets facing opposite ways, such as a knife edge (two faces
+// meeting at a 0-degree dihedral) or a plate thinner than the cell. Solved
+// as one plane (rank 1), the representative lies anywhere along it (at the
+// mean of the cell's corners), so the fold's edge moves inwards by up to the
+// cell's size while the quadric reports no deviation across it. `folded`
+// says so, and the cut treats such a cell as it treats a rim. The test,
+// from the sums the store keeps: with A = sum w n n^T, its largest eigenpair
+// (lambda, e) and s = sum w n, normals all on one side of the plane (n.e >=
+// 0) give s.e = sum w (n.e) >= sum w (n.e)^2 = lambda, since |n.e| <= 1; so
+// |s.e| < lambda means that some of the cell's area faces the other way.
+// Where s sums the faces' own normals (a mesh without normals:
+// NodeNormals::Faces) the inequality is exact and any such area counts,
+// however small (the underside of a knife edge on ABC's abc5.stl, 5% of its
+// cell's area, hid in the margin that follows). Smooth input normals
+// (summed in s, where A has the face normals) need a margin of 10% of
+// lambda, so that a one-sided patch is not flagged.
+//
+// With two or three directions solved, opposite sheets that meet at one
+// exact edge (a wedge) put the representative on that edge. A sheet that
+// curls away from the edge (a groove leaving a face tangentially, as at the
+// concave end of abc5.stl's plate) pins it only weakly across the edge: the
+// least-squares point lies inside the edge by far more than the quadric's
+// deviation (a groove of radius 2 over 0.3 rad: 0.23 against 0.017), by
+// about sqrt(12 Q(v) / lambda_w) along the weakest direction solved,
+// lambda_w (an arc of radius R over a small turn T, uniformly weighted:
+// 3RT/8 against 0.335 RT; 0.8 to 1.1 times it over the arcs and facet
+// counts tried). Twice that is taken into `position` for such cells.
 #pragma once
 
 #include "core/math.h"
@@ -69,8 +83,16 @@ struct CollapseDeviation {
   bool crease = false;
 };
 
+// What NodeRecord::normal_sum sums: the faces' own normals (a store built
+// from a mesh without normals) or the input's vertex normals.
+enum class NodeNormals { Faces, Input };
+inline NodeNormals node_normals_of(const StoreHeader& header) {
+  return header.has_normals ? NodeNormals::Input : NodeNormals::Faces;
+}
+
 // `cell` in the quadric's frame (relative to StoreHeader::origin for store
 // nodes); side = the cell's edge length.
-CollapseDeviation collapse_deviation(const NodeRecord& node, const Bbox& cell, const QemSolveConfig& config = {});
+CollapseDeviation collapse_deviation(const NodeRecord& node, const Bbox& cell, NodeNormals normals,
+                                     const QemSolveConfig& config = {});
 
 }  // namespace raylod

@@ -1095,6 +1095,7 @@ StatusOr<ProbeResult> CutSelection::select(const ProbeConfig& config) {
     // inside an accepted one is collapsed with it).
     const QemSolveConfig qem;
     const Vec3d origin = st.header().origin;
+    const NodeNormals node_normals = node_normals_of(st.header());
     uint64_t rejected_deviation = 0, rejected_normal = 0, rejected_boundary = 0, rejected_fold = 0, rejected_crease = 0;
     // The finest cells left uncollapsed (their input triangles are kept as
     // they are), by the test that kept them: K, deviation, normal, boundary,
@@ -1123,7 +1124,7 @@ StatusOr<ProbeResult> CutSelection::select(const ProbeConfig& config) {
           CollapseDeviation& dev = n.kept->deviation[size_t(L)][i];
           if (dev.position < 0) {  // not computed by an earlier selection
             const Bbox cell = st.cell_bounds(CellKey{uint32_t(L), codes[i]});
-            dev = collapse_deviation(nodes[i], Bbox{cell.lo - origin, cell.hi - origin}, qem);
+            dev = collapse_deviation(nodes[i], Bbox{cell.lo - origin, cell.hi - origin}, node_normals, qem);
           }
           if (dev.position > config.tolerance_px * f) { verdict[i] = 2; continue; }
           // What a quadric cannot bound (rims, folds, creases on mirrors

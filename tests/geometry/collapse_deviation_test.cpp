@@ -10,6 +10,10 @@
 namespace raylod {
 namespace {
 
+// The nodes below sum their faces' own normals, as a store of a mesh
+// without normals does.
+constexpr NodeNormals kFaces = NodeNormals::Faces;
+
 // Accumulates a triangle into a node as the store build does: each corner
 // adds the triangle's plane quadric and unit normal with weight area / 3.
 void add_triangle(NodeRecord& node, const Vec3d& a, const Vec3d& b, const Vec3d& c) {
@@ -63,17 +67,17 @@ NodeRecord corner_node() {
 
 TEST(CollapseDeviation, FlatCreaseAndCornerCellsDoNotMove) {
   const Bbox cell{Vec3d(-1), Vec3d(1)};
-  EXPECT_NEAR(collapse_deviation(flat_node(), cell).position, 0.0, 1e-9);
-  EXPECT_NEAR(collapse_deviation(flat_node(), cell).normal, 0.0, 1e-12);
+  EXPECT_NEAR(collapse_deviation(flat_node(), cell, kFaces).position, 0.0, 1e-9);
+  EXPECT_NEAR(collapse_deviation(flat_node(), cell, kFaces).normal, 0.0, 1e-12);
   // A 90-degree crease (floor + wall) and a box corner (three faces): the
   // representative lies on every plane, and crease-split normals keep them sharp.
-  const CollapseDeviation c = collapse_deviation(crease_node(), cell);
+  const CollapseDeviation c = collapse_deviation(crease_node(), cell, kFaces);
   EXPECT_NEAR(c.position, 0.0, 1e-9);
   EXPECT_NEAR(c.normal, 0.0, 1e-12);
-  EXPECT_NEAR(collapse_deviation(corner_node(), cell).position, 0.0, 1e-9);
+  EXPECT_NEAR(collapse_deviation(corner_node(), cell, kFaces).position, 0.0, 1e-9);
   // Empty and zero-area cells: nothing to move.
   NodeRecord empty;
-  EXPECT_EQ(collapse_deviation(empty, cell).position, 0.0);
+  EXPECT_EQ(collapse_deviation(empty, cell, kFaces).position, 0.0);
 }
 
 TEST(CollapseDeviation, SphericalCapsGiveTheirChordError) {
@@ -84,7 +88,7 @@ TEST(CollapseDeviation, SphericalCapsGiveTheirChordError) {
       const NodeRecord node = cap(r, alpha);
       const double h = r * std::sin(alpha) * 1.01;
       const Bbox cell{Vec3d(-h, -h, r * std::cos(alpha) - h), Vec3d(h, h, r + h)};
-      const CollapseDeviation d = collapse_deviation(node, cell);
+      const CollapseDeviation d = collapse_deviation(node, cell, kFaces);
       const double sagitta = r * (1 - std::cos(alpha));
       EXPECT_NEAR(d.position / sagitta, 1.0, 0.03) << "r " << r << " alpha " << alpha;
       EXPECT_NEAR(d.normal / (alpha * alpha / 2), 1.0, 0.05) << "r " << r << " alpha " << alpha;
@@ -98,7 +102,7 @@ TEST(CollapseDeviation, ThinWallIsItsThickness) {
   NodeRecord wall;
   add_triangle(wall, {-1, 0, -1}, {-1, 0, 1}, {1, 0, 1});
   add_triangle(wall, {-1, t, -1}, {1, t, 1}, {-1, t, 1});
-  const CollapseDeviation d = collapse_deviation(wall, Bbox{Vec3d(-1), Vec3d(1)});
+  const CollapseDeviation d = collapse_deviation(wall, Bbox{Vec3d(-1), Vec3d(1)}, kFaces);
   EXPECT_GE(d.position, t / 2);
   EXPECT_LE(d.position, 2 * t);
 }
@@ -109,13 +113,13 @@ TEST(CollapseDeviation, ThinWallIsItsThickness) {
 // Planes and curved patches are not creases.
 TEST(CollapseDeviation, CreasesAreFlaggedPlanesAndCurvesAreNot) {
   const Bbox cell{Vec3d(-1), Vec3d(1)};
-  EXPECT_FALSE(collapse_deviation(flat_node(), cell).crease);
-  const CollapseDeviation c = collapse_deviation(crease_node(), cell);
+  EXPECT_FALSE(collapse_deviation(flat_node(), cell, kFaces).crease);
+  const CollapseDeviation c = collapse_deviation(crease_node(), cell, kFaces);
   EXPECT_TRUE(c.crease);
   EXPECT_LT(c.position, 1e-6);
-  EXPECT_TRUE(collapse_deviation(corner_node(), cell).crease);
+  EXPECT_TRUE(collapse_deviation(corner_node(), cell, kFaces).crease);
   for (double alpha : {0.05, 0.3, 1.0})
-    EXPECT_FALSE(collapse_deviation(cap(1.0, alpha), Bbox{Vec3d(-2), Vec3d(2)}).crease) << "alpha " << alpha;
+    EXPECT_FALSE(collapse_deviation(cap(1.0, alpha), Bbox{Vec3d(-2), Vec3d(2)}, kFaces).crease) << "alpha " << alpha;
 }
 
 TEST(CollapseDeviation, FoldsAreFlaggedOneSidedSurfacesAreNot) {
@@ -129,27 +133,73 @@ TEST(CollapseDeviation, FoldsAreFlaggedOneSidedSurfacesAreNot) {
   add_triangle(knife, {-1, 0, -1}, {1, 0, 1}, {1, 0, -1});
   add_triangle(knife, {-1, -0.04, -1}, {1, 0, 1}, {-1, -0.04, 1});
   add_triangle(knife, {-1, -0.04, -1}, {1, 0, -1}, {1, 0, 1});
-  const CollapseDeviation k = collapse_deviation(knife, cell);
+  const CollapseDeviation k = collapse_deviation(knife, cell, kFaces);
   EXPECT_TRUE(k.folded);
   EXPECT_LT(k.position, 0.05);
   // A thin wall (two sheets facing away from each other) is a fold too.
   NodeRecord wall;
   add_triangle(wall, {-1, 0, -1}, {1, 0, 1}, {-1, 0, 1});
   add_triangle(wall, {-1, 0.001, -1}, {-1, 0.001, 1}, {1, 0.001, 1});
-  EXPECT_TRUE(collapse_deviation(wall, cell).folded);
+  EXPECT_TRUE(collapse_deviation(wall, cell, kFaces).folded);
   // One-sided surfaces are not: a plane, a crease, a box corner, a
   // spherical cap, a 30-degree wedge (two planes the solve keeps apart: its
   // ridge pins the representative).
-  EXPECT_FALSE(collapse_deviation(flat_node(), cell).folded);
-  EXPECT_FALSE(collapse_deviation(crease_node(), cell).folded);
-  EXPECT_FALSE(collapse_deviation(corner_node(), cell).folded);
+  EXPECT_FALSE(collapse_deviation(flat_node(), cell, kFaces).folded);
+  EXPECT_FALSE(collapse_deviation(crease_node(), cell, kFaces).folded);
+  EXPECT_FALSE(collapse_deviation(corner_node(), cell, kFaces).folded);
   for (double alpha : {0.05, 0.3, 1.0})
-    EXPECT_FALSE(collapse_deviation(cap(1.0, alpha), Bbox{Vec3d(-2), Vec3d(2)}).folded) << "alpha " << alpha;
+    EXPECT_FALSE(collapse_deviation(cap(1.0, alpha), Bbox{Vec3d(-2), Vec3d(2)}, kFaces).folded) << "alpha " << alpha;
   NodeRecord wedge = flat_node();
   const double s = std::tan(M_PI / 6);
   add_triangle(wedge, {-1, -2 * s, -1}, {1, 0, 1}, {-1, -2 * s, 1});
   add_triangle(wedge, {-1, -2 * s, -1}, {1, 0, -1}, {1, 0, 1});
-  EXPECT_FALSE(collapse_deviation(wedge, cell).folded);
+  EXPECT_FALSE(collapse_deviation(wedge, cell, kFaces).folded);
+}
+
+// A knife edge whose underside is a sliver (2% of the cell's area) hides in
+// a smooth-normal margin: where the node sums its faces' own normals the
+// fold test is exact, and any area facing the other way is a fold.
+TEST(CollapseDeviation, AKnifeEdgeWithASliverUndersideIsAFoldWhenTheNormalsAreTheFaces) {
+  const Bbox cell{Vec3d(-1), Vec3d(1)};
+  NodeRecord knife = flat_node();
+  add_triangle(knife, {0.96, -0.0008, -1}, {1, 0, 1}, {0.96, -0.0008, 1});
+  add_triangle(knife, {0.96, -0.0008, -1}, {1, 0, -1}, {1, 0, 1});
+  EXPECT_TRUE(collapse_deviation(knife, cell, NodeNormals::Faces).folded);
+  EXPECT_FALSE(collapse_deviation(knife, cell, NodeNormals::Input).folded);
+  // A plane is one-sided whatever its normals.
+  EXPECT_FALSE(collapse_deviation(flat_node(), cell, NodeNormals::Faces).folded);
+}
+
+// A knife edge whose underside curls away (the concave end of a CAD plate:
+// a groove of radius 0.5 whose surface leaves the top face tangentially at
+// x = 1). The groove's tilted planes give the solve a second direction, so
+// it is not the one-plane fold above; but they pin the representative only
+// weakly across the edge, and the least-squares point lies well inside it,
+// while the quadric's residual alone says a fraction of that. The deviation
+// covers how far the edge moves.
+TEST(CollapseDeviation, ACurledKnifeEdgeBoundsHowFarItsEdgeMoves) {
+  const Bbox cell{Vec3d(-1), Vec3d(1)};
+  for (double radius : {0.5, 2.0}) {
+    NodeRecord node = flat_node();
+    const int segments = 40;
+    const double sweep = 0.6 / radius;  // the groove's arc within the cell
+    auto at = [&](int i, double z) {
+      const double t = sweep * i / segments;
+      return Vec3d(1 - radius * std::sin(t), -radius * (1 - std::cos(t)), z);
+    };
+    for (int i = 0; i < segments; ++i) {  // facing down and out of the groove
+      add_triangle(node, at(i, -1), at(i + 1, 1), at(i + 1, -1));
+      add_triangle(node, at(i, -1), at(i, 1), at(i + 1, 1));
+    }
+    const Vec3d mean = node.vertex_sum / double(node.corner_count);
+    const QemSolution s = solve_representative_vertex(node.quadric, mean, cell);
+    EXPECT_GE(s.rank, 2) << "radius " << radius;
+    const double edge_moved = std::hypot(1 - s.position.x, s.position.y);
+    const CollapseDeviation d = collapse_deviation(node, cell, kFaces);
+    EXPECT_GE(d.position, edge_moved) << "radius " << radius << ": representative at x " << s.position.x;
+    EXPECT_LE(d.position, 4 * edge_moved) << "radius " << radius;
+    EXPECT_GT(edge_moved, 0.05) << "radius " << radius << ": the case should move the edge";
+  }
 }
 
 }  // namespace

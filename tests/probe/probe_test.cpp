@@ -875,7 +875,7 @@ TEST(ProbeDeviation, FoldsCollapseOnlyWithinTheTolerance) {
   size_t folded = 0;
   for (const CollapsedCell& c : cut.cells) {
     const Bbox cell = st.cell_bounds(c.key);
-    const CollapseDeviation d = collapse_deviation(*st.find(c.key), Bbox{cell.lo - origin, cell.hi - origin});
+    const CollapseDeviation d = collapse_deviation(*st.find(c.key), Bbox{cell.lo - origin, cell.hi - origin}, node_normals_of(st.header()));
     if (!d.folded || c.hits == 0) continue;
     ++folded;
     EXPECT_LE(st.cell_diagonal(int(c.key.level)), tol * c.min_footprint * (1 + 1e-6)) << "level " << c.key.level;
@@ -924,7 +924,7 @@ TEST(ProbeDeviation, CurvedCellsKeepTheirDeviationBelowTheTolerance) {
       const NodeRecord* node = b.store->find(c.key);
       ASSERT_NE(node, nullptr);
       const Bbox cell = b.store->cell_bounds(c.key);
-      const CollapseDeviation d = collapse_deviation(*node, Bbox{cell.lo - origin, cell.hi - origin});
+      const CollapseDeviation d = collapse_deviation(*node, Bbox{cell.lo - origin, cell.hi - origin}, node_normals_of(b.store->header()));
       EXPECT_LE(d.position, tol * c.min_footprint * (1 + 1e-6)) << "level " << c.key.level;
       ++checked;
     }

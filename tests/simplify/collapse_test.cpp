@@ -561,7 +561,7 @@ TEST(CollapseDeviationProperty, CollapsedSphereStaysWithinTheDeviationItsCellsPr
     double promised = 0, promised_normal = 0;
     for (const auto& [code, node] : nodes.nodes) {
       const Bbox b = nodes.cell_bounds(code);
-      const CollapseDeviation d = collapse_deviation(node, Bbox{b.lo - origin, b.hi - origin});
+      const CollapseDeviation d = collapse_deviation(node, Bbox{b.lo - origin, b.hi - origin}, NodeNormals::Faces);
       promised = std::max(promised, d.position);
       promised_normal = std::max(promised_normal, d.normal);
     }
