@@ -195,8 +195,10 @@ int run_simplify(int argc, char** argv) {
   std::printf("wrote %s\n", out_path.string().c_str());
   std::printf("  triangles  %llu of %llu (%.2f%%)\n", ull(s.output_triangles), ull(s.input_triangles),
               s.input_triangles ? 100.0 * double(s.output_triangles) / double(s.input_triangles) : 0.0);
-  std::printf("  vertices   %llu (%llu representatives, %llu kept, %llu more where corners meet at a crease)\n",
-              ull(s.output_vertices), ull(s.representatives_used), ull(s.kept_vertices), ull(s.split_vertices));
+  std::printf("  vertices   %llu (%llu representatives, %llu of them cells of one vertex output as kept; %llu kept, %llu "
+              "more where corners meet at a crease)\n",
+              ull(s.output_vertices), ull(s.representatives_used), ull(s.one_vertex_cells), ull(s.kept_vertices),
+              ull(s.split_vertices));
   std::printf("  cut        %llu cells (%llu not in the store), %llu representatives clamped to their cell\n",
               ull(r.cut_cells), ull(r.cut_cells_missing), ull(r.clamped_representatives));
   std::printf("  dropped    %llu collapsed (%llu inside one cell), %llu zero-area, %llu duplicate; %llu reverse-wound "

@@ -21,6 +21,7 @@
 // clusters over all corners merged into it (area weighted), keyed by the
 // normal of the output triangle's input triangle: a cell that spans a crease
 // gets one normal per side, and a flat side gets exactly that side's normal.
+// A cell that holds one vertex is that vertex kept, and takes this rule.
 #pragma once
 
 #include <algorithm>

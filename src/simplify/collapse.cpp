@@ -134,6 +134,7 @@ Representative make_representative(const NodeRecord& node, const Bbox& cell_boun
   r.normal_sum = 6.0 * node.normal_sum;  // area / 3 per corner -> twice the area
   r.has_normal_sum = true;
   r.side = cell_bounds_world.hi.x - cell_bounds_world.lo.x;
+  r.corner_count = node.corner_count;
   return r;
 }
 
@@ -182,6 +183,8 @@ uint32_t CutLookup::find_code(uint64_t code) const {
 // the one with the nearest seed, at most about 15 degrees away when 64
 // seeds cover the directions.
 constexpr uint32_t kRepresentativeClusters = 64;
+// CollapseBuilder::rep_corners_seen_: a second position came.
+constexpr uint32_t kSeveralPositions = 0xffffffffu;
 
 // A flat side (NormalClusterPool::flat_side): its own cluster holds at least
 // this share of the weight within 10 degrees of it, beside at least this
@@ -197,6 +200,11 @@ CollapseBuilder::CollapseBuilder(std::span<const Representative> reps, bool inpu
   rep_pos_.reserve(reps.size());
   for (const auto& r : reps) rep_pos_.push_back(Vec3(r.position));
   table_.assign(1024, kKeepVertex);
+  if (!has_normals_) {
+    rep_corners_seen_.assign(reps.size(), 0);
+    rep_first_position_.assign(reps.size(), Vec3(0));
+    one_vertex_clusters_ = NormalClusterPool(reps.size());
+  }
 }
 
 void CollapseBuilder::reserve(uint64_t vertices, uint64_t triangles) {
@@ -361,6 +369,7 @@ void prepare_collapse(const PageMesh& page, std::span<const uint32_t> vertex_cel
   out.angle.resize(input_has_normals ? 0 : 3 * nt);
   out.vertex_normal.assign(nv, kKeepVertex);
   out.rep_normals.clear();
+  out.rep_corners.clear();
   out.unique.clear();
   out.rep_samples.clear();
   const bool sample = exact_normals && page_normals;
@@ -398,6 +407,9 @@ void prepare_collapse(const PageMesh& page, std::span<const uint32_t> vertex_cel
       if (c[k] != kKeepVertex) {
         pos[k] = rep_pos[c[k]];
         collapsed = true;
+        if (!input_has_normals)
+          out.rep_corners.push_back({c[k], canonical(p[k]),
+                                     input.area2 > 0 ? float(corner_angle(p[0], p[1], p[2], k)) : 0.0f, Vec3(input.unit)});
         if (!(input.area2 > 0)) continue;  // no weight
         if (normals) {
           uint32_t& entry = out.vertex_normal[vi[k]];
@@ -494,6 +506,16 @@ void CollapseBuilder::add(const PageMesh& page, std::span<const uint32_t> vertex
     clusters_.add(r.rep, r.normal, r.weight, kRepresentativeClusters);
     reached_sum_[r.rep] += r.weight * r.normal;
   }
+  for (const auto& r : prepared.rep_corners) {  // cells of one vertex (collapse.h)
+    uint32_t& seen = rep_corners_seen_[r.rep];
+    if (seen == kSeveralPositions) continue;
+    if (seen > 0 && !same_bits(rep_first_position_[r.rep], r.position)) {
+      seen = kSeveralPositions;
+      continue;
+    }
+    if (seen++ == 0) rep_first_position_[r.rep] = r.position;
+    if (r.angle > 0) one_vertex_clusters_.add(r.rep, Vec3d(r.face), r.angle, kNoCluster);
+  }
   if (!prepared.rep_samples.empty() && sample_d2_.empty()) {
     sample_d2_.assign(nreps, std::numeric_limits<float>::infinity());
     sample_normal_.assign(nreps, Vec3(0));
@@ -556,7 +578,8 @@ uint64_t CollapseBuilder::memory_bytes() const {
          kept_normal_.capacity() * sizeof(Vec3) + clusters_.memory_bytes() + table_.capacity() * sizeof(uint32_t) +
          tris_.capacity() * sizeof(tris_[0]) + keys_.capacity() * sizeof(Vec3) +
          reached_sum_.capacity() * sizeof(Vec3d) + sample_d2_.capacity() * sizeof(float) +
-         sample_normal_.capacity() * sizeof(Vec3);
+         sample_normal_.capacity() * sizeof(Vec3) + rep_corners_seen_.capacity() * sizeof(uint32_t) +
+         rep_first_position_.capacity() * sizeof(Vec3) + one_vertex_clusters_.memory_bytes();
 }
 
 IndexedMesh CollapseBuilder::finish(CollapseStats* stats_out) {
@@ -628,6 +651,16 @@ IndexedMesh CollapseBuilder::finish(CollapseStats* stats_out) {
   }
   std::vector<uint8_t> took(exact.size(), 0);  // representatives a corner took the sample of
 
+  // Cells that hold one vertex (every corner of the cell at one position):
+  // that vertex, kept (collapse.h).
+  std::vector<uint8_t> one_vertex(rep_corners_seen_.size(), 0);
+  for (uint32_t v = 0; v < one_vertex.size(); ++v) {
+    const uint32_t seen = rep_corners_seen_[v];
+    if (seen == kSeveralPositions || seen == 0 || seen != reps_[v].corner_count) continue;
+    one_vertex[v] = 1;
+    rep_pos_[v] = rep_first_position_[v];
+    ++stats_.one_vertex_cells;
+  }
   // Resolve every corner's normal, then split each provisional vertex by the
   // distinct normals its corners got; output vertices in order of first use.
   IndexedMesh mesh;
@@ -644,6 +677,14 @@ IndexedMesh CollapseBuilder::finish(CollapseStats* stats_out) {
       Vec3 unit;
       if (v >= nreps && has_normals_) {
         unit = kept_normal_[v - nreps];  // input normals are kept exactly
+      } else if (v < one_vertex.size() && one_vertex[v]) {  // as the vertex kept (collapse.h)
+        Vec3d nd = one_vertex_clusters_.resolve(v, key, cos_crease_);
+        if (glm::length(nd) == 0) nd = one_vertex_clusters_.mean(v);
+        if (glm::length(nd) == 0) {
+          ++stats_.normal_fallbacks;
+          nd = glm::length(key) > 0 ? key : Vec3d(0, 1, 0);
+        }
+        unit = Vec3(nd);
       } else {
         Vec3d nd(0);
         // Without input normals, a representative on a flat face that only
@@ -718,7 +759,8 @@ SimplifyEstimate estimate_cells(const OctreeStore& store, const Cells& cells, Ke
   e.triangles = std::min<uint64_t>(t, t - removed + 2 * found);
   e.vertices = e.triangles / 2 + found;
   e.bytes = e.triangles * kCollapseBytesPerTriangle + e.vertices * kCollapseBytesPerVertex +
-            found * (sizeof(Representative) + 72);
+            found * (sizeof(Representative) + 72 +
+                     (store.header().has_normals ? 0 : kOneVertexBytesPerRepresentative));
   e.write_bytes = e.triangles * (12 + kDracoEncodeBytesPerTriangle) + e.vertices * 2 * sizeof(Vec3);
   return e;
 }

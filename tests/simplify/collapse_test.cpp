@@ -416,6 +416,64 @@ TEST(CollapseBuilder, CollapsingNothingGivesTheFullRendersCornerNormals) {
   EXPECT_EQ(axis_aligned, out.normals.size());
 }
 
+TEST(CollapseBuilder, CellsOfOneVertexGiveTheFullRendersCornerNormals) {
+  // Without input normals, the cut marks cells that hold a single vertex
+  // wherever nothing deviates there (finest cells of a CAD tessellation's
+  // long strips); collapsing such a cell changes nothing, so it must come out
+  // as that vertex kept: its exact position and the full render's
+  // angle-weighted crease normals, not its cluster's area-weighted mean
+  // (which bands a mirror's reflection along the strips). A uv sphere's
+  // triangles shrink towards its poles, so the two weightings differ there.
+  TriangleBatch sphere = test::uv_sphere({0.3f, -0.2f, 0.1f}, 1.0f, 12, 20);
+  sphere.normals.clear();
+  std::map<std::array<float, 3>, uint32_t> ids;
+  std::vector<Vec3> pos;
+  std::vector<uint32_t> idx;
+  for (const Vec3& p : sphere.positions) {
+    auto [it, fresh] = ids.try_emplace({p.x, p.y, p.z}, uint32_t(pos.size()));
+    if (fresh) pos.push_back(p);
+    idx.push_back(it->second);
+  }
+  const std::vector<Vec3> ref = crease_corner_normals(pos, idx, kDefaultCreaseAngleDeg);
+  // One representative per vertex, a little off the vertex (as a solve's
+  // rounding may leave it), with the cell's corner count; then the same
+  // with the counts unknown, where the cells are collapsed as any other.
+  for (const bool counted : {true, false}) {
+    std::vector<Representative> reps(pos.size());
+    for (uint32_t i : idx) reps[i].corner_count += counted ? 1 : 0;
+    for (size_t v = 0; v < pos.size(); ++v) reps[v].position = Vec3d(pos[v]) + Vec3d(1e-4);
+    CollapseBuilder builder(reps, false);
+    builder.add(sphere, idx);
+    CollapseStats stats;
+    const IndexedMesh out = builder.finish(&stats);
+    ASSERT_EQ(out.triangle_count(), sphere.size());
+    EXPECT_EQ(stats.one_vertex_cells, counted ? pos.size() : 0u);
+    double worst = 0;
+    for (size_t i = 0; i < idx.size(); ++i) {
+      if (counted) {
+        EXPECT_EQ(out.positions[out.indices[i]], sphere.positions[i]) << "corner " << i;
+      }
+      worst = std::max(worst, double(glm::distance(out.normals[out.indices[i]], ref[i])));
+    }
+    if (counted) {
+      EXPECT_LT(worst, 1e-5) << "kept vertices' rule";
+    } else {
+      EXPECT_GT(worst, 1e-3) << "area weighting should differ near the poles";
+    }
+  }
+  // A cell of two vertices is a real collapse: its count is met, but by two positions.
+  std::vector<Representative> reps(pos.size() - 1);
+  std::vector<uint32_t> cell(idx);
+  for (uint32_t& c : cell) c = c == pos.size() - 1 ? uint32_t(pos.size() - 2) : c;  // the last two vertices in one cell
+  for (uint32_t c : cell) ++reps[c].corner_count;
+  for (size_t v = 0; v < reps.size(); ++v) reps[v].position = Vec3d(pos[v]);
+  CollapseBuilder builder(reps, false);
+  builder.add(sphere, cell);
+  CollapseStats stats;
+  builder.finish(&stats);
+  EXPECT_EQ(stats.one_vertex_cells, reps.size() - 1);
+}
+
 TEST(CollapseBuilder, ClosedInputStaysClosedWhenNoCellSpansTheWall) {
   // A thin closed slab [0,1] x [0,1] x [1, 1.1] (grid spacing 1/32):
   // collapsing only cells that hold the top sheet and not the bottom never
@@ -470,14 +528,36 @@ TEST(VertexClusteringDifferential, UniformCutEqualsReferenceClustering) {
       ASSERT_GT(ref.triangle_count(), 0u);
       EXPECT_EQ(c.mesh.triangle_count(), ref.triangle_count()) << "level " << level;
       EXPECT_EQ(test::canonical_triangles(c.mesh), test::canonical_triangles(ref)) << "level " << level;
-      // Same normals per position.
+      // Same normals per position; but a cell of one vertex is that vertex
+      // kept (collapse.h), with the full render's angle-weighted normal.
       std::map<std::array<float, 3>, Vec3> ref_normal;
       for (size_t i = 0; i < ref.positions.size(); ++i)
         ref_normal[{ref.positions[i].x, ref.positions[i].y, ref.positions[i].z}] = ref.normals[i];
+      std::map<std::array<float, 3>, uint32_t> ids;
+      std::vector<Vec3> pos;
+      std::vector<uint32_t> idx;
+      for (const Vec3& p : soup->positions) {
+        auto [it, fresh] = ids.try_emplace({p.x, p.y, p.z}, uint32_t(pos.size()));
+        if (fresh) pos.push_back(p);
+        idx.push_back(it->second);
+      }
+      const std::vector<Vec3> smooth = crease_corner_normals(pos, idx, 180.0);
+      std::map<uint64_t, std::set<uint32_t>> vertices_of_cell;
+      const CutLookup all(root_lo, root_size, c.keys);
+      for (uint32_t v = 0; v < pos.size(); ++v) vertices_of_cell[all.find(Vec3d(pos[v]))].insert(v);
+      size_t one_vertex = 0;
+      for (const auto& [cell, vs] : vertices_of_cell)
+        if (vs.size() == 1 && soup->normals.empty()) {
+          const uint32_t v = *vs.begin();
+          for (size_t k = 0; k < idx.size(); ++k)
+            if (idx[k] == v) ref_normal[{pos[v].x, pos[v].y, pos[v].z}] = smooth[k];
+          ++one_vertex;
+        }
+      EXPECT_EQ(c.stats.one_vertex_cells, one_vertex) << "level " << level;
       for (size_t i = 0; i < c.mesh.positions.size(); ++i) {
         const auto it = ref_normal.find({c.mesh.positions[i].x, c.mesh.positions[i].y, c.mesh.positions[i].z});
         ASSERT_NE(it, ref_normal.end());
-        EXPECT_NEAR(glm::distance(it->second, c.mesh.normals[i]), 0.0f, 1e-5f);
+        EXPECT_NEAR(glm::distance(it->second, c.mesh.normals[i]), 0.0f, 1e-5f) << "level " << level;
       }
     }
   }
