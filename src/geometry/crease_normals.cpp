@@ -137,6 +137,20 @@ Vec3d NormalClusterPool::flat_side(uint32_t v, const Vec3d& key, double cos_near
   return w >= share * near && others >= min_others ? unit_or_zero(sum) : Vec3d(0);
 }
 
+Vec3d NormalClusterPool::nearest_seed(uint32_t v, const Vec3d& key) const {
+  Vec3d best(0);
+  double best_dot = -2;
+  for (uint32_t c = heads_[v]; c != kNoCluster; c = pool_[c].next) {
+    if (pool_[c].seed == Vec3(0)) continue;
+    const double d = glm::dot(Vec3d(pool_[c].seed), key);
+    if (d > best_dot) {
+      best_dot = d;
+      best = Vec3d(pool_[c].seed);
+    }
+  }
+  return best;
+}
+
 Vec3d NormalClusterPool::mean(uint32_t v) const {
   Vec3d sum(0);
   for (uint32_t c = heads_[v]; c != kNoCluster; c = pool_[c].next) sum += Vec3d(pool_[c].sum);

@@ -92,6 +92,10 @@ class NormalClusterPool {
   Vec3d resolve(uint32_t v, const Vec3d& key, double cos_crease) const;
   // The normalised sum of all of v's clusters (zero if they cancel).
   Vec3d mean(uint32_t v) const;
+  // The seed (its first member's normal, as given) of v's cluster whose seed
+  // is nearest `key`; zero if v has none. For a vertex whose corners bring
+  // their own normals, the normal of the corner nearest key.
+  Vec3d nearest_seed(uint32_t v, const Vec3d& key) const;
   // A flat side at v: the direction of v's cluster within the merge angle of
   // `key` if it holds at least `share` of the weight of the clusters within
   // the angle whose cosine is cos_near of it, and at least `min_others`

@@ -200,11 +200,9 @@ CollapseBuilder::CollapseBuilder(std::span<const Representative> reps, bool inpu
   rep_pos_.reserve(reps.size());
   for (const auto& r : reps) rep_pos_.push_back(Vec3(r.position));
   table_.assign(1024, kKeepVertex);
-  if (!has_normals_) {
-    rep_corners_seen_.assign(reps.size(), 0);
-    rep_first_position_.assign(reps.size(), Vec3(0));
-    one_vertex_clusters_ = NormalClusterPool(reps.size());
-  }
+  rep_corners_seen_.assign(reps.size(), 0);
+  rep_first_position_.assign(reps.size(), Vec3(0));
+  if (!has_normals_) one_vertex_clusters_ = NormalClusterPool(reps.size());
 }
 
 void CollapseBuilder::reserve(uint64_t vertices, uint64_t triangles) {
@@ -407,9 +405,9 @@ void prepare_collapse(const PageMesh& page, std::span<const uint32_t> vertex_cel
       if (c[k] != kKeepVertex) {
         pos[k] = rep_pos[c[k]];
         collapsed = true;
-        if (!input_has_normals)
-          out.rep_corners.push_back({c[k], canonical(p[k]),
-                                     input.area2 > 0 ? float(corner_angle(p[0], p[1], p[2], k)) : 0.0f, Vec3(input.unit)});
+        out.rep_corners.push_back(
+            {c[k], canonical(p[k]),
+             !input_has_normals && input.area2 > 0 ? float(corner_angle(p[0], p[1], p[2], k)) : 0.0f, Vec3(input.unit)});
         if (!(input.area2 > 0)) continue;  // no weight
         if (normals) {
           uint32_t& entry = out.vertex_normal[vi[k]];
@@ -678,8 +676,9 @@ IndexedMesh CollapseBuilder::finish(CollapseStats* stats_out) {
       if (v >= nreps && has_normals_) {
         unit = kept_normal_[v - nreps];  // input normals are kept exactly
       } else if (v < one_vertex.size() && one_vertex[v]) {  // as the vertex kept (collapse.h)
-        Vec3d nd = one_vertex_clusters_.resolve(v, key, cos_crease_);
-        if (glm::length(nd) == 0) nd = one_vertex_clusters_.mean(v);
+        // Input normals: the corner's own, the one nearest its face's normal.
+        Vec3d nd = has_normals_ ? clusters_.nearest_seed(v, key) : one_vertex_clusters_.resolve(v, key, cos_crease_);
+        if (glm::length(nd) == 0) nd = has_normals_ ? clusters_.mean(v) : one_vertex_clusters_.mean(v);
         if (glm::length(nd) == 0) {
           ++stats_.normal_fallbacks;
           nd = glm::length(key) > 0 ? key : Vec3d(0, 1, 0);
@@ -760,7 +759,7 @@ SimplifyEstimate estimate_cells(const OctreeStore& store, const Cells& cells, Ke
   e.vertices = e.triangles / 2 + found;
   e.bytes = e.triangles * kCollapseBytesPerTriangle + e.vertices * kCollapseBytesPerVertex +
             found * (sizeof(Representative) + 72 +
-                     (store.header().has_normals ? 0 : kOneVertexBytesPerRepresentative));
+                     (store.header().has_normals ? 4 + 12 : kOneVertexBytesPerRepresentative));
   e.write_bytes = e.triangles * (12 + kDracoEncodeBytesPerTriangle) + e.vertices * 2 * sizeof(Vec3);
   return e;
 }

@@ -23,11 +23,14 @@
 //     input normals keeps its input normal exactly. A kept vertex without
 //     them gets, per corner, the angle-weighted sum of its input triangles'
 //     normals within the crease angle of that corner's input triangle (the
-//     full render's rule). So does a representative, without input
-//     normals, whose cell holds one vertex (every corner of the cell's
-//     count at one input position): the cut marks such cells wherever
-//     nothing there deviates, and their collapse changes nothing, so they
-//     are output as that vertex kept. Any other representative clusters the
+//     full render's rule). A representative whose cell holds one vertex
+//     (every corner of the cell's count at one input position) is output
+//     as that vertex kept: the cut marks such cells wherever nothing there
+//     deviates, and their collapse changes nothing. Its position is the
+//     vertex's; without input normals its corners take the rule above, with
+//     them each corner the input normal nearest its face's (its own, for
+//     per-vertex normals, faceted per-corner normals and normals split at
+//     creases alike). Any other representative clusters the
 //     normals of every corner merged into it (input vertex normals, else
 //     face normals; area weighted). A triangle wholly inside the cell vanishes unexamined (at
 //     100M triangles, 9 in 10 under a coarse cut): the corners of the
@@ -136,7 +139,7 @@ struct CollapseStats {
   uint64_t reverse_twins = 0;       // kept triangles whose reverse-wound twin is also kept
   uint64_t output_vertices = 0;
   uint64_t representatives_used = 0;  // distinct representatives (before splitting by normal)
-  uint64_t one_vertex_cells = 0;      // of those: cells of one vertex, output as kept (no input normals)
+  uint64_t one_vertex_cells = 0;      // of those: cells of one vertex, output as kept
   uint64_t kept_vertices = 0;         // distinct kept vertices (before splitting by normal)
   uint64_t split_vertices = 0;        // extra output vertices for corners with their own normal
   uint64_t normal_fallbacks = 0;      // corners whose normals cancelled (quadric's normal or +Y used)
@@ -173,10 +176,10 @@ struct PreparedBatch {
     Vec3d normal;
   };
   std::vector<RepresentativeNormal> rep_normals;
-  // Inputs without normals: every corner of a representative outside the
-  // triangles wholly inside one cell, with its input position, its angle
-  // (0 without area) and its triangle's unit normal, so that a cell holding
-  // one vertex can be output as that vertex is kept (collapse.h).
+  // Every corner of a representative outside the triangles wholly inside
+  // one cell, with its input position, its angle (inputs without normals;
+  // else 0, as without area) and its triangle's unit normal, so that a cell
+  // holding one vertex can be output as that vertex is kept (collapse.h).
   struct RepresentativeCorner {
     uint32_t rep;
     Vec3 position;
@@ -275,9 +278,10 @@ class CollapseBuilder {
   std::vector<Vec3d> reached_sum_;       // per representative: the normals its clusters were given
   std::vector<float> sample_d2_;         // per representative: its nearest input point's squared distance
   std::vector<Vec3> sample_normal_;      // and the input normal there (empty: no samples given)
-  // Inputs without normals, per representative: its corners seen at one
-  // position (kSeveralPositions once a second position comes), that
-  // position, and those corners' normals angle weighted, as a kept vertex's.
+  // Per representative: its corners seen at one position
+  // (kSeveralPositions once a second position comes) and that position;
+  // without input normals, those corners' normals angle weighted, as a kept
+  // vertex's.
   std::vector<uint32_t> rep_corners_seen_;
   std::vector<Vec3> rep_first_position_;
   NormalClusterPool one_vertex_clusters_;
@@ -291,8 +295,8 @@ inline constexpr uint64_t kCollapseBytesPerVertex = 12 + 12 + 8 + 4 + 4 + 2 * si
 // With exact normals, per representative: its nearest input point's squared
 // distance and normal, whether it is near enough and whether a corner took it.
 inline constexpr uint64_t kExactNormalsBytesPerRepresentative = 4 + 12 + 1 + 1;
-// Without input normals, per representative: its corners seen at one
-// position, that position, its list heads in the one-vertex clusters and
+// Per representative: its corners seen at one position and that position;
+// without input normals also its list heads in the one-vertex clusters and
 // about two clusters (a cell of several vertices stops adding at the second
 // position).
 inline constexpr uint64_t kOneVertexBytesPerRepresentative = 4 + 12 + 8 + 2 * sizeof(NormalCluster);

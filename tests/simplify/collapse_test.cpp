@@ -416,7 +416,7 @@ TEST(CollapseBuilder, CollapsingNothingGivesTheFullRendersCornerNormals) {
   EXPECT_EQ(axis_aligned, out.normals.size());
 }
 
-TEST(CollapseBuilder, CellsOfOneVertexGiveTheFullRendersCornerNormals) {
+TEST(CollapseBuilder, CellsOfOneVertexAreOutputAsKept) {
   // Without input normals, the cut marks cells that hold a single vertex
   // wherever nothing deviates there (finest cells of a CAD tessellation's
   // long strips); collapsing such a cell changes nothing, so it must come out
@@ -460,6 +460,27 @@ TEST(CollapseBuilder, CellsOfOneVertexGiveTheFullRendersCornerNormals) {
     } else {
       EXPECT_GT(worst, 1e-3) << "area weighting should differ near the poles";
     }
+  }
+  // With input normals each corner keeps its own: the sphere faceted (every
+  // corner its face's normal, as a PLY written from an STL), one cell per
+  // vertex.
+  TriangleBatch faceted = sphere;
+  for (size_t t = 0; t < faceted.size(); ++t) {
+    const Vec3 a = faceted.positions[3 * t], b = faceted.positions[3 * t + 1], c = faceted.positions[3 * t + 2];
+    const Vec3 n = glm::normalize(glm::cross(b - a, c - a));
+    for (int k = 0; k < 3; ++k) faceted.normals.push_back(n);
+  }
+  {
+    std::vector<Representative> reps(pos.size());
+    for (uint32_t i : idx) ++reps[i].corner_count;
+    for (size_t v = 0; v < pos.size(); ++v) reps[v].position = Vec3d(pos[v]);
+    CollapseBuilder builder(reps, true);
+    builder.add(faceted, idx);
+    CollapseStats stats;
+    const IndexedMesh out = builder.finish(&stats);
+    EXPECT_EQ(stats.one_vertex_cells, pos.size());
+    for (size_t i = 0; i < idx.size(); ++i)
+      EXPECT_LT(glm::distance(out.normals[out.indices[i]], faceted.normals[i]), 1e-6f) << "corner " << i;  // unit again
   }
   // A cell of two vertices is a real collapse: its count is met, but by two positions.
   std::vector<Representative> reps(pos.size() - 1);
@@ -547,10 +568,10 @@ TEST(VertexClusteringDifferential, UniformCutEqualsReferenceClustering) {
       for (uint32_t v = 0; v < pos.size(); ++v) vertices_of_cell[all.find(Vec3d(pos[v]))].insert(v);
       size_t one_vertex = 0;
       for (const auto& [cell, vs] : vertices_of_cell)
-        if (vs.size() == 1 && soup->normals.empty()) {
+        if (vs.size() == 1) {  // with input normals, the vertex's own (the same for all its corners here)
           const uint32_t v = *vs.begin();
           for (size_t k = 0; k < idx.size(); ++k)
-            if (idx[k] == v) ref_normal[{pos[v].x, pos[v].y, pos[v].z}] = smooth[k];
+            if (idx[k] == v) ref_normal[{pos[v].x, pos[v].y, pos[v].z}] = soup->normals.empty() ? smooth[k] : soup->normals[k];
           ++one_vertex;
         }
       EXPECT_EQ(c.stats.one_vertex_cells, one_vertex) << "level " << level;
