@@ -69,17 +69,23 @@ rows+=(
   "glass teapot + mirror bottle, 2,200,560|default|$repo/data/glass_scene.json|"
 )
 # Parts of the ABC dataset (../shared/data/abc), in scenes that `raylod
-# scene` frames around each (Z up; 1280 x 960, 4 spp, glossy steel).
+# scene` frames around each (Z up; 1280 x 960, 4 spp, glossy steel; abc3
+# also as a mirror and as glass).
 if [ -d "$shared/data/abc" ]; then
   mkdir -p "$work/abc"
-  for part in abc1 abc3 abc5; do
+  for spec in abc1:glossy abc3:glossy abc5:glossy abc3:mirror abc3:glass; do
+    part=${spec%%:*} material=${spec#*:}
     stl=$shared/data/abc/$part.stl
     [ -f "$stl" ] || continue
-    if "$raylod" scene "$stl" --up z -o "$work/abc/$part.json" > "$work/abc/$part.log" 2>&1; then
+    name=$part; view="whole (raylod scene --up z)"
+    if [ "$material" != glossy ]; then
+      name=$part-$material; view="whole, $material (raylod scene --up z --material $material)"
+    fi
+    if "$raylod" scene "$stl" --up z --material "$material" -o "$work/abc/$name.json" > "$work/abc/$name.log" 2>&1; then
       count=$(python3 -c "import struct,sys; f=open(sys.argv[1],'rb'); f.seek(80); print('{:,}'.format(struct.unpack('<I', f.read(4))[0]))" "$stl")
-      rows+=("ABC $part.stl, $count|whole (raylod scene --up z)|$work/abc/$part.json|")
+      rows+=("ABC $part.stl, $count|$view|$work/abc/$name.json|")
     else
-      echo "note: raylod scene failed for $stl (see $work/abc/$part.log)" >&2
+      echo "note: raylod scene failed for $stl (see $work/abc/$name.log)" >&2
     fi
   done
 fi

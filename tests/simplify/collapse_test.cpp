@@ -43,6 +43,19 @@ Collapsed collapse_level(const TriangleBatch& soup, const test::MemoryNodes& nod
   return out;
 }
 
+// A soup welded by position: the distinct positions, and per corner its index.
+std::pair<std::vector<Vec3>, std::vector<uint32_t>> weld(const TriangleBatch& soup) {
+  std::map<std::array<float, 3>, uint32_t> ids;
+  std::vector<Vec3> pos;
+  std::vector<uint32_t> idx;
+  for (const Vec3& p : soup.positions) {
+    auto [it, fresh] = ids.try_emplace({p.x, p.y, p.z}, uint32_t(pos.size()));
+    if (fresh) pos.push_back(p);
+    idx.push_back(it->second);
+  }
+  return {pos, idx};
+}
+
 TEST(CutLookup, FindsTheCutCellAmongMixedLevels) {
   // Root [0, 8]^3; cut: cell (level 1, x=0,y=0,z=0) and cell (level 3, x=5,y=5,z=5).
   const std::vector<CellKey> keys = {{1, morton_encode(0, 0, 0)}, {3, morton_encode(5, 5, 5)}};
@@ -390,14 +403,7 @@ TEST(CollapseBuilder, CollapsingNothingGivesTheFullRendersCornerNormals) {
     CollapseStats stats;
     const IndexedMesh out = builder.finish(&stats);
     // Reference: weld by position, then the rule per corner.
-    std::map<std::array<float, 3>, uint32_t> ids;
-    std::vector<Vec3> pos;
-    std::vector<uint32_t> idx;
-    for (const Vec3& p : soup->positions) {
-      auto [it, fresh] = ids.try_emplace({p.x, p.y, p.z}, uint32_t(pos.size()));
-      if (fresh) pos.push_back(p);
-      idx.push_back(it->second);
-    }
+    const auto [pos, idx] = weld(*soup);
     const std::vector<Vec3> ref = crease_corner_normals(pos, idx, kDefaultCreaseAngleDeg);
     ASSERT_EQ(out.triangle_count(), soup->size());
     for (size_t i = 0; i < idx.size(); ++i) {
@@ -426,14 +432,7 @@ TEST(CollapseBuilder, CellsOfOneVertexAreOutputAsKept) {
   // triangles shrink towards its poles, so the two weightings differ there.
   TriangleBatch sphere = test::uv_sphere({0.3f, -0.2f, 0.1f}, 1.0f, 12, 20);
   sphere.normals.clear();
-  std::map<std::array<float, 3>, uint32_t> ids;
-  std::vector<Vec3> pos;
-  std::vector<uint32_t> idx;
-  for (const Vec3& p : sphere.positions) {
-    auto [it, fresh] = ids.try_emplace({p.x, p.y, p.z}, uint32_t(pos.size()));
-    if (fresh) pos.push_back(p);
-    idx.push_back(it->second);
-  }
+  const auto [pos, idx] = weld(sphere);
   const std::vector<Vec3> ref = crease_corner_normals(pos, idx, kDefaultCreaseAngleDeg);
   // One representative per vertex, a little off the vertex (as a solve's
   // rounding may leave it), with the cell's corner count; then the same
@@ -554,14 +553,7 @@ TEST(VertexClusteringDifferential, UniformCutEqualsReferenceClustering) {
       std::map<std::array<float, 3>, Vec3> ref_normal;
       for (size_t i = 0; i < ref.positions.size(); ++i)
         ref_normal[{ref.positions[i].x, ref.positions[i].y, ref.positions[i].z}] = ref.normals[i];
-      std::map<std::array<float, 3>, uint32_t> ids;
-      std::vector<Vec3> pos;
-      std::vector<uint32_t> idx;
-      for (const Vec3& p : soup->positions) {
-        auto [it, fresh] = ids.try_emplace({p.x, p.y, p.z}, uint32_t(pos.size()));
-        if (fresh) pos.push_back(p);
-        idx.push_back(it->second);
-      }
+      const auto [pos, idx] = weld(*soup);
       const std::vector<Vec3> smooth = crease_corner_normals(pos, idx, 180.0);
       std::map<uint64_t, std::set<uint32_t>> vertices_of_cell;
       const CutLookup all(root_lo, root_size, c.keys);
