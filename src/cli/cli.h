@@ -64,7 +64,7 @@ const std::vector<Command>& commands();
 // meshes without normals share; `fallback` when it is absent.
 inline const char* kCreaseAngleHelp =
     "shade facets meeting at more than DEG degrees as a crease, for meshes\n"
-    "                              without normals (default: the scene's crease_angle, 30)";
+    "                              without normals (default: the scene's crease_angle, 25)";
 StatusOr<double> crease_angle_from_args(const Args& args, double fallback);
 
 // The cut options `raylod probe` and `raylod run` share (probe.h): the

@@ -34,11 +34,15 @@
 namespace raylod {
 
 // Default crease angle: facets meeting at more than this are shaded as a
-// crease. 30 degrees keeps 45- and 90-degree CAD edges (chamfers, steps,
-// bores) sharp while smoothing tessellations of curved faces, whose
-// neighbouring facets differ by a few degrees (OpenCASCADE's angular
-// deflection defaults to 0.5 rad = 28.6 degrees, its coarsest usual setting).
-inline constexpr double kDefaultCreaseAngleDeg = 30.0;
+// crease. 25 degrees keeps 30-, 45- and 90-degree CAD edges (nut chamfers,
+// chamfers, steps, bores) sharp while smoothing tessellations of curved
+// faces, whose neighbouring facets differ by a few degrees (OpenCASCADE's
+// mesher with an angular deflection a: at most about 2a, 20 degrees for the
+// script's coarse crank arm at a = 10). Not 30: a threshold at a common design
+// angle splits that edge's facets both ways, as tessellation moves their
+// dihedrals a degree either side (OpenCASCADE's Pump_Nut.brep: its 30-degree
+// chamfer measures 29 to 30 degrees, rendered as radial streaks).
+inline constexpr double kDefaultCreaseAngleDeg = 25.0;
 
 // Two normals within this angle fall into one cluster.
 inline constexpr double kClusterMergeAngleRad = 0.5 * 3.14159265358979323846 / 180.0;

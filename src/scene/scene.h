@@ -25,6 +25,7 @@
 
 #include "core/math.h"
 #include "core/status.h"
+#include "geometry/crease_normals.h"
 
 namespace raylod {
 
@@ -97,7 +98,7 @@ struct Scene {
   uint64_t seed = 1;
   // Shading normals for meshes without their own (geometry/crease_normals.h):
   // facets meeting at more than this many degrees are shaded as a crease.
-  double crease_angle_deg = 30.0;
+  double crease_angle_deg = kDefaultCreaseAngleDeg;
   // The renderer's frame (render/renderer.h, in_render_frame): it subtracts
   // this point, in double, from every world position before Embree sees
   // floats, so a scene far from zero keeps its detail. (0, 0, 0) unless the

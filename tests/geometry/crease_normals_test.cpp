@@ -39,6 +39,30 @@ TEST(CreaseNormals, FlatAtACreaseSmoothBelowIt) {
   EXPECT_NEAR(glm::distance(Vec3d(n[5]), n1), 0.0, 1e-6);
 }
 
+// The default angle sits between the steps of curved faces' tessellations
+// and the design angles of CAD edges: a 30-degree chamfer, whose facets a
+// mesher leaves a degree either side of 30 (OpenCASCADE's Pump_Nut.brep: 29
+// to 30 degrees), is a crease on both sides of 30; a 20-degree step (the
+// script's coarse crank arm, tessellated at a 10-degree angular deflection)
+// is smoothed.
+TEST(CreaseNormals, TheDefaultKeepsThirtyDegreeChamfersAndSmoothsTwentyDegreeSteps) {
+  std::vector<Vec3> pos;
+  std::vector<uint32_t> idx;
+  for (const double deg : {29.0, 29.5, 30.0, 30.5, 31.0}) {
+    roof(deg, pos, idx);
+    const Vec3d n0 = face_normal(Vec3d(pos[0]), Vec3d(pos[1]), Vec3d(pos[2]));
+    const Vec3d n1 = face_normal(Vec3d(pos[1]), Vec3d(pos[0]), Vec3d(pos[3]));
+    const std::vector<Vec3> n = crease_corner_normals(pos, idx, kDefaultCreaseAngleDeg);
+    for (int k = 0; k < 3; ++k) EXPECT_NEAR(glm::distance(Vec3d(n[k]), n0), 0.0, 1e-6) << deg;
+    for (int k = 3; k < 6; ++k) EXPECT_NEAR(glm::distance(Vec3d(n[k]), n1), 0.0, 1e-6) << deg;
+  }
+  roof(20, pos, idx);
+  const Vec3d mean = glm::normalize(face_normal(Vec3d(pos[0]), Vec3d(pos[1]), Vec3d(pos[2])) +
+                                    face_normal(Vec3d(pos[1]), Vec3d(pos[0]), Vec3d(pos[3])));
+  const std::vector<Vec3> n = crease_corner_normals(pos, idx, kDefaultCreaseAngleDeg);
+  for (int k : {0, 1, 3, 4}) EXPECT_NEAR(glm::distance(Vec3d(n[k]), mean), 0.0, 1e-6) << k;
+}
+
 TEST(CreaseNormals, AngleWeightingIgnoresHowAFaceIsCut) {
   // A vertex of a flat square fan cut into one big and many thin triangles on
   // one side, one triangle on the other side of a 20-degree fold: with angle
