@@ -118,6 +118,17 @@ if command -v occt-draw > /dev/null && [ -f "$occ/Pump_Nut.brep" ]; then
     if "$raylod" scene "$stl" --up z -o "$work/occ/$name.json" > "$work/occ/$name.log" 2>&1; then
       count=$(python3 -c "import struct,sys; f=open(sys.argv[1],'rb'); f.seek(80); print('{:,}'.format(struct.unpack('<I', f.read(4))[0]))" "$stl")
       rows+=("OpenCASCADE ${p%%:*}.brep, $count|whole (raylod scene --up z)|$work/occ/$name.json|")
+      # A close-up: the eye at 40% of its distance, the view's centre moved
+      # a tenth of the way towards it.
+      python3 - "$work/occ/$name.json" "$work/occ/$name-close.json" <<'PY'
+import json, sys
+s = json.load(open(sys.argv[1]))
+e, l = s["camera"]["eye"], s["camera"]["look_at"]
+s["camera"]["eye"] = [l[i] + 0.4 * (e[i] - l[i]) for i in range(3)]
+s["camera"]["look_at"] = [l[i] + 0.1 * (e[i] - l[i]) for i in range(3)]
+json.dump(s, open(sys.argv[2], "w"), indent=1)
+PY
+      rows+=("OpenCASCADE ${p%%:*}.brep, $count|close-up (eye at 40%)|$work/occ/$name-close.json|")
     else
       echo "note: raylod scene failed for $stl (see $work/occ/$name.log)" >&2
     fi
