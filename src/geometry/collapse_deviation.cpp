@@ -31,6 +31,7 @@ CollapseDeviation collapse_deviation(const NodeRecord& node, const Bbox& cell, N
   // Q(v) is a difference of terms of size W |v|^2 (the store's frame is the
   // mesh centre, so |v| is at most the model size): rounding leaves an error
   // of about 1e-8 of the model size in `position`, clamped at zero.
+  d.representative = s.position;
   const double residual = std::max(0.0, quadric_error(q, s.position));
   d.position = std::sqrt(12.0 * residual / weight);
   // Two estimates of kappa * position (collapse_deviation.h); each is too
@@ -52,6 +53,16 @@ CollapseDeviation collapse_deviation(const NodeRecord& node, const Bbox& cell, N
     if (weakest > 0) d.position = std::max(d.position, kEdgeSafety * std::sqrt(12.0 * residual / weakest));
   }
   return d;
+}
+
+double descendant_deviation(std::span<const NodeRecord> descendants, const Vec3d& representative) {
+  double worst = 0;
+  for (const NodeRecord& n : descendants) {
+    const double w = n.quadric.a00 + n.quadric.a11 + n.quadric.a22;
+    if (!(w > 0) || !std::isfinite(w)) continue;
+    worst = std::max(worst, std::sqrt(std::max(0.0, quadric_error(n.quadric, representative)) / w));
+  }
+  return worst;
 }
 
 }  // namespace raylod

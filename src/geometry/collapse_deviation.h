@@ -67,6 +67,8 @@
 // counts tried). Twice that is taken into `position` for such cells.
 #pragma once
 
+#include <span>
+
 #include "core/math.h"
 #include "geometry/qem_solve.h"
 #include "streaming/octree_store.h"
@@ -81,6 +83,10 @@ struct CollapseDeviation {
   // representative on exactly (no deviation), while the cell's normals spread
   // (from_spread over 0.05 rad, ten times the curvature estimate).
   bool crease = false;
+  Vec3d representative{0};  // where the collapse puts the cell's vertex (the cell's frame)
+  // Set once descendant_deviation (below) is folded into `position` (the
+  // cut selection does that only for cells that pass on their own quadric).
+  bool subtree_checked = false;
 };
 
 // What NodeRecord::normal_sum sums: the faces' own normals (a store built
@@ -94,5 +100,20 @@ inline NodeNormals node_normals_of(const StoreHeader& header) {
 // nodes); side = the cell's edge length.
 CollapseDeviation collapse_deviation(const NodeRecord& node, const Bbox& cell, NodeNormals normals,
                                      const QemSolveConfig& config = {});
+
+// The cell's quadric weighs its triangles by area, so where a few large
+// triangles cross the cell (the fan of slivers that tessellates a flat CAD
+// face) they outweigh many small ones that the collapse moves far (a small
+// round beside that face, which the representative, held to the face's
+// plane, flattens): the RMS distance hides them. The cell's descendants
+// weigh only what lies in them. This returns the largest RMS distance from
+// `representative` (the cell's frame) of the planes of any one of
+// `descendants` (nodes of the cell's subtree, same frame): a part of the
+// cell whose own triangles all lie about that far from the representative.
+// On a curved patch that is at most the patch's chord error (a descendant
+// at the patch's edge, its planes about a sagitta away), so
+// collapse_deviation's estimate there stands; on a flat face, a crease or a
+// corner every descendant's planes pass through the representative (0).
+double descendant_deviation(std::span<const NodeRecord> descendants, const Vec3d& representative);
 
 }  // namespace raylod

@@ -32,6 +32,9 @@ namespace {
 constexpr double kInf = std::numeric_limits<double>::infinity();
 constexpr int kNoObject = -1;
 constexpr int kGround = -2;
+// How many levels below a cell the deviation test looks (descendant_deviation):
+// one level below holds 8 nodes at most, four 4,096.
+constexpr int kDescendantLevels = 4;
 
 // Largest singular value of a 3x3 matrix (power iteration on L^T L).
 double max_singular_value(const Mat3d& l) {
@@ -1127,6 +1130,23 @@ StatusOr<ProbeResult> CutSelection::select(const ProbeConfig& config) {
             dev = collapse_deviation(nodes[i], Bbox{cell.lo - origin, cell.hi - origin}, node_normals, qem);
           }
           if (dev.position > config.tolerance_px * f) { verdict[i] = 2; continue; }
+          // What the cell's area weighting hides, from its subtree
+          // (collapse_deviation.h, descendant_deviation): the nodes up to
+          // kDescendantLevels below it. Only for a cell that passes on its
+          // own quadric (the rest are kept anyway), once.
+          if (!dev.subtree_checked) {
+            dev.subtree_checked = true;
+            for (int M = L + 1; M <= std::min(Q, L + kDescendantLevels); ++M) {
+              const std::vector<uint64_t>& below = codes_at[size_t(M)];
+              const int shift = 3 * (M - L);
+              const auto first = std::lower_bound(below.begin(), below.end(), codes[i] << shift);
+              const auto last = std::lower_bound(first, below.end(), (codes[i] + 1) << shift);
+              const std::span<const NodeRecord> sub =
+                  st.level(M).subspan(size_t(first - below.begin()), size_t(last - first));
+              dev.position = std::max(dev.position, descendant_deviation(sub, dev.representative));
+            }
+            if (dev.position > config.tolerance_px * f) { verdict[i] = 2; continue; }
+          }
           // What a quadric cannot bound (rims, folds, creases on mirrors
           // and glass, below) collapses only while the whole cell is within
           // the tolerance.

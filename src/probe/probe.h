@@ -50,7 +50,11 @@
 //   - deviation (the default): diagonal(cell) < K * need(cell) AND the
 //     surface deviation the collapse causes (geometry/collapse_deviation.h:
 //     chord error from the cell's quadric, 0 on flat regions, creases and
-//     corners) is at most tolerance_px * need(cell), i.e. the collapsed
+//     corners; and the largest RMS distance from the representative of the
+//     planes of any node up to kDescendantLevels = 4 levels below the cell,
+//     descendant_deviation, which sees small features that the area
+//     weighting of the cell's own quadric lets large triangles outweigh) is
+//     at most tolerance_px * need(cell), i.e. the collapsed
 //     surface stays within tolerance_px pixels of the input wherever a ray
 //     sees it, silhouettes included; AND, on mirror and glass objects, the
 //     normal_deviation is at most angle_tolerance_px times the tilt the

@@ -2,6 +2,7 @@
 // cases (plane, crease, corner) and the analytic chord error of spherical caps.
 #include <gtest/gtest.h>
 
+#include <array>
 #include <cmath>
 #include <vector>
 
@@ -199,6 +200,109 @@ TEST(CollapseDeviation, ACurledKnifeEdgeBoundsHowFarItsEdgeMoves) {
     EXPECT_GE(d.position, edge_moved) << "radius " << radius << ": representative at x " << s.position.x;
     EXPECT_LE(d.position, 4 * edge_moved) << "radius " << radius;
     EXPECT_GT(edge_moved, 0.05) << "radius " << radius << ": the case should move the edge";
+  }
+}
+
+}  // namespace
+}  // namespace raylod
+
+namespace raylod {
+namespace {
+
+// A flat face tessellated as a fan of large triangles, beside a small round
+// (a quarter cylinder of radius r along x) finely tessellated: in one cell,
+// the fan's area outweighs the round, so the representative sits on the
+// face's plane and the cell's RMS distance hides how far the round moves.
+// A descendant that holds only the round sees it.
+TEST(CollapseDeviation, ADescendantShowsARoundTheCellsLargeTrianglesOutweigh) {
+  const double r = 0.3;
+  NodeRecord fan, round;
+  // The face z = 1 for y <= 0.7: a fan of long slivers whose far corners lie
+  // well outside the unit cell, so that, as in a store, only the two near
+  // corners of each add its plane (area / 3 each) to this cell.
+  const int slivers = 12;
+  for (int k = 0; k < slivers; ++k) {
+    const double x0 = double(k) / slivers, x1 = double(k + 1) / slivers;
+    NodeRecord whole;
+    add_triangle(whole, {x0, 0.7, 1}, {x1, 0.7, 1}, {0.5 * (x0 + x1), -200, 1});
+    const double two_thirds = 2.0 / 3.0;
+    Quadric q = whole.quadric;
+    for (double* c : {&q.a00, &q.a01, &q.a02, &q.a11, &q.a12, &q.a22, &q.b0, &q.b1, &q.b2, &q.c}) *c *= two_thirds;
+    quadric_add(fan.quadric, q);
+    fan.normal_sum += two_thirds * whole.normal_sum;
+    fan.vertex_sum += Vec3d(x0, 0.7, 1) + Vec3d(x1, 0.7, 1);
+    fan.corner_count += 2;
+  }
+  // The round from the face (angle 0, z = 1) to the side y = 1 (angle 90).
+  const int rows = 24;
+  auto at = [&](double x, int i) {
+    const double a = 0.5 * M_PI * i / rows;
+    return Vec3d(x, 0.7 + r * std::sin(a), 0.7 + r * std::cos(a));
+  };
+  std::vector<std::array<Vec3d, 3>> round_triangles;
+  for (int j = 0; j < 6; ++j)
+    for (int i = 0; i < rows; ++i) {
+      const double x0 = j / 6.0, x1 = (j + 1) / 6.0;
+      round_triangles.push_back({at(x0, i), at(x0, i + 1), at(x1, i + 1)});
+      round_triangles.push_back({at(x0, i), at(x1, i + 1), at(x1, i)});
+    }
+  for (const auto& t : round_triangles) add_triangle(round, t[0], t[1], t[2]);
+  NodeRecord cell = fan;
+  quadric_add(cell.quadric, round.quadric);
+  cell.normal_sum += round.normal_sum;
+  cell.vertex_sum += round.vertex_sum;
+  cell.corner_count += round.corner_count;
+
+  const CollapseDeviation d = collapse_deviation(cell, Bbox{Vec3d(0), Vec3d(1)}, kFaces);
+  // Brute force: the largest distance of a round facet's plane from the
+  // representative.
+  double worst = 0;
+  for (const auto& t : round_triangles) {
+    const Vec3d n = glm::normalize(glm::cross(t[1] - t[0], t[2] - t[0]));
+    worst = std::max(worst, std::abs(glm::dot(n, d.representative - t[0])));
+  }
+  ASSERT_GT(worst, 0.05);
+  EXPECT_LT(d.position, 0.5 * worst) << "the cell's own quadric no longer hides the round";
+  const NodeRecord descendants[] = {fan, round};
+  const double seen = descendant_deviation(descendants, d.representative);
+  // An RMS over the round's planes: below the largest, and well above what
+  // the cell's own quadric says.
+  EXPECT_LE(seen, worst + 1e-12);
+  EXPECT_GE(seen, 0.4 * worst);
+  EXPECT_GE(seen, 2.0 * d.position) << "position " << d.position << ", seen " << seen << ", worst " << worst;
+}
+
+// Where the cell's own estimate holds, its descendants add nothing: every
+// part of a flat face, a crease or a corner passes through the
+// representative, and a spherical cap's outer ring lies no farther than its
+// chord error.
+TEST(CollapseDeviation, DescendantsOfPlanesCreasesAndCapsAddNothing) {
+  const Bbox cell{Vec3d(-1), Vec3d(1)};
+  for (const NodeRecord& n : {flat_node(), crease_node(), corner_node()}) {
+    const CollapseDeviation d = collapse_deviation(n, cell, kFaces);
+    const NodeRecord one[] = {n};
+    EXPECT_LT(descendant_deviation(one, d.representative), 1e-9);
+  }
+  for (double alpha : {0.05, 0.2}) {
+    const double r = 1.0, h = r * std::sin(alpha) * 1.01;
+    const NodeRecord whole = cap(r, alpha);
+    const CollapseDeviation d =
+        collapse_deviation(whole, Bbox{Vec3d(-h, -h, r * std::cos(alpha) - h), Vec3d(h, h, r + h)}, kFaces);
+    // The outer half of the rings, and the inner half, as two descendants.
+    NodeRecord outer, inner;
+    const int rings = 80, slices = 160;
+    auto at = [&](int i, int j) {
+      const double th = alpha * double(i) / rings, ph = 2 * M_PI * double(j) / slices;
+      return Vec3d(r * std::sin(th) * std::cos(ph), r * std::sin(th) * std::sin(ph), r * std::cos(th));
+    };
+    for (int i = 0; i < rings; ++i)
+      for (int j = 0; j < slices; ++j) {
+        NodeRecord& n = i < rings / 2 ? inner : outer;
+        add_triangle(n, at(i, j), at(i + 1, j), at(i + 1, j + 1));
+        if (i > 0) add_triangle(n, at(i, j), at(i + 1, j + 1), at(i, j + 1));
+      }
+    const NodeRecord halves[] = {inner, outer};
+    EXPECT_LE(descendant_deviation(halves, d.representative), d.position) << "alpha " << alpha;
   }
 }
 
