@@ -84,9 +84,6 @@ struct CollapseDeviation {
   // (from_spread over 0.05 rad, ten times the curvature estimate).
   bool crease = false;
   Vec3d representative{0};  // where the collapse puts the cell's vertex (the cell's frame)
-  // Set once descendant_deviation (below) is folded into `position` (the
-  // cut selection does that only for cells that pass on their own quadric).
-  bool subtree_checked = false;
 };
 
 // What NodeRecord::normal_sum sums: the faces' own normals (a store built

@@ -1128,14 +1128,9 @@ StatusOr<ProbeResult> CutSelection::select(const ProbeConfig& config) {
           if (dev.position < 0) {  // not computed by an earlier selection
             const Bbox cell = st.cell_bounds(CellKey{uint32_t(L), codes[i]});
             dev = collapse_deviation(nodes[i], Bbox{cell.lo - origin, cell.hi - origin}, node_normals, qem);
-          }
-          if (dev.position > config.tolerance_px * f) { verdict[i] = 2; continue; }
-          // What the cell's area weighting hides, from its subtree
-          // (collapse_deviation.h, descendant_deviation): the nodes up to
-          // kDescendantLevels below it. Only for a cell that passes on its
-          // own quadric (the rest are kept anyway), once.
-          if (!dev.subtree_checked) {
-            dev.subtree_checked = true;
+            // What the cell's area weighting hides, from its subtree
+            // (collapse_deviation.h, descendant_deviation): the nodes up to
+            // kDescendantLevels below it.
             for (int M = L + 1; M <= std::min(Q, L + kDescendantLevels); ++M) {
               const std::vector<uint64_t>& below = codes_at[size_t(M)];
               const int shift = 3 * (M - L);
@@ -1145,8 +1140,8 @@ StatusOr<ProbeResult> CutSelection::select(const ProbeConfig& config) {
                   st.level(M).subspan(size_t(first - below.begin()), size_t(last - first));
               dev.position = std::max(dev.position, descendant_deviation(sub, dev.representative));
             }
-            if (dev.position > config.tolerance_px * f) { verdict[i] = 2; continue; }
           }
+          if (dev.position > config.tolerance_px * f) { verdict[i] = 2; continue; }
           // What a quadric cannot bound (rims, folds, creases on mirrors
           // and glass, below) collapses only while the whole cell is within
           // the tolerance.
