@@ -69,6 +69,11 @@ rows+=(
   "glass bottle, 1,054,066|paper's|$repo/data/paper_bottle_scene.json|"
   "glass teapot + mirror bottle, 2,200,560|default|$repo/data/glass_scene.json|"
 )
+# The triangle count a binary STL's header declares, with thousands separators.
+stl_triangles() {
+  python3 -c "import struct,sys; f=open(sys.argv[1],'rb'); f.seek(80); print('{:,}'.format(struct.unpack('<I', f.read(4))[0]))" "$1"
+}
+
 # Parts of the ABC dataset (../shared/data/abc), in scenes that `raylod
 # scene` frames around each (Z up; 1280 x 960, 4 spp, glossy steel; abc3
 # also as a mirror and as glass).
@@ -83,7 +88,7 @@ if [ -d "$shared/data/abc" ]; then
       name=$part-$material; view="whole, $material (raylod scene --up z --material $material)"
     fi
     if "$raylod" scene "$stl" --up z --material "$material" -o "$work/abc/$name.json" > "$work/abc/$name.log" 2>&1; then
-      count=$(python3 -c "import struct,sys; f=open(sys.argv[1],'rb'); f.seek(80); print('{:,}'.format(struct.unpack('<I', f.read(4))[0]))" "$stl")
+      count=$(stl_triangles "$stl")
       rows+=("ABC $part.stl, $count|$view|$work/abc/$name.json|")
     else
       echo "note: raylod scene failed for $stl (see $work/abc/$name.log)" >&2
@@ -99,7 +104,9 @@ occ=/usr/share/opencascade/data/occ
 if command -v occt-draw > /dev/null && [ -f "$occ/Pump_Nut.brep" ]; then
   mkdir -p "$work/occ"
   parts="Pump_Nut:pump_nut Motor-c:motor bottle:occ_bottle Axis_of_bearing:axis_of_bearing hammer:hammer"
-  if [ ! -f "$work/occ/hammer.stl" ]; then
+  missing=0
+  for p in $parts; do [ -f "$work/occ/${p#*:}.stl" ] || missing=1; done
+  if [ $missing = 1 ]; then
     {
       echo "pload MODELING DATAEXCHANGE"
       for p in $parts; do
@@ -116,7 +123,7 @@ if command -v occt-draw > /dev/null && [ -f "$occ/Pump_Nut.brep" ]; then
     name=${p#*:} stl=$work/occ/${p#*:}.stl
     [ -f "$stl" ] || continue
     if "$raylod" scene "$stl" --up z -o "$work/occ/$name.json" > "$work/occ/$name.log" 2>&1; then
-      count=$(python3 -c "import struct,sys; f=open(sys.argv[1],'rb'); f.seek(80); print('{:,}'.format(struct.unpack('<I', f.read(4))[0]))" "$stl")
+      count=$(stl_triangles "$stl")
       rows+=("OpenCASCADE ${p%%:*}.brep, $count|whole (raylod scene --up z)|$work/occ/$name.json|")
       # A close-up: the eye at 40% of its distance, the view's centre moved
       # a tenth of the way towards it.
