@@ -67,6 +67,9 @@ Quadric quadric_from_plane(const Vec3d& n, const Vec3d& x, double weight = 1.0);
 void quadric_add(Quadric& q, const Quadric& r);
 // Sum of squared plane distances of v: v^T A v - 2 b.v + c.
 double quadric_error(const Quadric& q, const Vec3d& v);
+// Total weight of the planes summed in q: trace(A), since each unit normal
+// adds w n n^T (the store weighs by area, so this is the cell's area).
+inline double quadric_weight(const Quadric& q) { return q.a00 + q.a11 + q.a22; }
 
 struct CellKey {
   uint32_t level = 0;

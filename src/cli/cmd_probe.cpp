@@ -146,10 +146,11 @@ int cmd_probe(int argc, char** argv) {
       // Why finest cells stay whole: their input triangles are kept as they are.
       if (count("finest_cells_kept") > 0)
         say("probe: %llu finest cells kept whole (for K %llu, deviation %llu, normals %llu, open boundary %llu, "
-            "fold %llu, crease %llu)\n",
+            "fold %llu, crease %llu, far-end normal %llu)\n",
             count("finest_cells_kept"), count("finest_cells_kept_for_k"), count("finest_cells_kept_for_deviation"),
             count("finest_cells_kept_for_normals"), count("finest_cells_kept_for_boundary"),
-            count("finest_cells_kept_for_fold"), count("finest_cells_kept_for_crease"));
+            count("finest_cells_kept_for_fold"), count("finest_cells_kept_for_crease"),
+            count("finest_cells_kept_for_far_normal"));
     }
     return {};
   };

@@ -24,7 +24,7 @@ CollapseDeviation collapse_deviation(const NodeRecord& node, const Bbox& cell, N
                                      const QemSolveConfig& config) {
   CollapseDeviation d;
   const Quadric& q = node.quadric;
-  const double weight = q.a00 + q.a11 + q.a22;
+  const double weight = quadric_weight(q);
   if (!(weight > 0) || !std::isfinite(weight) || node.corner_count == 0) return d;
   const Vec3d mean = node.vertex_sum / double(node.corner_count);
   const QemSolution s = solve_representative_vertex(q, mean, cell, config);
@@ -42,6 +42,7 @@ CollapseDeviation collapse_deviation(const NodeRecord& node, const Bbox& cell, N
   const double from_spread = 2.0 * (1.0 - resultant);
   d.normal = std::min({M_PI, from_side, from_spread});
   d.crease = from_spread > 0.05 && from_side < 0.1 * from_spread;
+  d.far_normal = std::min({M_PI, 2.0 * std::sqrt(1.0 - resultant), side > 0 ? 8.0 * d.position / side : (d.position > 0 ? M_PI : 0.0)});
   const SymmetricEigen3 e = symmetric_eigen(q);
   const double margin = normals == NodeNormals::Faces ? kFaceFoldMargin : kInputNormalFoldMargin;
   const bool opposite = std::abs(glm::dot(node.normal_sum, e.vectors[0])) < margin * e.values[0];
@@ -58,7 +59,7 @@ CollapseDeviation collapse_deviation(const NodeRecord& node, const Bbox& cell, N
 double descendant_deviation(std::span<const NodeRecord> descendants, const Vec3d& representative) {
   double worst = 0;
   for (const NodeRecord& n : descendants) {
-    const double w = n.quadric.a00 + n.quadric.a11 + n.quadric.a22;
+    const double w = quadric_weight(n.quadric);
     if (!(w > 0) || !std::isfinite(w)) continue;
     worst = std::max(worst, std::sqrt(std::max(0.0, quadric_error(n.quadric, representative)) / w));
   }

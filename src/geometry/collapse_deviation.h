@@ -83,6 +83,16 @@ struct CollapseDeviation {
   // representative on exactly (no deviation), while the cell's normals spread
   // (from_spread over 0.05 rad, ten times the curvature estimate).
   bool crease = false;
+  // The normal error at a triangle's far end: a triangle that crosses the
+  // cell and runs on far beyond it (a long strip of a cylinder's
+  // tessellation) interpolates the representative's normal, the mean of the
+  // cell's, over its whole length, where near the cell the interpolated
+  // normal follows the surface (`normal`). The mean is off the normal the
+  // corner had by up to the spread of the cell's normals: from the mean
+  // resultant length r, a cap's half-angle 2 sqrt(1 - r); across a crease,
+  // whose sides keep their own normals, the curvature across the cell,
+  // 8 position / side (kappa s on a sphere); the smaller of the two.
+  double far_normal = 0;  // radians
   Vec3d representative{0};  // where the collapse puts the cell's vertex (the cell's frame)
 };
 

@@ -60,7 +60,7 @@ double mean_input_edge(const OctreeStore& store) {
   const uint64_t triangles = store.header().triangle_count;
   if (root.empty() || triangles == 0) return 0;
   const Quadric& q = root[0].quadric;
-  const double area = q.a00 + q.a11 + q.a22;
+  const double area = quadric_weight(q);
   if (!(area > 0) || !std::isfinite(area)) return 0;
   // Edge of the equilateral triangle of the mean area: A = (sqrt(3) / 4) l^2.
   return std::sqrt(4.0 * (area / double(triangles)) / std::sqrt(3.0));

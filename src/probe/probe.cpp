@@ -35,6 +35,11 @@ constexpr int kGround = -2;
 // How many levels below a cell the deviation test looks (descendant_deviation):
 // one level below holds 8 nodes at most, four 4,096.
 constexpr int kDescendantLevels = 4;
+// The far-end normal bound (CutSelection::select): triangles seen more than
+// kFarReach cell diagonals from a corner in the cell, on cells whose
+// far_normal exceeds kFarNormalFloor radians.
+constexpr double kFarReach = 2.0;
+constexpr double kFarNormalFloor = 1e-3;
 
 // Largest singular value of a 3x3 matrix (power iteration on L^T L).
 double max_singular_value(const Mat3d& l) {
@@ -222,6 +227,8 @@ class ProbeTracer {
         HitRecord h;
         h.object = uint32_t(wh.object);
         h.corners = wh.tri.p;
+        h.b1 = wh.tri.b1;
+        h.b2 = wh.tri.b2;
         if (r.has_differentials) {
           // The footprint in store units: the differentials mapped back by the inverse transform.
           h.footprint = std::max(glm::length(x.linv * r.dp_dx), glm::length(x.linv * r.dp_dy));
@@ -799,7 +806,27 @@ struct StoreNeeds {
   };
   std::vector<Hit> hits;
   float min_footprint = 0;
+  // Finest cells holding a corner of a hit triangle, by code, with the
+  // largest distance from such a corner to its hit (store units): a cell
+  // whose corner is that far from where a ray saw its triangle bounds the
+  // normal at the triangle's far end (CollapseDeviation::far_normal).
+  struct Reach {
+    uint64_t code = 0;
+    float distance = 0;
+  };
+  std::vector<Reach> reach;
+  // Whether a hit lies more than `distance` from a corner in `cell` (level L).
+  bool reaches_beyond(int L, int Q, uint64_t cell, double distance) const;
 };
+
+bool StoreNeeds::reaches_beyond(int L, int Q, uint64_t cell, double distance) const {
+  const int shift = 3 * (Q - L);
+  auto it = std::lower_bound(reach.begin(), reach.end(), cell << shift,
+                             [](const Reach& r, uint64_t code) { return r.code < code; });
+  for (; it != reach.end() && (it->code >> shift) == cell; ++it)
+    if (it->distance > distance) return true;
+  return false;
+}
 
 }  // namespace
 
@@ -869,8 +896,10 @@ StatusOr<CutSelection> CutSelection::make(std::span<const ProbeView> views, cons
         StoreNeeds::Hit& hit = n.hits.emplace_back();
         hit.footprint = float(f);
         std::array<uint64_t, 3>& codes = hit.codes;
+        const Vec3d at = (1.0 - h.b1 - h.b2) * h.corners[0] + h.b1 * h.corners[1] + h.b2 * h.corners[2];
         for (int k = 0; k < 3; ++k) {
           codes[k] = st.cell_of(h.corners[k], Q).code;
+          n.reach.push_back({codes[k], float(glm::length(at - h.corners[k]))});
           if ((k > 0 && codes[k] == codes[0]) || (k > 1 && codes[k] == codes[1])) continue;
           Measured& e = measured[v][codes[k]];
           e.f = std::min(e.f, f);
@@ -879,6 +908,13 @@ StatusOr<CutSelection> CutSelection::make(std::span<const ProbeView> views, cons
         }
       }
     n.min_footprint = std::isfinite(min_fp) ? float(min_fp) : 0.0f;
+    // One entry per cell, the largest reach.
+    std::sort(n.reach.begin(), n.reach.end(), [](const StoreNeeds::Reach& a, const StoreNeeds::Reach& b) {
+      return a.code < b.code || (a.code == b.code && a.distance > b.distance);
+    });
+    n.reach.erase(std::unique(n.reach.begin(), n.reach.end(),
+                              [](const StoreNeeds::Reach& a, const StoreNeeds::Reach& b) { return a.code == b.code; }),
+                  n.reach.end());
 
     // The policy's estimate for a cell no ray of view `view` reached (probe.h).
     std::vector<const ObjectXf*> on_store;
@@ -1099,11 +1135,12 @@ StatusOr<ProbeResult> CutSelection::select(const ProbeConfig& config) {
     const QemSolveConfig qem;
     const Vec3d origin = st.header().origin;
     const NodeNormals node_normals = node_normals_of(st.header());
-    uint64_t rejected_deviation = 0, rejected_normal = 0, rejected_boundary = 0, rejected_fold = 0, rejected_crease = 0;
+    uint64_t rejected_deviation = 0, rejected_normal = 0, rejected_boundary = 0, rejected_fold = 0, rejected_crease = 0,
+             rejected_far = 0;
     // The finest cells left uncollapsed (their input triangles are kept as
     // they are), by the test that kept them: K, deviation, normal, boundary,
     // fold.
-    std::array<uint64_t, 7> finest_kept{};
+    std::array<uint64_t, 8> finest_kept{};
     std::vector<std::vector<char>> collapsed(size_t(Q) + 1);
     const std::vector<std::vector<uint64_t>>& codes_at = n.kept->codes;
     for (int L = 0; L <= Q; ++L) {
@@ -1116,7 +1153,8 @@ StatusOr<ProbeResult> CutSelection::select(const ProbeConfig& config) {
                                              : std::vector<char>(nodes.size(), 0);
       // 0 = keep, 1 = collapse, 2 = kept for its deviation, 3 = for its
       // normal, 4 = for an open boundary in it, 5 = for a fold in it, 6 =
-      // for a crease in it (mirrors and glass).
+      // for a crease in it (mirrors and glass), 7 = for the far end of a
+      // triangle seen beyond it.
       std::vector<char> verdict(nodes.size(), 0);
       tbb::parallel_for(tbb::blocked_range<size_t>(0, nodes.size(), 256), [&](const tbb::blocked_range<size_t>& r) {
         for (size_t i = r.begin(); i != r.end(); ++i) {
@@ -1159,6 +1197,16 @@ StatusOr<ProbeResult> CutSelection::select(const ProbeConfig& config) {
             verdict[i] = 5;
             continue;
           }
+          // Nor the normal at the far end of a triangle a ray saw beyond
+          // the cell (CollapseDeviation::far_normal): the long strips of a
+          // CAD tessellation end in cells off the view, whose mean normal
+          // then shades the whole visible strip. The rim's rule, on curved
+          // cells (a flat one's normal is exact).
+          if (!whole_cell_within && dev.far_normal > kFarNormalFloor &&
+              n.reaches_beyond(L, Q, codes[i], kFarReach * diag)) {
+            verdict[i] = 7;
+            continue;
+          }
           if (bound_normals && dev.normal > config.angle_tolerance_px * n.tilt[size_t(L)][i]) { verdict[i] = 3; continue; }
           // On mirrors and glass, a crease or corner the cell holds exactly
           // (its representative on the edge, no deviation) is still cut
@@ -1179,6 +1227,7 @@ StatusOr<ProbeResult> CutSelection::select(const ProbeConfig& config) {
         rejected_boundary += verdict[i] == 4;
         rejected_fold += verdict[i] == 5;
         rejected_crease += verdict[i] == 6;
+        rejected_far += verdict[i] == 7;
         if (verdict[i] == 1) collapsed[size_t(L)][i] = 1;
       }
     }
@@ -1193,14 +1242,17 @@ StatusOr<ProbeResult> CutSelection::select(const ProbeConfig& config) {
     cut.counters["cells_kept_for_boundary"] = rejected_boundary;
     cut.counters["cells_kept_for_fold"] = rejected_fold;
     cut.counters["cells_kept_for_crease"] = rejected_crease;
+    cut.counters["cells_kept_for_far_normal"] = rejected_far;
     cut.counters["finest_cells_kept"] =
-        finest_kept[0] + finest_kept[2] + finest_kept[3] + finest_kept[4] + finest_kept[5] + finest_kept[6];
+        finest_kept[0] + finest_kept[2] + finest_kept[3] + finest_kept[4] + finest_kept[5] + finest_kept[6] +
+        finest_kept[7];
     cut.counters["finest_cells_kept_for_k"] = finest_kept[0];
     cut.counters["finest_cells_kept_for_deviation"] = finest_kept[2];
     cut.counters["finest_cells_kept_for_normals"] = finest_kept[3];
     cut.counters["finest_cells_kept_for_boundary"] = finest_kept[4];
     cut.counters["finest_cells_kept_for_fold"] = finest_kept[5];
     cut.counters["finest_cells_kept_for_crease"] = finest_kept[6];
+    cut.counters["finest_cells_kept_for_far_normal"] = finest_kept[7];
     std::sort(cut.cells.begin(), cut.cells.end(), [](const CollapsedCell& a, const CollapsedCell& b) { return a.key < b.key; });
     // Footprints and hit counts of the marked cells (each hit counted once per cell).
     std::unordered_map<uint64_t, size_t> cell_index;  // pack(level, code) -> index

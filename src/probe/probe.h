@@ -72,8 +72,15 @@
 //     representative may pull anywhere in the cell, diagonal(cell) is at
 //     most tolerance_px * need(cell); the same for a cell holding a fold
 //     (collapse_deviation.h: a knife edge or a plate thinner than the cell,
-//     opposite-facing sheets its quadric takes for one plane). K then only
-//     caps how large a cell may get relative to the footprint.
+//     opposite-facing sheets its quadric takes for one plane); AND, for a
+//     cell holding a corner of a triangle some ray hit more than
+//     kFarReach = 2 cell diagonals from that corner, the same, unless the
+//     cell is flat (collapse_deviation.h, far_normal, at most 1e-3 rad):
+//     the triangle carries the representative's normal, the mean of the
+//     cell's, along its whole length, so a curved cell off the view (the
+//     fillet at the end of a cylinder's long strips) shades every visible
+//     strip that ends in it. K then only caps how large a cell may get
+//     relative to the footprint.
 //
 // Cells that no ray path can reach -- outside the view frustum in a scene
 // with no mirror or glass (so no secondary ray can turn towards them) -- only
@@ -259,6 +266,7 @@ struct ProbeResult {
 struct ProbeHit {
   uint32_t object = 0;             // index into the objects span
   std::array<Vec3d, 3> corners{};  // hit triangle's corners, store coordinates
+  double b1 = 0, b2 = 0;            // the hit point's barycentric coordinates on corners 1 and 2
   double footprint = 0;            // ||dP|| in store units; if estimated, without the factor m
   // The footprint across the ray: dP with its part along the ray removed
   // (store units; if estimated, the footprint). What one pixel resolves

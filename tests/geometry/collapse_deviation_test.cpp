@@ -108,6 +108,24 @@ TEST(CollapseDeviation, ThinWallIsItsThickness) {
   EXPECT_LE(d.position, 2 * t);
 }
 
+// The normal at a long triangle's far end (far_normal): the mean of the
+// cell's normals is off the normal at the cap's rim by the cap's half-angle;
+// a plane's, and each side's of a crease or corner (split by the crease
+// rule), is exact.
+TEST(CollapseDeviation, TheFarEndNormalIsTheSpreadOfACurvedCellOnly) {
+  const Bbox cell{Vec3d(-1), Vec3d(1)};
+  EXPECT_LT(collapse_deviation(flat_node(), cell, kFaces).far_normal, 1e-6);
+  EXPECT_LT(collapse_deviation(crease_node(), cell, kFaces).far_normal, 1e-6);
+  EXPECT_LT(collapse_deviation(corner_node(), cell, kFaces).far_normal, 1e-6);
+  for (double r : {0.5, 40.0})
+    for (double alpha : {0.02, 0.1, 0.3}) {
+      const double h = r * std::sin(alpha) * 1.01;
+      const Bbox box{Vec3d(-h, -h, r * std::cos(alpha) - h), Vec3d(h, h, r + h)};
+      EXPECT_NEAR(collapse_deviation(cap(r, alpha), box, kFaces).far_normal / alpha, 1.0, 0.05)
+          << "r " << r << " alpha " << alpha;
+    }
+}
+
 // A crease or corner the solve holds exactly has no deviation, yet its
 // normals spread: flagged, so that mirrors and glass (where the triangles
 // joining it to the cells beside it show as chamfers) treat it as a rim.
