@@ -35,9 +35,10 @@ constexpr int kGround = -2;
 // How many levels below a cell the deviation test looks (descendant_deviation):
 // one level below holds 8 nodes at most, four 4,096.
 constexpr int kDescendantLevels = 4;
-// The far-end normal bound (CutSelection::select): triangles seen more than
-// kFarReach cell diagonals from a corner in the cell, on cells whose
-// far_normal exceeds kFarNormalFloor radians.
+// The far-end normal bound (CutSelection::select, probe.h): triangles seen
+// more than kFarReach cell diagonals from a corner in the cell, on cells
+// whose far_normal, times the corner's weight at the hit, exceeds
+// kFarNormalFloor radians (below it the cell counts as flat).
 constexpr double kFarReach = 2.0;
 constexpr double kFarNormalFloor = 1e-3;
 
@@ -813,19 +814,22 @@ struct StoreNeeds {
   struct Reach {
     uint64_t code = 0;
     float distance = 0;
+    float weight = 0;  // the corner's barycentric weight at the hit
   };
   std::vector<Reach> reach;
-  // Whether a hit lies more than `distance` from a corner in `cell` (level L).
-  bool reaches_beyond(int L, int Q, uint64_t cell, double distance) const;
+  // The largest weight of a corner in `cell` (level L) at a hit more than
+  // `distance` from it; 0 if none.
+  double far_weight(int L, int Q, uint64_t cell, double distance) const;
 };
 
-bool StoreNeeds::reaches_beyond(int L, int Q, uint64_t cell, double distance) const {
+double StoreNeeds::far_weight(int L, int Q, uint64_t cell, double distance) const {
   const int shift = 3 * (Q - L);
   auto it = std::lower_bound(reach.begin(), reach.end(), cell << shift,
                              [](const Reach& r, uint64_t code) { return r.code < code; });
+  double w = 0;
   for (; it != reach.end() && (it->code >> shift) == cell; ++it)
-    if (it->distance > distance) return true;
-  return false;
+    if (it->distance > distance) w = std::max(w, double(it->weight));
+  return w;
 }
 
 }  // namespace
@@ -899,7 +903,8 @@ StatusOr<CutSelection> CutSelection::make(std::span<const ProbeView> views, cons
         const Vec3d at = (1.0 - h.b1 - h.b2) * h.corners[0] + h.b1 * h.corners[1] + h.b2 * h.corners[2];
         for (int k = 0; k < 3; ++k) {
           codes[k] = st.cell_of(h.corners[k], Q).code;
-          n.reach.push_back({codes[k], float(glm::length(at - h.corners[k]))});
+          const double b = k == 0 ? 1.0 - h.b1 - h.b2 : k == 1 ? h.b1 : h.b2;
+          n.reach.push_back({codes[k], float(glm::length(at - h.corners[k])), float(b)});
           if ((k > 0 && codes[k] == codes[0]) || (k > 1 && codes[k] == codes[1])) continue;
           Measured& e = measured[v][codes[k]];
           e.f = std::min(e.f, f);
@@ -908,13 +913,8 @@ StatusOr<CutSelection> CutSelection::make(std::span<const ProbeView> views, cons
         }
       }
     n.min_footprint = std::isfinite(min_fp) ? float(min_fp) : 0.0f;
-    // One entry per cell, the largest reach.
-    std::sort(n.reach.begin(), n.reach.end(), [](const StoreNeeds::Reach& a, const StoreNeeds::Reach& b) {
-      return a.code < b.code || (a.code == b.code && a.distance > b.distance);
-    });
-    n.reach.erase(std::unique(n.reach.begin(), n.reach.end(),
-                              [](const StoreNeeds::Reach& a, const StoreNeeds::Reach& b) { return a.code == b.code; }),
-                  n.reach.end());
+    std::sort(n.reach.begin(), n.reach.end(),
+              [](const StoreNeeds::Reach& a, const StoreNeeds::Reach& b) { return a.code < b.code; });
 
     // The policy's estimate for a cell no ray of view `view` reached (probe.h).
     std::vector<const ObjectXf*> on_store;
@@ -1200,12 +1200,15 @@ StatusOr<ProbeResult> CutSelection::select(const ProbeConfig& config) {
           // Nor the normal at the far end of a triangle a ray saw beyond
           // the cell (CollapseDeviation::far_normal): the long strips of a
           // CAD tessellation end in cells off the view, whose mean normal
-          // then shades the whole visible strip. The rim's rule, on curved
-          // cells (a flat one's normal is exact).
-          if (!whole_cell_within && dev.far_normal > kFarNormalFloor &&
-              n.reaches_beyond(L, Q, codes[i], kFarReach * diag)) {
-            verdict[i] = 7;
-            continue;
+          // then shades the whole visible strip. The rim's rule, the cell
+          // shrunk by the corner's weight at the hit, on curved cells (a
+          // flat one's normal is exact).
+          if (!whole_cell_within && dev.far_normal > kFarNormalFloor) {
+            const double b = n.far_weight(L, Q, codes[i], kFarReach * diag);
+            if (b * diag > config.tolerance_px * f && b * dev.far_normal > kFarNormalFloor) {
+              verdict[i] = 7;
+              continue;
+            }
           }
           if (bound_normals && dev.normal > config.angle_tolerance_px * n.tilt[size_t(L)][i]) { verdict[i] = 3; continue; }
           // On mirrors and glass, a crease or corner the cell holds exactly

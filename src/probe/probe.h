@@ -74,13 +74,18 @@
 //     (collapse_deviation.h: a knife edge or a plate thinner than the cell,
 //     opposite-facing sheets its quadric takes for one plane); AND, for a
 //     cell holding a corner of a triangle some ray hit more than
-//     kFarReach = 2 cell diagonals from that corner, the same, unless the
-//     cell is flat (collapse_deviation.h, far_normal, at most 1e-3 rad):
-//     the triangle carries the representative's normal, the mean of the
-//     cell's, along its whole length, so a curved cell off the view (the
-//     fillet at the end of a cylinder's long strips) shades every visible
-//     strip that ends in it. K then only caps how large a cell may get
-//     relative to the footprint.
+//     kFarReach = 2 cell diagonals from that corner, b * diagonal(cell) is
+//     at most tolerance_px * need(cell), with b the corner's largest
+//     barycentric weight at such hits, unless the cell is flat (b times
+//     collapse_deviation.h's far_normal at most 1e-3 rad): the triangle
+//     carries the representative's normal, the mean of the cell's, along
+//     its whole length, weighted by b at the hit, so a curved cell off the
+//     view (the fillet at the end of a cylinder's long strips) shades every
+//     visible strip that ends in it. A curved cell's far_normal is about
+//     its curvature times its side, as a near hit's normal error is the
+//     curvature times the position error the tolerance allows: the bound
+//     holds the far end to what the near one is held to. K then only caps
+//     how large a cell may get relative to the footprint.
 //
 // Cells that no ray path can reach -- outside the view frustum in a scene
 // with no mirror or glass (so no secondary ray can turn towards them) -- only

@@ -10,6 +10,7 @@
 #include <cstdio>
 #include <filesystem>
 
+#include "core/math.h"
 #include "geometry/crease_normals.h"
 #include "render/embree_scene.h"
 
@@ -30,9 +31,8 @@ EndFaceCorners end_face_corners(const TriangleMesh& m) {
   for (size_t t = 0; t < m.triangle_count(); ++t) {
     const Vec3d a(m.positions[m.indices[3 * t]]), b(m.positions[m.indices[3 * t + 1]]),
         c(m.positions[m.indices[3 * t + 2]]);
-    const Vec3d cr = glm::cross(b - a, c - a);
-    if (!(glm::length(cr) > 0)) continue;
-    const Vec3d n = glm::normalize(cr);
+    const Vec3d n = face_normal(a, b, c);
+    if (n == Vec3d(0)) continue;  // degenerate
     if (std::abs(n.y) < 1 - 1e-6) continue;
     ++out.triangles;
     for (int k = 0; k < 3; ++k) {
