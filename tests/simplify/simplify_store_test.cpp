@@ -54,6 +54,19 @@ BuiltStore build(const TriangleBatch& soup, const std::string& name, int max_dep
   return b;
 }
 
+// The cut the probe selects for the store's mesh as the one object of
+// `scene` (an empty cut, after a test failure, if the probe fails).
+Cut probed_cut(const BuiltStore& b, const Scene& scene, uint64_t rays, uint64_t seed) {
+  const ProbeStore store{b.store.get(), b.dir / "s.raylod"};
+  const ProbeObject object{0, glm::dmat4(1.0), 0};
+  ProbeConfig c;
+  c.rays = rays;
+  c.seed = seed;
+  auto r = run_probe(scene, std::span(&store, 1), std::span(&object, 1), c);
+  EXPECT_TRUE(r.is_ok()) << r.status().message();
+  return r.is_ok() ? r->cuts[0] : Cut{};
+}
+
 Cut uniform_cut(const OctreeStore& store, int level) {
   Cut cut;
   for (const NodeRecord& n : store.level(level)) cut.cells.push_back({{uint32_t(level), n.code}, 0.01f, 1});
@@ -237,14 +250,7 @@ TEST(SimplifyStore, AGlassCubeTurnedAgainstTheCellsKeepsItsEdges) {
   auto cut_for = [&](MaterialType type) {
     Scene scene = test::one_object_scene(type, Vec3d(0.5, 2.5, 7.0), Vec3d(0), 160, 120, 35, false, true);
     scene.max_depth = 6;
-    const ProbeStore store{b.store.get(), b.dir / "s.raylod"};
-    const ProbeObject object{0, glm::dmat4(1.0), 0};
-    ProbeConfig c;
-    c.rays = 3000;
-    c.seed = 7;
-    auto r = run_probe(scene, std::span(&store, 1), std::span(&object, 1), c);
-    EXPECT_TRUE(r.is_ok()) << r.status().message();
-    return r.is_ok() ? r->cuts[0] : Cut{};
+    return probed_cut(b, scene, 3000, 7);
   };
   const Cut diffuse = cut_for(MaterialType::Diffuse), glass = cut_for(MaterialType::Glass);
   EXPECT_EQ(diffuse.counters.at("cells_kept_for_crease"), 0u);
@@ -632,14 +638,8 @@ TEST(SimplifyStore, LongStripsKeepTheNormalsAtTheirFarEnds) {
   ASSERT_FALSE(b.store->header().has_normals);
   Scene scene = test::one_object_scene(MaterialType::Diffuse, Vec3d(0, 0, 2.4), Vec3d(0, 0, 0), 200, 150, 28, false,
                                        true);
-  const ProbeStore store{b.store.get(), b.dir / "s.raylod"};
-  const ProbeObject object{0, glm::dmat4(1.0), 0};
-  ProbeConfig pc;
-  pc.rays = 4000;
-  pc.seed = 3;
-  auto probed = run_probe(scene, std::span(&store, 1), std::span(&object, 1), pc);
-  ASSERT_TRUE(probed.is_ok()) << probed.status().message();
-  const Cut& cut = probed->cuts[0];
+  const Cut cut = probed_cut(b, scene, 4000, 3);
+  ASSERT_FALSE(cut.cells.empty());
   EXPECT_GT(cut.counters.at("cells_kept_for_far_normal"), 0u);
   auto simplified = simplify(*b.store, cut, SimplifyConfig{});
   ASSERT_TRUE(simplified.is_ok()) << simplified.status().message();
