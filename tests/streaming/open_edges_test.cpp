@@ -138,8 +138,11 @@ TEST(OpenEdgesProperty, PagesMatchedAgreeWithAWholeMeshCount) {
     EXPECT_EQ(matcher.size(), pending.size());
     EXPECT_EQ(got, expected) << "round " << round;
     // Every edge of one use in the whole mesh is among them.
-    for (const auto& [e, n] : uses)
-      if (n == 1) EXPECT_EQ(got.count(e), 1u) << "round " << round;
+    for (const auto& [e, n] : uses) {
+      if (n == 1) {
+        EXPECT_EQ(got.count(e), 1u) << "round " << round;
+      }
+    }
   }
 }
 
