@@ -157,7 +157,7 @@ INSTANTIATE_TEST_SUITE_P(
         // Embree refuses ray origins beyond about 1.8e18 (it asserted before).
         BadCase{"eye_too_far", "\"eye\": [0, 1, 5]", "\"eye\": [2e18, 1, 5]",
                 "camera.eye: is more than 1e18 from look_at"}),
-    [](const auto& info) { return std::string(info.param.name); });
+    [](const auto& test_case) { return std::string(test_case.param.name); });
 
 TEST(Scene, AFirstMeshReplacedByTheCommandNeedNotExist) {
   // `--mesh` stands in for the first object's mesh: a scene written on

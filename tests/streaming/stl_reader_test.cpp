@@ -231,8 +231,8 @@ INSTANTIATE_TEST_SUITE_P(
         // Its bytes were mangled into UTF-8 replacement characters (333 bytes for 4 triangles).
         SharedCase{"misc/multiWordName.bin.stl", -1, "it declares 4 triangles"},
         SharedCase{"misc/namelessSolid.ascii.stl", 4, ""}),
-    [](const ::testing::TestParamInfo<SharedCase>& info) {
-      std::string name = info.param.file;
+    [](const ::testing::TestParamInfo<SharedCase>& test_case) {
+      std::string name = test_case.param.file;
       for (char& c : name)
         if (!std::isalnum(static_cast<unsigned char>(c))) c = '_';
       return name;
