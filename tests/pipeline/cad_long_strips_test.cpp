@@ -11,11 +11,10 @@
 // simplified.
 #include <gtest/gtest.h>
 
-#include <cmath>
 #include <filesystem>
 
-#include "pipeline/image_compare.h"
 #include "pipeline/noise_floor.h"
+#include "pipeline/noise_floor_check.h"
 #include "pipeline/pipeline.h"
 #include "test_tmp.h"
 
@@ -51,13 +50,7 @@ TEST(CadLongStrips, TheBottlesCloseUpIsWithinTheNoiseFloorAtTheDefaults) {
   ro.mesh_override = {mesh};
   auto full = render_full_with_noise_floor(scene, ro);
   ASSERT_TRUE(full.is_ok()) << full.status().message();
-  const NoiseFloor& floor = full->noise_floor;
-  ASSERT_TRUE(std::isfinite(floor.psnr()));
-  auto e = compare_images(r->render.color, full->reference.color);
-  ASSERT_TRUE(e.is_ok()) << e.status().message();
-  EXPECT_TRUE(within_noise_floor(*e, floor))
-      << "simplified render PSNR " << e->psnr << " dB, SSIM " << e->ssim << "; noise floor " << floor.psnr()
-      << " dB, SSIM " << floor.error.ssim;
+  test::expect_within_noise_floor(r->render.color, *full);
 }
 
 }  // namespace
