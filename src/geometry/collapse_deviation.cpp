@@ -42,7 +42,8 @@ CollapseDeviation collapse_deviation(const NodeRecord& node, const Bbox& cell, N
   const double from_spread = 2.0 * (1.0 - resultant);
   d.normal = std::min({M_PI, from_side, from_spread});
   d.crease = from_spread > 0.05 && from_side < 0.1 * from_spread;
-  d.far_normal = std::min({M_PI, 2.0 * std::sqrt(1.0 - resultant), side > 0 ? 8.0 * d.position / side : (d.position > 0 ? M_PI : 0.0)});
+  const double across = side > 0 ? 8.0 * d.position / side : (d.position > 0 ? M_PI : 0.0);
+  d.far_normal = std::min({M_PI, 2.0 * std::sqrt(1.0 - resultant), across});
   const SymmetricEigen3 e = symmetric_eigen(q);
   const double margin = normals == NodeNormals::Faces ? kFaceFoldMargin : kInputNormalFoldMargin;
   const bool opposite = std::abs(glm::dot(node.normal_sum, e.vectors[0])) < margin * e.values[0];

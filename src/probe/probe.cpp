@@ -807,10 +807,10 @@ struct StoreNeeds {
   };
   std::vector<Hit> hits;
   float min_footprint = 0;
-  // Finest cells holding a corner of a hit triangle, by code, with the
-  // largest distance from such a corner to its hit (store units): a cell
-  // whose corner is that far from where a ray saw its triangle bounds the
-  // normal at the triangle's far end (CollapseDeviation::far_normal).
+  // Every corner of a hit triangle, sorted by its finest cell's code, with
+  // its distance to the hit (store units) and its weight there: a cell whose
+  // corner is far from where a ray saw its triangle bounds the normal at the
+  // triangle's far end (CollapseDeviation::far_normal).
   struct Reach {
     uint64_t code = 0;
     float distance = 0;
@@ -900,11 +900,11 @@ StatusOr<CutSelection> CutSelection::make(std::span<const ProbeView> views, cons
         StoreNeeds::Hit& hit = n.hits.emplace_back();
         hit.footprint = float(f);
         std::array<uint64_t, 3>& codes = hit.codes;
-        const Vec3d at = (1.0 - h.b1 - h.b2) * h.corners[0] + h.b1 * h.corners[1] + h.b2 * h.corners[2];
+        const std::array<double, 3> b = {1.0 - h.b1 - h.b2, h.b1, h.b2};
+        const Vec3d at = b[0] * h.corners[0] + b[1] * h.corners[1] + b[2] * h.corners[2];
         for (int k = 0; k < 3; ++k) {
           codes[k] = st.cell_of(h.corners[k], Q).code;
-          const double b = k == 0 ? 1.0 - h.b1 - h.b2 : k == 1 ? h.b1 : h.b2;
-          n.reach.push_back({codes[k], float(glm::length(at - h.corners[k])), float(b)});
+          n.reach.push_back({codes[k], float(glm::length(at - h.corners[k])), float(b[size_t(k)])});
           if ((k > 0 && codes[k] == codes[0]) || (k > 1 && codes[k] == codes[1])) continue;
           Measured& e = measured[v][codes[k]];
           e.f = std::min(e.f, f);
