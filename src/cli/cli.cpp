@@ -113,6 +113,18 @@ bool register_command(const Command& c) {
 }
 const std::vector<Command>& commands() { return registry(); }
 
+std::string format_degrees(double deg) {
+  char text[32];
+  std::snprintf(text, sizeof text, "%g", deg);
+  return text;
+}
+
+std::string crease_angle_help() {
+  return "shade facets meeting at more than DEG degrees as a crease, for meshes\n"
+         "                              without normals (default: the scene's crease_angle, " +
+         format_degrees(kDefaultCreaseAngleDeg) + ")";
+}
+
 StatusOr<double> crease_angle_from_args(const Args& args, double fallback) {
   if (!args.has("--crease-angle")) return fallback;
   RAYLOD_ASSIGN_OR_RETURN(double deg, args.get_double("--crease-angle", fallback));

@@ -62,9 +62,10 @@ const std::vector<Command>& commands();
 
 // The --crease-angle option (degrees, 0 to 180) that commands which shade
 // meshes without normals share; `fallback` when it is absent.
-inline const char* kCreaseAngleHelp =
-    "shade facets meeting at more than DEG degrees as a crease, for meshes\n"
-    "                              without normals (default: the scene's crease_angle, 25)";
+// A number as a help line states it: 25, 22.5 (%g).
+std::string format_degrees(double deg);
+// Its help line states kDefaultCreaseAngleDeg, so it cannot go stale.
+std::string crease_angle_help();
 StatusOr<double> crease_angle_from_args(const Args& args, double fallback);
 
 // The cut options `raylod probe` and `raylod run` share (probe.h): the

@@ -31,7 +31,7 @@ Status run_render(int argc, char** argv, bool& help) {
              {"--width", "", "image width (default: the scene camera's)", true, "W"},
              {"--height", "", "image height (default: the scene camera's)", true, "H"},
              {"--stats-json", "", "write ray counters, timings and memory as JSON", true, "FILE"},
-             {"--crease-angle", "", kCreaseAngleHelp, true, "DEG"},
+             {"--crease-angle", "", crease_angle_help(), true, "DEG"},
              {"--quiet", "-q", "no progress bars or log lines", false, ""}});
   RAYLOD_RETURN_IF_ERROR(args.parse(argc, argv));
   if (args.help_requested()) {

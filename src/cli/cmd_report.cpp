@@ -67,7 +67,7 @@ Status run_report_cmd(int argc, char** argv) {
              threads_option(),
              {"--memory-limit", "", "memory cap (default: a quarter of physical memory)", true, "SIZE"},
              {"--quick", "", "a small, fast report (50k-triangle teapot, 160x120, two K, two ray counts)", false, ""},
-             {"--crease-angle", "", kCreaseAngleHelp, true, "DEG"},
+             {"--crease-angle", "", crease_angle_help(), true, "DEG"},
              {"--quiet", "-q", "no log lines", false, ""}});
   RAYLOD_RETURN_IF_ERROR(args.parse(argc, argv));
   if (args.help_requested()) {

@@ -100,7 +100,7 @@ Status run_run(int argc, char** argv, bool& help) {
              {"--stats-json", "", "write triangle counts, stage times, memory and cache use as JSON", true, "FILE"},
              {"--export-mesh", "", "also write the simplified meshes as a Draco-compressed glTF (.glb), one\n"
                                    "                              node per scene object, with the .drc's quantisation", true, "OUT.glb"},
-             {"--crease-angle", "", kCreaseAngleHelp, true, "DEG"},
+             {"--crease-angle", "", crease_angle_help(), true, "DEG"},
              {"--views", "", "render every camera of a JSON list (the scene camera's fields; up, fov_y,\n"
                              "                              width and height default to the scene's) to numbered images:\n"
                              "                              -o out_####.png (without '#', _#### goes before the extension)", true, "FILE"},

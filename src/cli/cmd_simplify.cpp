@@ -66,8 +66,9 @@ int run_simplify(int argc, char** argv) {
              {"--parts", "", "Draco: split the mesh into N bitstreams encoded and decoded in parallel (.drc:\n"
                              "a raylod part file, which other Draco tools do not read; .glb: N primitives)\n"
                              "(default 1; raylod run uses one per million triangles from 2M)", true, "N"},
-             {"--crease-angle", "", "normals: facets meeting at more than DEG degrees keep separate\n"
-                                    "                              normals (default 30, as the scene's crease_angle)", true, "DEG"},
+             {"--crease-angle", "", std::string("normals: facets meeting at more than DEG degrees keep separate\n"
+                                                "                              normals (default ") +
+                                        format_degrees(kDefaultCreaseAngleDeg) + ", as the scene's crease_angle)", true, "DEG"},
              {"--fold-passes", "", "passes that refine cells whose collapse turns a triangle over\n"
                                    "                              (default 0; raylod run uses 3 on mirror and glass meshes)", true, "N"},
              {"--exact-normals", "", "meshes with normals: a representative takes the input normal at the\n"

@@ -10,6 +10,7 @@
 #include <string>
 #include <utility>
 
+#include "geometry/crease_normals.h"
 #include "run_command.h"
 #include "test_tmp.h"
 
@@ -129,6 +130,24 @@ TEST(CutOptions, AnUnknownBalanceIsNamed) {
     const CommandResult r = run(std::string(cmd) + " '" + RAYLOD_DATA_DIR + "/default_scene.json' --balance sideways", 60);
     EXPECT_EQ(r.status, 1) << cmd;
     EXPECT_NE(r.out.find("--balance: unknown value 'sideways' (specular, all or off)"), std::string::npos) << r.out;
+  }
+}
+
+// Every command with --crease-angle states the default the code uses (the
+// help of `simplify` said 30 after the default had moved to 25).
+TEST(CreaseAngleOption, EveryHelpStatesTheDefaultInUse) {
+  char expected[32];
+  std::snprintf(expected, sizeof expected, "%g", raylod::kDefaultCreaseAngleDeg);
+  for (const char* cmd : {"run", "render", "report", "simplify"}) {
+    const CommandResult r = run(std::string(cmd) + " --help");
+    ASSERT_EQ(r.status, 0) << cmd;
+    const size_t at = r.out.find("--crease-angle");
+    ASSERT_NE(at, std::string::npos) << cmd << ": " << r.out;
+    const size_t next = r.out.find("\n  -", at + 1);
+    const std::string entry = r.out.substr(at, next == std::string::npos ? std::string::npos : next - at);
+    EXPECT_TRUE(entry.find(std::string(", ") + expected + ")") != std::string::npos ||
+                entry.find(std::string("(default ") + expected + ",") != std::string::npos)
+        << cmd << " states another default than " << expected << ": " << entry;
   }
 }
 
