@@ -20,6 +20,17 @@ constexpr double kEdgeSafety = 2.0;
 
 }  // namespace
 
+namespace {
+double mean_resultant_length(const NodeRecord& node) {
+  const double weight = quadric_weight(node.quadric);
+  return weight > 0 && std::isfinite(weight) ? std::min(1.0, glm::length(node.normal_sum) / weight) : 1.0;
+}
+}  // namespace
+
+double normal_spread_angle(const NodeRecord& node) {
+  return std::min(M_PI, 2.0 * std::sqrt(1.0 - mean_resultant_length(node)));
+}
+
 CollapseDeviation collapse_deviation(const NodeRecord& node, const Bbox& cell, NodeNormals normals,
                                      const QemSolveConfig& config) {
   CollapseDeviation d;
@@ -38,12 +49,12 @@ CollapseDeviation collapse_deviation(const NodeRecord& node, const Bbox& cell, N
   // large in one situation, so the smaller is taken.
   const double side = cell.extent().x;
   const double from_side = side > 0 ? 8.0 * (d.position / side) * (d.position / side) : (d.position > 0 ? M_PI : 0.0);
-  const double resultant = std::min(1.0, glm::length(node.normal_sum) / weight);
+  const double resultant = mean_resultant_length(node);
   const double from_spread = 2.0 * (1.0 - resultant);
   d.normal = std::min({M_PI, from_side, from_spread});
   d.crease = from_spread > 0.05 && from_side < 0.1 * from_spread;
   const double across = side > 0 ? 8.0 * d.position / side : (d.position > 0 ? M_PI : 0.0);
-  d.far_normal = std::min({M_PI, 2.0 * std::sqrt(1.0 - resultant), across});
+  d.far_normal = std::min({normal_spread_angle(node), across});
   const SymmetricEigen3 e = symmetric_eigen(q);
   const double margin = normals == NodeNormals::Faces ? kFaceFoldMargin : kInputNormalFoldMargin;
   const bool opposite = std::abs(glm::dot(node.normal_sum, e.vectors[0])) < margin * e.values[0];

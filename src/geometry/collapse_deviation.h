@@ -103,6 +103,12 @@ inline NodeNormals node_normals_of(const StoreHeader& header) {
   return header.has_normals ? NodeNormals::Input : NodeNormals::Faces;
 }
 
+// The half-angle of the spherical cap the node's normals spread over, from
+// their mean resultant length r (above): 2 sqrt(1 - r), without solving the
+// quadric. Over the cell's side it estimates the surface's curvature; across
+// a crease it is the crease's angle instead. 0 for an empty node.
+double normal_spread_angle(const NodeRecord& node);
+
 // `cell` in the quadric's frame (relative to StoreHeader::origin for store
 // nodes); side = the cell's edge length.
 CollapseDeviation collapse_deviation(const NodeRecord& node, const Bbox& cell, NodeNormals normals,

@@ -41,6 +41,9 @@ constexpr int kDescendantLevels = 4;
 // kFarNormalFloor radians (below it the cell counts as flat).
 constexpr double kFarReach = 2.0;
 constexpr double kFarNormalFloor = 1e-3;
+// Unreached curved mirror and glass cells (probe.h): the fewest measured
+// curved cells a view calibrates the factor c from.
+constexpr size_t kMinCurvatureSamples = 50;
 
 // Largest singular value of a 3x3 matrix (power iteration on L^T L).
 double max_singular_value(const Mat3d& l) {
@@ -522,6 +525,7 @@ std::string probe_key(const Scene& scene, const OctreeStore& store, std::span<co
   mix(config.angle_tolerance_px);
   mix(config.balance);
   mix(config.calibration_quantile);
+  mix(config.curved_unreached_tilt);
   mix(config.shadow_factor);
   mix(config.limits.min_cos);
   mix(config.limits.max_squared);
@@ -793,6 +797,8 @@ namespace {
 
 struct StoreNeeds {
   bool specular = false;  // a mirror or glass object uses the store: its cells also bound the normal
+  // Per view, the factor c of unreached curved cells' tilt c kappa f (probe.h); 0: none.
+  std::vector<double> curvature_factor;
   // need() and the tilt allowance per level, node by node (probe.h).
   std::vector<std::vector<double>> need, tilt;
   // The nodes' codes and collapse deviations (SelectionCache): a shared
@@ -1030,6 +1036,31 @@ StatusOr<CutSelection> CutSelection::make(std::span<const ProbeView> views, cons
     for (const ObjectXf& x : xf)
       if (x.store == s) n.specular |= scene.materials[size_t(x.material)].reflects();
 
+    // Unreached mirror and glass cells on a curved surface (probe.h): the
+    // tilt they take grows with their curvature times the beam's width. Per
+    // view, the factor c is the calibration quantile of tilt / (kappa f)
+    // over the measured finest cells with curvature, as m is calibrated
+    // from the measured footprints; 0 (the flat mirror's bound alone) with
+    // fewer than kMinCurvatureSamples of them.
+    const auto nodes_q = st.level(Q);
+    const double side_q = st.cell_diagonal(Q) / std::sqrt(3.0);
+    std::vector<double> curvature_factor(views.size(), 0.0);
+    if (n.specular && config.curved_unreached_tilt)
+      for (size_t v = 0; v < views.size(); ++v) {
+        std::vector<double> ratios;
+        for (const MeasuredCell& mc : sorted_measured[v]) {
+          const auto it = std::lower_bound(codes_at[size_t(Q)].begin(), codes_at[size_t(Q)].end(), mc.code);
+          if (it == codes_at[size_t(Q)].end() || *it != mc.code || !std::isfinite(mc.m.tilt)) continue;
+          const double kappa = normal_spread_angle(nodes_q[size_t(it - codes_at[size_t(Q)].begin())]) / side_q;
+          if (kappa > 0 && mc.m.f > 0) ratios.push_back(mc.m.tilt / (kappa * mc.m.f));
+        }
+        if (ratios.size() < kMinCurvatureSamples) continue;
+        const size_t q = size_t(std::floor(config.calibration_quantile * double(ratios.size() - 1)));
+        std::nth_element(ratios.begin(), ratios.begin() + std::ptrdiff_t(q), ratios.end());
+        curvature_factor[v] = ratios[q];
+      }
+    n.curvature_factor = curvature_factor;
+
     // need() and the tilt allowance bottom-up: at level Q the finest over the
     // views of each view's measured or estimated need, min over children above.
     std::vector<std::vector<double>>& need = n.need;
@@ -1057,11 +1088,16 @@ StatusOr<CutSelection> CutSelection::make(std::span<const ProbeView> views, cons
             while (at[v] < sm.size() && sm[at[v]].code < code) ++at[v];
             const Measured* hit = at[v] < sm.size() && sm[at[v]].code == code ? &sm[at[v]].m : nullptr;
             if (!box) box = st.cell_bounds(CellKey{uint32_t(Q), code});
-            f = std::min(f, hit ? hit->f : estimate(facts[v], *box));
+            const double seen = hit ? hit->f : estimate(facts[v], *box);
+            f = std::min(f, seen);
             f = shadow_estimate(facts[v], *box, f);
             // Unreached mirror or glass cells: the pixel angle, as magnified
-            // as the most magnified measured paths, over a mirror's gain of 2.
-            if (store_specular) a = std::min(a, hit ? hit->tilt : 0.5 * facts[v].a_min * facts[v].m);
+            // as the most magnified measured paths, over a mirror's gain of
+            // 2; on a curved surface at least c kappa f (above).
+            if (store_specular)
+              a = std::min(a, hit ? hit->tilt
+                                  : std::max(0.5 * facts[v].a_min * facts[v].m,
+                                             curvature_factor[v] * normal_spread_angle(nodes_q[i]) / side_q * seen));
           }
           need[size_t(Q)][i] = f;
           if (store_specular) tilt[size_t(Q)][i] = a;
@@ -1129,6 +1165,9 @@ StatusOr<ProbeResult> CutSelection::select(const ProbeConfig& config) {
       if (!is_page_cache_counter(name)) cut.counters[name] = value;
     cut.min_footprint = n.min_footprint;
     cut.counters["store_hits"] = n.hits.size();
+    if (n.specular && !n.curvature_factor.empty())
+      cut.counters["curvature_factor_ppm"] = uint64_t(std::llround(
+          1e6 * *std::min_element(n.curvature_factor.begin(), n.curvature_factor.end())));
 
     // The cut: top-down, the largest cells the criterion accepts (a cell
     // inside an accepted one is collapsed with it).

@@ -126,6 +126,21 @@ TEST(CollapseDeviation, TheFarEndNormalIsTheSpreadOfACurvedCellOnly) {
     }
 }
 
+// The normals' spread without a solve (normal_spread_angle): a cap's
+// half-angle, its sides' sizes aside (so over the cell's side, the
+// curvature); 0 on a plane; across a crease the crease's angle, which is
+// why the probe's unreached-cell rule that reads it as curvature calibrates
+// on the measured cells and keeps creases to the rim's rule.
+TEST(CollapseDeviation, TheNormalSpreadIsACapsHalfAngleAndACreasesAngle) {
+  EXPECT_LT(normal_spread_angle(flat_node()), 1e-6);
+  EXPECT_EQ(normal_spread_angle(NodeRecord{}), 0.0);
+  for (double r : {0.5, 40.0})
+    for (double alpha : {0.02, 0.1, 0.3})
+      EXPECT_NEAR(normal_spread_angle(cap(r, alpha)) / alpha, 1.0, 0.05) << "r " << r << " alpha " << alpha;
+  // Floor (area 4) and wall (area 2) at 90 degrees: r = |(4, 2)| / 6.
+  EXPECT_NEAR(normal_spread_angle(crease_node()), 2.0 * std::sqrt(1.0 - std::sqrt(20.0) / 6.0), 1e-9);
+}
+
 // A crease or corner the solve holds exactly has no deviation, yet its
 // normals spread: flagged, so that mirrors and glass (where the triangles
 // joining it to the cells beside it show as chamfers) treat it as a rim.

@@ -1166,6 +1166,42 @@ TEST(ProbeDeviation, AngleToleranceLoosensOnlyMirrorAndGlass) {
   EXPECT_NE(rejected.status().message().find("angle tolerance"), std::string::npos) << rejected.status().message();
 }
 
+// Unreached cells on a curved mirror or glass surface take the tilt c kappa
+// f (probe.h), c calibrated on the measured cells, instead of the flat
+// mirror's pixel angle alone: the bound only loosens (every cell the flat
+// bound collapses stays collapsed, before grading, which may split a cell
+// beside a region that now collapses finer than what was kept whole), it is
+// what the normal bound then keeps fewer cells for, and with too few
+// measured curved cells to calibrate on (a handful of test rays) c is 0 and
+// the cut is the flat bound's.
+TEST(ProbeDeviation, UnreachedCurvedGlassCellsTakeACalibratedTilt) {
+  const OneObject one(teapot());
+  auto probe = [&](bool curved, int rays, CutBalance balance) {
+    ProbeConfig c;
+    c.rays = rays;
+    c.seed = 7;
+    c.curved_unreached_tilt = curved;
+    c.balance = balance;
+    auto r = run_probe(make_scene(MaterialType::Glass, kEye, kLook), one.stores(), one.objects(), c);
+    EXPECT_TRUE(r) << r.status().message();
+    return r ? r->cuts[0] : Cut{};
+  };
+  const Cut flat = probe(false, 2000, CutBalance::Off), curved = probe(true, 2000, CutBalance::Off);
+  ASSERT_FALSE(flat.cells.empty());
+  EXPECT_EQ(flat.counters.at("curvature_factor_ppm"), 0u);
+  EXPECT_GT(curved.counters.at("curvature_factor_ppm"), 0u);
+  EXPECT_LT(curved.counters.at("cells_kept_for_normals"), flat.counters.at("cells_kept_for_normals"));
+  for (const CollapsedCell& c : flat.cells) EXPECT_TRUE(collapsed_by(curved, c.key)) << "level " << c.key.level;
+  EXPECT_NE(flat.key, curved.key);  // cached cuts do not mix
+  // Graded (the default), the curved bound still keeps fewer cells whole.
+  EXPECT_LT(probe(true, 2000, CutBalance::Specular).counters.at("finest_cells_kept"),
+            probe(false, 2000, CutBalance::Specular).counters.at("finest_cells_kept"));
+
+  const Cut few_flat = probe(false, 10, CutBalance::Specular), few = probe(true, 10, CutBalance::Specular);
+  EXPECT_EQ(few.counters.at("curvature_factor_ppm"), 0u);
+  EXPECT_EQ(cells_of(few), cells_of(few_flat));
+}
+
 // The cut's pairs of touching cells more than one level apart
 // (cut_grading_check.h).
 size_t ungraded_pairs(const Cut& cut) {
