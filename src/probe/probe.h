@@ -80,8 +80,11 @@
 //     it is tiny, so the flat bound stands (crease cells on mirrors and
 //     glass keep the rim's rule, below). On the glass scene's teapot c =
 //     0.16, and the finest cells kept for the normal bound fall from 36,624
-//     to 105. ProbeConfig::curved_unreached_tilt = false keeps the flat
-//     bound alone; AND, for a cell holding an
+//     to 105. Like m, c is a statistic of the measured paths: a concave
+//     region no test ray reached on an otherwise convex object takes the
+//     convex parts' c (a region large enough in the image to matter is hit
+//     by some of the test rays). ProbeConfig::curved_unreached_tilt =
+//     false keeps the flat bound alone; AND, for a cell holding an
 //     open boundary vertex (OctreeStore::touches_boundary: a hole's rim, the
 //     edge of an open surface), which a quadric does not see and the
 //     representative may pull anywhere in the cell, diagonal(cell) is at
