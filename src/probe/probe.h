@@ -70,7 +70,10 @@
 //     surface the beam leaving it spreads with the curvature times the
 //     beam's width (a convex mirror of curvature kappa widens a beam of
 //     width w by about 2 kappa w), so a tilt there shows less. kappa is the
-//     cell's normal spread over its side (normal_spread_angle), f the
+//     finest cell's normal spread over its side (normal_spread_angle; 0
+//     where it holds one vertex of a mesh with normals, which then keeps
+//     the flat bound: read one or two levels up, kappa let the 2M mirror
+//     teapot fall below its noise floor, README), f the
 //     unreached cell's footprint estimate, and c, per view and store, the
 //     calibration_quantile of tilt / (kappa f) over the measured finest
 //     cells with curvature (at least kMinCurvatureSamples of them, else c =
