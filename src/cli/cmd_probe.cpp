@@ -152,7 +152,8 @@ int cmd_probe(int argc, char** argv) {
             count("finest_cells_kept_for_fold"), count("finest_cells_kept_for_crease"),
             count("finest_cells_kept_for_far_normal"));
       if (cut.counters.count("curvature_factor_ppm"))
-        say("probe: unreached curved cells take a tilt of c kappa f, c = %.3f (0: the flat mirror's bound alone)\n",
+        say("probe: unreached curved cells take a tilt of c kappa f, c = %g (the least over the views; 0: the flat "
+            "mirror's bound alone)\n",
             1e-6 * double(count("curvature_factor_ppm")));
     }
     return {};

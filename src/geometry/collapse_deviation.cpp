@@ -28,7 +28,7 @@ double mean_resultant_length(const NodeRecord& node) {
 }  // namespace
 
 double normal_spread_angle(const NodeRecord& node) {
-  return std::min(M_PI, 2.0 * std::sqrt(1.0 - mean_resultant_length(node)));
+  return 2.0 * std::sqrt(1.0 - mean_resultant_length(node));
 }
 
 CollapseDeviation collapse_deviation(const NodeRecord& node, const Bbox& cell, NodeNormals normals,

@@ -104,9 +104,11 @@ inline NodeNormals node_normals_of(const StoreHeader& header) {
 }
 
 // The half-angle of the spherical cap the node's normals spread over, from
-// their mean resultant length r (above): 2 sqrt(1 - r), without solving the
-// quadric. Over the cell's side it estimates the surface's curvature; across
-// a crease it is the crease's angle instead. 0 for an empty node.
+// their mean resultant length r (above): 2 sqrt(1 - r) (at most 2), without
+// solving the quadric. Over the cell's side it estimates the surface's
+// curvature; across a crease it grows with the crease's angle instead
+// (weighted by the sides' areas: a 90-degree crease gives 1.01 with areas 4
+// and 2, 1.08 with equal ones), not with any curvature. 0 for an empty node.
 double normal_spread_angle(const NodeRecord& node);
 
 // `cell` in the quadric's frame (relative to StoreHeader::origin for store

@@ -548,6 +548,8 @@ Status check_probe_inputs(const Scene& scene, std::span<const ProbeStore> stores
   if (!(config.footprint_scale > 0)) return Status::error("probe: footprint scale must be > 0");
   if (!(config.tolerance_px > 0)) return Status::error("probe: tolerance must be > 0 pixels");
   if (!(config.angle_tolerance_px > 0)) return Status::error("probe: angle tolerance must be > 0 pixels");
+  if (!(config.calibration_quantile >= 0 && config.calibration_quantile <= 1))
+    return Status::error("probe: the calibration quantile must be between 0 and 1");
   return {};
 }
 
@@ -846,6 +848,9 @@ struct CutSelection::State {
   std::span<const ProbeStore> stores;
   std::span<const ProbeObject> objects;
   double shadow_factor = 0;
+  // What the unreached curved cells' calibration (make()) read of the config.
+  bool curved_unreached_tilt = true;
+  double calibration_quantile = 0;
   std::vector<StoreNeeds> needs;
   double prepare_seconds = 0;
 };
@@ -871,6 +876,8 @@ StatusOr<CutSelection> CutSelection::make(std::span<const ProbeView> views, cons
   state.stores = stores;
   state.objects = objects;
   state.shadow_factor = config.shadow_factor;
+  state.curved_unreached_tilt = config.curved_unreached_tilt;
+  state.calibration_quantile = config.calibration_quantile;
   state.needs.resize(stores.size());
   std::vector<ViewFacts> facts;
   for (const ProbeView& v : views) facts.push_back(make_view_facts(v));
@@ -1094,10 +1101,14 @@ StatusOr<CutSelection> CutSelection::make(std::span<const ProbeView> views, cons
             // Unreached mirror or glass cells: the pixel angle, as magnified
             // as the most magnified measured paths, over a mirror's gain of
             // 2; on a curved surface at least c kappa f (above).
-            if (store_specular)
-              a = std::min(a, hit ? hit->tilt
-                                  : std::max(0.5 * facts[v].a_min * facts[v].m,
-                                             curvature_factor[v] * normal_spread_angle(nodes_q[i]) / side_q * seen));
+            if (store_specular) {
+              double unreached = 0.5 * facts[v].a_min * facts[v].m;
+              if (!hit && curvature_factor[v] > 0) {
+                const double curved = curvature_factor[v] * normal_spread_angle(nodes_q[i]) / side_q * seen;
+                if (std::isfinite(curved)) unreached = std::max(unreached, curved);
+              }
+              a = std::min(a, hit ? hit->tilt : unreached);
+            }
           }
           need[size_t(Q)][i] = f;
           if (store_specular) tilt[size_t(Q)][i] = a;
@@ -1130,6 +1141,9 @@ StatusOr<ProbeResult> CutSelection::select(const ProbeConfig& config) {
   const std::span<const ProbeObject> objects = state.objects;
   const std::span<const ProbeView> views = state.views;
   RAYLOD_RETURN_IF_ERROR(check_probe_inputs(scene, stores, objects, config));
+  if (config.curved_unreached_tilt != state.curved_unreached_tilt ||
+      config.calibration_quantile != state.calibration_quantile)
+    return Status::error("probe: a cut selection was prepared for another calibration of unreached curved cells");
   if (config.shadow_factor != state.shadow_factor)
     return Status::error("probe: a cut selection was prepared for another shadow factor");
   const auto t_select = std::chrono::steady_clock::now();
@@ -1165,7 +1179,9 @@ StatusOr<ProbeResult> CutSelection::select(const ProbeConfig& config) {
       if (!is_page_cache_counter(name)) cut.counters[name] = value;
     cut.min_footprint = n.min_footprint;
     cut.counters["store_hits"] = n.hits.size();
-    if (n.specular && !n.curvature_factor.empty())
+    // c of the view that calibrated the least (0 if any view had too few
+    // measured curved cells), where it bounds anything.
+    if (bound_normals && config.curved_unreached_tilt)
       cut.counters["curvature_factor_ppm"] = uint64_t(std::llround(
           1e6 * *std::min_element(n.curvature_factor.begin(), n.curvature_factor.end())));
 

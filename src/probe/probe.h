@@ -73,8 +73,9 @@
 //     finest cell's normal spread over its side (normal_spread_angle; 0
 //     where it holds one vertex of a mesh with normals, which then keeps
 //     the flat bound: read one or two levels up, kappa let the 2M mirror
-//     teapot fall below its noise floor, README), f the
-//     unreached cell's footprint estimate, and c, per view and store, the
+//     teapot fall below its noise floor, README), f the view's footprint
+//     estimate for the unreached cell (before the shadow bound), and c,
+//     per view and store, the
 //     calibration_quantile of tilt / (kappa f) over the measured finest
 //     cells with curvature (at least kMinCurvatureSamples of them, else c =
 //     0), as m is calibrated from the measured footprints: where measured
@@ -86,8 +87,10 @@
 //     to 105. Like m, c is a statistic of the measured paths: a concave
 //     region no test ray reached on an otherwise convex object takes the
 //     convex parts' c (a region large enough in the image to matter is hit
-//     by some of the test rays). ProbeConfig::curved_unreached_tilt =
-//     false keeps the flat bound alone; AND, for a cell holding an
+//     by some of the test rays). The cut records the least c over the
+//     views (counter curvature_factor_ppm, printed by `raylod probe`).
+//     ProbeConfig::curved_unreached_tilt = false keeps the flat bound
+//     alone; AND, for a cell holding an
 //     open boundary vertex (OctreeStore::touches_boundary: a hole's rim, the
 //     edge of an open surface), which a quadric does not see and the
 //     representative may pull anywhere in the cell, diagonal(cell) is at
@@ -375,7 +378,8 @@ StatusOr<ProbeResult> select_shared_cuts(std::span<const ProbeView> views, const
 // policy), and each select() decides the cut for one configuration, the
 // nodes' collapse deviations computed once and kept for the next. select(c)
 // gives exactly select_shared_cuts(views, ..., c) (the same cells, key and
-// counters), for any c with make()'s shadow_factor. The views' traces, the
+// counters), for any c with make()'s shadow_factor, curved_unreached_tilt
+// and calibration_quantile (select() refuses others). The views' traces, the
 // scene, the stores and the objects must outlive the selection.
 class CutSelection {
  public:

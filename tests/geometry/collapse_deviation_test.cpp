@@ -128,9 +128,10 @@ TEST(CollapseDeviation, TheFarEndNormalIsTheSpreadOfACurvedCellOnly) {
 
 // The normals' spread without a solve (normal_spread_angle): a cap's
 // half-angle, its sides' sizes aside (so over the cell's side, the
-// curvature); 0 on a plane; across a crease the crease's angle, which is
-// why the probe's unreached-cell rule that reads it as curvature calibrates
-// on the measured cells and keeps creases to the rim's rule.
+// curvature); 0 on a plane; across a crease a value set by the crease's
+// angle and its sides' areas, not by curvature, which is why the probe's
+// unreached-cell rule that reads it as curvature calibrates on the measured
+// cells and keeps creases to the rim's rule.
 TEST(CollapseDeviation, TheNormalSpreadIsACapsHalfAngleAndACreasesAngle) {
   EXPECT_LT(normal_spread_angle(flat_node()), 1e-6);
   EXPECT_EQ(normal_spread_angle(NodeRecord{}), 0.0);

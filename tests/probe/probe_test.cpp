@@ -1172,8 +1172,10 @@ TEST(ProbeDeviation, AngleToleranceLoosensOnlyMirrorAndGlass) {
 // bound collapses stays collapsed, before grading, which may split a cell
 // beside a region that now collapses finer than what was kept whole), it is
 // what the normal bound then keeps fewer cells for, and with too few
-// measured curved cells to calibrate on (a handful of test rays) c is 0 and
-// the cut is the flat bound's.
+// measured curved cells to calibrate on (three test rays) c is 0 and the
+// cut is the flat bound's. The bound rises with c: a higher calibration
+// quantile collapses every cell the lower one does, before grading. A
+// selection prepared for one calibration refuses another.
 TEST(ProbeDeviation, UnreachedCurvedGlassCellsTakeACalibratedTilt) {
   const OneObject one(teapot());
   auto probe = [&](bool curved, int rays, CutBalance balance) {
@@ -1188,7 +1190,7 @@ TEST(ProbeDeviation, UnreachedCurvedGlassCellsTakeACalibratedTilt) {
   };
   const Cut flat = probe(false, 2000, CutBalance::Off), curved = probe(true, 2000, CutBalance::Off);
   ASSERT_FALSE(flat.cells.empty());
-  EXPECT_EQ(flat.counters.at("curvature_factor_ppm"), 0u);
+  EXPECT_EQ(flat.counters.count("curvature_factor_ppm"), 0u);
   EXPECT_GT(curved.counters.at("curvature_factor_ppm"), 0u);
   EXPECT_LT(curved.counters.at("cells_kept_for_normals"), flat.counters.at("cells_kept_for_normals"));
   for (const CollapsedCell& c : flat.cells) EXPECT_TRUE(collapsed_by(curved, c.key)) << "level " << c.key.level;
@@ -1197,9 +1199,35 @@ TEST(ProbeDeviation, UnreachedCurvedGlassCellsTakeACalibratedTilt) {
   EXPECT_LT(probe(true, 2000, CutBalance::Specular).counters.at("finest_cells_kept"),
             probe(false, 2000, CutBalance::Specular).counters.at("finest_cells_kept"));
 
-  const Cut few_flat = probe(false, 10, CutBalance::Specular), few = probe(true, 10, CutBalance::Specular);
+  const Cut few_flat = probe(false, 3, CutBalance::Specular), few = probe(true, 3, CutBalance::Specular);
   EXPECT_EQ(few.counters.at("curvature_factor_ppm"), 0u);
   EXPECT_EQ(cells_of(few), cells_of(few_flat));
+
+  // c grows with the quantile it is read at, and the cut with it.
+  ProbeConfig c;
+  c.rays = 2000;
+  c.seed = 7;
+  c.balance = CutBalance::Off;
+  c.calibration_quantile = 0.2;
+  auto higher = run_probe(make_scene(MaterialType::Glass, kEye, kLook), one.stores(), one.objects(), c);
+  ASSERT_TRUE(higher) << higher.status().message();
+  const Cut& h = higher->cuts[0];
+  EXPECT_GT(h.counters.at("curvature_factor_ppm"), curved.counters.at("curvature_factor_ppm"));
+  EXPECT_LT(h.counters.at("cells_kept_for_normals"), curved.counters.at("cells_kept_for_normals"));
+
+  // A selection made for one calibration is not asked for another.
+  const Scene scene = make_scene(MaterialType::Glass, kEye, kLook);
+  ProbeConfig made;
+  made.rays = 200;
+  auto trace = trace_probe(scene, one.stores(), one.objects(), made);
+  ASSERT_TRUE(trace) << trace.status().message();
+  const ProbeView view{&trace.value(), scene.camera};
+  auto sel = CutSelection::make(std::span<const ProbeView>(&view, 1), scene, one.stores(), one.objects(), made);
+  ASSERT_TRUE(sel) << sel.status().message();
+  ProbeConfig other = made;
+  other.curved_unreached_tilt = false;
+  EXPECT_FALSE(sel->select(other));
+  EXPECT_TRUE(sel->select(made));
 }
 
 // The cut's pairs of touching cells more than one level apart
