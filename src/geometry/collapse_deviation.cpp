@@ -18,13 +18,13 @@ constexpr double kInputNormalFoldMargin = 0.9;
 // a face tangentially, 0.8 to 1.1 over the arcs and facet counts tried).
 constexpr double kEdgeSafety = 2.0;
 
-}  // namespace
-
-namespace {
+// |area-weighted normal sum| / area (collapse_deviation.h); 1 (no spread)
+// for an empty node.
 double mean_resultant_length(const NodeRecord& node) {
   const double weight = quadric_weight(node.quadric);
   return weight > 0 && std::isfinite(weight) ? std::min(1.0, glm::length(node.normal_sum) / weight) : 1.0;
 }
+
 }  // namespace
 
 double normal_spread_angle(const NodeRecord& node) {

@@ -557,17 +557,21 @@ Status check_probe_inputs(const Scene& scene, std::span<const ProbeStore> stores
 
 namespace {
 
+// The value at quantile q (0 to 1) of non-empty `values` (reordered): the
+// calibrations of m and of unreached curved cells' c (probe.h).
+double low_quantile(std::vector<double>& values, double q) {
+  const size_t at = size_t(std::floor(q * double(values.size() - 1)));
+  std::nth_element(values.begin(), values.begin() + std::ptrdiff_t(at), values.end());
+  return values[at];
+}
+
 // The policy's magnification m: a low quantile of measured secondary hits.
 void set_magnification(ProbeTrace& trace, const ProbeConfig& config) {
   std::vector<double> ratios;
   for (const HitRecord& h : trace.hits)
     if (h.ratio >= 0) ratios.push_back(h.ratio);
   double m = 1;
-  if (!ratios.empty()) {
-    std::sort(ratios.begin(), ratios.end());
-    const size_t q = size_t(std::floor(config.calibration_quantile * double(ratios.size() - 1)));
-    m = std::min(1.0, ratios[q]);
-  }
+  if (!ratios.empty()) m = std::min(1.0, low_quantile(ratios, config.calibration_quantile));
   trace.magnification = m;
   trace.counters["magnification_ppm"] = uint64_t(std::llround(m * 1e6));
 }
@@ -1061,10 +1065,8 @@ StatusOr<CutSelection> CutSelection::make(std::span<const ProbeView> views, cons
           const double kappa = normal_spread_angle(nodes_q[size_t(it - codes_at[size_t(Q)].begin())]) / side_q;
           if (kappa > 0 && mc.m.f > 0) ratios.push_back(mc.m.tilt / (kappa * mc.m.f));
         }
-        if (ratios.size() < kMinCurvatureSamples) continue;
-        const size_t q = size_t(std::floor(config.calibration_quantile * double(ratios.size() - 1)));
-        std::nth_element(ratios.begin(), ratios.begin() + std::ptrdiff_t(q), ratios.end());
-        curvature_factor[v] = ratios[q];
+        if (ratios.size() >= kMinCurvatureSamples)
+          curvature_factor[v] = low_quantile(ratios, config.calibration_quantile);
       }
     n.curvature_factor = curvature_factor;
 
@@ -1090,6 +1092,7 @@ StatusOr<CutSelection> CutSelection::make(std::span<const ProbeView> views, cons
           const uint64_t code = nodes[i];
           double f = kInf, a = kInf;
           std::optional<Bbox> box;
+          const double kappa = store_specular ? normal_spread_angle(nodes_q[i]) / side_q : 0.0;
           for (size_t v = 0; v < views.size(); ++v) {
             const std::vector<MeasuredCell>& sm = sorted_measured[v];
             while (at[v] < sm.size() && sm[at[v]].code < code) ++at[v];
@@ -1104,7 +1107,7 @@ StatusOr<CutSelection> CutSelection::make(std::span<const ProbeView> views, cons
             if (store_specular) {
               double unreached = 0.5 * facts[v].a_min * facts[v].m;
               if (!hit && curvature_factor[v] > 0) {
-                const double curved = curvature_factor[v] * normal_spread_angle(nodes_q[i]) / side_q * seen;
+                const double curved = curvature_factor[v] * kappa * seen;
                 if (std::isfinite(curved)) unreached = std::max(unreached, curved);
               }
               a = std::min(a, hit ? hit->tilt : unreached);

@@ -1069,9 +1069,16 @@ TEST(CutSelection, EverySelectionIsSelectCutsExactly) {
     distinct += seen.insert(cells_of(kept->cuts[0])).second;
   }
   EXPECT_GE(distinct, 4u);  // the configurations select different cuts
-  // A selection is for the shadow factor it was made with.
+  // A selection is for the shadow factor and the calibration of unreached
+  // curved cells it was made with.
   ProbeConfig other = c;
   other.shadow_factor = 2 * c.shadow_factor;
+  EXPECT_FALSE(selection->select(other).is_ok());
+  other = c;
+  other.curved_unreached_tilt = false;
+  EXPECT_FALSE(selection->select(other).is_ok());
+  other = c;
+  other.calibration_quantile = 0.5;
   EXPECT_FALSE(selection->select(other).is_ok());
 }
 
@@ -1174,8 +1181,9 @@ TEST(ProbeDeviation, AngleToleranceLoosensOnlyMirrorAndGlass) {
 // what the normal bound then keeps fewer cells for, and with too few
 // measured curved cells to calibrate on (three test rays) c is 0 and the
 // cut is the flat bound's. The bound rises with c: a higher calibration
-// quantile collapses every cell the lower one does, before grading. A
-// selection prepared for one calibration refuses another.
+// quantile collapses every cell the lower one does, before grading
+// (CutSelection.EverySelectionIsSelectCutsExactly: a selection prepared for
+// one calibration refuses another).
 TEST(ProbeDeviation, UnreachedCurvedGlassCellsTakeACalibratedTilt) {
   const OneObject one(teapot());
   auto probe = [&](bool curved, int rays, CutBalance balance) {
@@ -1214,20 +1222,6 @@ TEST(ProbeDeviation, UnreachedCurvedGlassCellsTakeACalibratedTilt) {
   const Cut& h = higher->cuts[0];
   EXPECT_GT(h.counters.at("curvature_factor_ppm"), curved.counters.at("curvature_factor_ppm"));
   EXPECT_LT(h.counters.at("cells_kept_for_normals"), curved.counters.at("cells_kept_for_normals"));
-
-  // A selection made for one calibration is not asked for another.
-  const Scene scene = make_scene(MaterialType::Glass, kEye, kLook);
-  ProbeConfig made;
-  made.rays = 200;
-  auto trace = trace_probe(scene, one.stores(), one.objects(), made);
-  ASSERT_TRUE(trace) << trace.status().message();
-  const ProbeView view{&trace.value(), scene.camera};
-  auto sel = CutSelection::make(std::span<const ProbeView>(&view, 1), scene, one.stores(), one.objects(), made);
-  ASSERT_TRUE(sel) << sel.status().message();
-  ProbeConfig other = made;
-  other.curved_unreached_tilt = false;
-  EXPECT_FALSE(sel->select(other));
-  EXPECT_TRUE(sel->select(made));
 }
 
 // The cut's pairs of touching cells more than one level apart
