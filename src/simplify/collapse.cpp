@@ -668,73 +668,90 @@ IndexedMesh CollapseBuilder::finish(CollapseStats* stats_out) {
   size_t kept_count = 0;
   for (size_t i = 0; i < tris_.size(); ++i) if (keep[i]) ++kept_count;
   mesh.indices.reserve(3 * kept_count);
-  for (size_t i = 0; i < tris_.size(); ++i) {
-    if (!keep[i]) continue;
-    const Vec3d key(keys_[i]);
-    for (uint32_t v : tris_[i]) {
-      Vec3 unit;
-      if (v >= nreps && has_normals_) {
-        unit = kept_normal_[v - nreps];  // input normals are kept exactly
-      } else if (v < one_vertex.size() && one_vertex[v]) {  // as the vertex kept (collapse.h)
-        // Input normals: the corner's own, the one nearest its face's normal.
-        Vec3d nd = has_normals_ ? clusters_.nearest_seed(v, key) : one_vertex_clusters_.resolve(v, key, cos_crease_);
-        if (glm::length(nd) == 0) nd = has_normals_ ? clusters_.mean(v) : one_vertex_clusters_.mean(v);
-        if (glm::length(nd) == 0) {
-          ++stats_.normal_fallbacks;
-          nd = glm::length(key) > 0 ? key : Vec3d(0, 1, 0);
-        }
-        unit = Vec3(nd);
-      } else {
-        Vec3d nd(0);
-        // Without input normals, a representative on a flat face that only
-        // slivers border (a pin's flat end beside the strips of its small
-        // fillet) keeps the face's own normal: the crease angle's band
-        // would tilt it towards the fillet by as much as the cell holds
-        // of it, differently from cell to cell (radial streaks).
-        // (Not for crease angles of 90 degrees or more, which ask to smooth
-        // across real edges: a box's faces at a corner are no slivers.)
-        if (v < nreps && !has_normals_ && cos_crease_ > 0 && glm::length(key) > 0)
-          nd = clusters_.flat_side(v, key, kFlatSideCos, kFlatSideShare, kFlatSideSlivers);
-        if (glm::length(nd) == 0 && glm::length(key) > 0) nd = clusters_.resolve(v, key, cos_crease_);
-        if (glm::length(nd) == 0) nd = clusters_.mean(v);
-        if (glm::length(nd) == 0) {
-          ++stats_.normal_fallbacks;
-          const Vec3d fallback = v < nreps ? reps_[v].fallback_normal : key;
-          nd = glm::length(fallback) > 0 ? glm::normalize(fallback) : Vec3d(0, 1, 0);
-        }
-        // The input's normal at the representative (exact normals, collapse.h).
-        if (v < exact.size() && exact[v] && glm::dot(Vec3d(sample_normal_[v]), nd) >= cos_crease_) {
-          nd = sample_normal_[v];
-          took[v] = 1;
-        }
-        unit = Vec3(nd);
+  // A corner's normal: a function of its provisional vertex and its input
+  // face's normal alone, so the corners are resolved in parallel, a chunk
+  // of triangles at a time, and split into output vertices in order.
+  std::atomic<uint64_t> fallbacks{0};
+  const auto resolve_corner = [&](uint32_t v, const Vec3d& key) -> Vec3 {
+    if (v >= nreps && has_normals_) return kept_normal_[v - nreps];  // input normals are kept exactly
+    if (v < one_vertex.size() && one_vertex[v]) {  // as the vertex kept (collapse.h)
+      // Input normals: the corner's own, the one nearest its face's normal.
+      Vec3d nd = has_normals_ ? clusters_.nearest_seed(v, key) : one_vertex_clusters_.resolve(v, key, cos_crease_);
+      if (glm::length(nd) == 0) nd = has_normals_ ? clusters_.mean(v) : one_vertex_clusters_.mean(v);
+      if (glm::length(nd) == 0) {
+        fallbacks.fetch_add(1, std::memory_order_relaxed);
+        nd = glm::length(key) > 0 ? key : Vec3d(0, 1, 0);
       }
-      uint32_t out = first_out[v];
-      while (out != kKeepVertex && !same_bits(mesh.normals[out], unit)) out = next_out[out];
-      if (out == kKeepVertex) {
-        out = uint32_t(mesh.positions.size());
-        if (first_out[v] == kKeepVertex) {
-          first_out[v] = out;
-          if (v < nreps) ++stats_.representatives_used;
-          else ++stats_.kept_vertices;
-        } else {
-          ++stats_.split_vertices;
-          uint32_t last = first_out[v];
-          while (next_out[last] != kKeepVertex) last = next_out[last];
-          next_out[last] = out;
-        }
-        mesh.positions.push_back(v < nreps ? rep_pos_[v] : kept_pos_[v - nreps]);
-        mesh.normals.push_back(unit);
-        next_out.push_back(kKeepVertex);
+      return Vec3(nd);
+    }
+    Vec3d nd(0);
+    // Without input normals, a representative on a flat face that only
+    // slivers border (a pin's flat end beside the strips of its small
+    // fillet) keeps the face's own normal: the crease angle's band
+    // would tilt it towards the fillet by as much as the cell holds
+    // of it, differently from cell to cell (radial streaks).
+    // (Not for crease angles of 90 degrees or more, which ask to smooth
+    // across real edges: a box's faces at a corner are no slivers.)
+    if (v < nreps && !has_normals_ && cos_crease_ > 0 && glm::length(key) > 0)
+      nd = clusters_.flat_side(v, key, kFlatSideCos, kFlatSideShare, kFlatSideSlivers);
+    if (glm::length(nd) == 0 && glm::length(key) > 0) nd = clusters_.resolve(v, key, cos_crease_);
+    if (glm::length(nd) == 0) nd = clusters_.mean(v);
+    if (glm::length(nd) == 0) {
+      fallbacks.fetch_add(1, std::memory_order_relaxed);
+      const Vec3d fallback = v < nreps ? reps_[v].fallback_normal : key;
+      nd = glm::length(fallback) > 0 ? glm::normalize(fallback) : Vec3d(0, 1, 0);
+    }
+    // The input's normal at the representative (exact normals, collapse.h).
+    if (v < exact.size() && exact[v] && glm::dot(Vec3d(sample_normal_[v]), nd) >= cos_crease_) {
+      nd = sample_normal_[v];
+      std::atomic_ref<uint8_t>(took[v]).store(1, std::memory_order_relaxed);
+    }
+    return Vec3(nd);
+  };
+  constexpr size_t kChunk = size_t(1) << 18;  // triangles
+  std::vector<Vec3> units(3 * std::min(kChunk, tris_.size()));
+  for (size_t c0 = 0; c0 < tris_.size(); c0 += kChunk) {
+    const size_t c1 = std::min(tris_.size(), c0 + kChunk);
+    tbb::parallel_for(tbb::blocked_range<size_t>(c0, c1, 4096), [&](const tbb::blocked_range<size_t>& r) {
+      for (size_t i = r.begin(); i != r.end(); ++i) {
+        if (!keep[i]) continue;
+        const Vec3d key(keys_[i]);
+        for (int k = 0; k < 3; ++k) units[3 * (i - c0) + size_t(k)] = resolve_corner(tris_[i][size_t(k)], key);
       }
-      mesh.indices.push_back(out);
+    });
+    for (size_t i = c0; i < c1; ++i) {
+      if (!keep[i]) continue;
+      for (int k = 0; k < 3; ++k) {
+        const uint32_t v = tris_[i][size_t(k)];
+        const Vec3& unit = units[3 * (i - c0) + size_t(k)];
+        uint32_t out = first_out[v];
+        while (out != kKeepVertex && !same_bits(mesh.normals[out], unit)) out = next_out[out];
+        if (out == kKeepVertex) {
+          out = uint32_t(mesh.positions.size());
+          if (first_out[v] == kKeepVertex) {
+            first_out[v] = out;
+            if (v < nreps) ++stats_.representatives_used;
+            else ++stats_.kept_vertices;
+          } else {
+            ++stats_.split_vertices;
+            uint32_t last = first_out[v];
+            while (next_out[last] != kKeepVertex) last = next_out[last];
+            next_out[last] = out;
+          }
+          mesh.positions.push_back(v < nreps ? rep_pos_[v] : kept_pos_[v - nreps]);
+          mesh.normals.push_back(unit);
+          next_out.push_back(kKeepVertex);
+        }
+        mesh.indices.push_back(out);
+      }
     }
   }
+  stats_.normal_fallbacks += fallbacks.load();
   for (uint8_t t : took) stats_.exact_normals += t;
   stats_.output_triangles = mesh.triangle_count();
   stats_.output_vertices = mesh.positions.size();
   stats_.peak_bytes = std::max(stats_.peak_bytes, memory_bytes() + first_out.size() * 4 + next_out.capacity() * 4 +
-                                                      exact.size() + took.size() +
+                                                      exact.size() + took.size() + units.size() * sizeof(Vec3) +
                                                       tris_.size() / 8 + mesh.positions.capacity() * 24 +
                                                       mesh.indices.capacity() * 4);
   if (stats_out) *stats_out = stats_;

@@ -1,0 +1,64 @@
+// The programs' operator new (src/cli/huge_page_new.cpp, linked into this
+// test as into raylod): a large block is advised for transparent huge pages
+// over the 2 MiB pages it wholly covers; the kernel shows the advice as the
+// "hg" flag of the mapping (/proc/self/smaps).
+#include <gtest/gtest.h>
+
+#include <cstdint>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <memory>
+#include <sstream>
+#include <string>
+
+namespace {
+
+#if defined(__has_feature)
+#if __has_feature(address_sanitizer)
+#define RAYLOD_TEST_UNDER_ASAN 1
+#endif
+#endif
+#if defined(__SANITIZE_ADDRESS__)
+#define RAYLOD_TEST_UNDER_ASAN 1
+#endif
+
+// The VmFlags of the mapping that holds `address` ("" if none is found).
+std::string mapping_flags(std::uintptr_t address) {
+  std::ifstream smaps("/proc/self/smaps");
+  std::string line;
+  bool inside = false;
+  while (std::getline(smaps, line)) {
+    unsigned long long lo = 0, hi = 0;
+    char dash = 0;
+    std::istringstream header(line);
+    if (header >> std::hex >> lo >> dash >> hi && dash == '-') {
+      inside = address >= lo && address < hi;
+      continue;
+    }
+    if (inside && line.rfind("VmFlags:", 0) == 0) return line + " ";
+  }
+  return "";
+}
+
+TEST(HugePageNew, LargeBlocksAskForHugePages) {
+#if defined(RAYLOD_TEST_UNDER_ASAN) || !defined(__linux__)
+  GTEST_SKIP() << "the operator new is AddressSanitizer's here (or not Linux)";
+#else
+  if (!std::filesystem::exists("/sys/kernel/mm/transparent_hugepage/enabled"))
+    GTEST_SKIP() << "this kernel has no transparent huge pages";
+  constexpr std::size_t kHuge = std::size_t(2) << 20;
+  const std::size_t bytes = 8 * kHuge;
+  std::unique_ptr<char[]> block(new char[bytes]);
+  const std::uintptr_t start = reinterpret_cast<std::uintptr_t>(block.get());
+  const std::uintptr_t first_whole = (start + kHuge - 1) & ~(kHuge - 1);
+  const std::string flags = mapping_flags(first_whole);
+  ASSERT_FALSE(flags.empty()) << "no mapping holds the block";
+  EXPECT_NE(flags.find(" hg "), std::string::npos) << flags;
+  // The last whole huge page of the block is advised too.
+  const std::uintptr_t last_whole = ((start + bytes) & ~(kHuge - 1)) - kHuge;
+  EXPECT_NE(mapping_flags(last_whole).find(" hg "), std::string::npos) << mapping_flags(last_whole);
+#endif
+}
+
+}  // namespace
