@@ -11,7 +11,8 @@
 // kMinimumBytes or more is advised (madvise MADV_HUGEPAGE) over the 2 MiB
 // pages it wholly covers. The block still comes from malloc and goes back to
 // free (the library's operator delete), so nothing else changes; where the
-// kernel says "never" or "always" the advice changes nothing.
+// kernel says "never" or "always" the advice changes nothing, and
+// RAYLOD_HUGE_PAGES=0 turns it off.
 // core/system.h's ScopedSmallPages still turns huge pages off where they
 // cost more than they save (Embree's BVH build).
 //
@@ -40,9 +41,18 @@ constexpr std::size_t kHugePage = std::size_t(2) << 20;
 // At least one whole huge page inside, wherever malloc places the block.
 constexpr std::size_t kMinimumBytes = 2 * kHugePage;
 
+// RAYLOD_HUGE_PAGES=0 in the environment: no advice (to measure without).
+bool advise() noexcept {
+  static const bool on = [] {
+    const char* v = std::getenv("RAYLOD_HUGE_PAGES");
+    return !(v && v[0] == '0' && v[1] == 0);
+  }();
+  return on;
+}
+
 void* allocate(std::size_t bytes) noexcept {
   void* p = std::malloc(bytes ? bytes : 1);
-  if (p && bytes >= kMinimumBytes) {
+  if (p && bytes >= kMinimumBytes && advise()) {
     const std::uintptr_t lo = (reinterpret_cast<std::uintptr_t>(p) + kHugePage - 1) & ~(kHugePage - 1);
     const std::uintptr_t hi = (reinterpret_cast<std::uintptr_t>(p) + bytes) & ~(kHugePage - 1);
     if (hi > lo) ::madvise(reinterpret_cast<void*>(lo), hi - lo, MADV_HUGEPAGE);  // advice: its failure is harmless

@@ -1,11 +1,13 @@
 // The programs' operator new (src/cli/huge_page_new.cpp, linked into this
 // test as into raylod): a large block is advised for transparent huge pages
 // over the 2 MiB pages it wholly covers; the kernel shows the advice as the
-// "hg" flag of the mapping (/proc/self/smaps).
+// "hg" flag of the mapping (/proc/self/smaps). RAYLOD_HUGE_PAGES=0 turns
+// the advice off, and this test with it.
 #include <gtest/gtest.h>
 
 #include <cstdint>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <memory>
@@ -45,6 +47,8 @@ TEST(HugePageNew, LargeBlocksAskForHugePages) {
 #if defined(RAYLOD_TEST_UNDER_ASAN) || !defined(__linux__)
   GTEST_SKIP() << "the operator new is AddressSanitizer's here (or not Linux)";
 #else
+  if (const char* v = std::getenv("RAYLOD_HUGE_PAGES"); v && std::string(v) == "0")
+    GTEST_SKIP() << "RAYLOD_HUGE_PAGES=0 turns the advice off";
   if (!std::filesystem::exists("/sys/kernel/mm/transparent_hugepage/enabled"))
     GTEST_SKIP() << "this kernel has no transparent huge pages";
   constexpr std::size_t kHuge = std::size_t(2) << 20;
