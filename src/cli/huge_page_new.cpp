@@ -20,6 +20,7 @@
 // operator delete.
 #include <sys/mman.h>
 
+#include <cerrno>
 #include <cstdint>
 #include <cstdlib>
 #include <new>
@@ -55,7 +56,11 @@ void* allocate(std::size_t bytes) noexcept {
   if (p && bytes >= kMinimumBytes && advise()) {
     const std::uintptr_t lo = (reinterpret_cast<std::uintptr_t>(p) + kHugePage - 1) & ~(kHugePage - 1);
     const std::uintptr_t hi = (reinterpret_cast<std::uintptr_t>(p) + bytes) & ~(kHugePage - 1);
-    if (hi > lo) ::madvise(reinterpret_cast<void*>(lo), hi - lo, MADV_HUGEPAGE);  // advice: its failure is harmless
+    if (hi > lo) {
+      const int saved = errno;  // advice: its failure is harmless, and errno stays the caller's
+      ::madvise(reinterpret_cast<void*>(lo), hi - lo, MADV_HUGEPAGE);
+      errno = saved;
+    }
   }
   return p;
 }
@@ -72,9 +77,16 @@ void* allocate_or_throw(std::size_t bytes) {
 
 }  // namespace
 
+// The array and nothrow forms of the C++ library call this one (and so its
+// new-handler loop). The deletes below pair with it explicitly (the
+// library's would free() as well; tools such as Valgrind see the pairs).
+// The aligned forms stay the library's, new and delete alike.
 void* operator new(std::size_t bytes) { return allocate_or_throw(bytes); }
-void* operator new[](std::size_t bytes) { return allocate_or_throw(bytes); }
-void* operator new(std::size_t bytes, const std::nothrow_t&) noexcept { return allocate(bytes); }
-void* operator new[](std::size_t bytes, const std::nothrow_t&) noexcept { return allocate(bytes); }
+void operator delete(void* p) noexcept { std::free(p); }
+void operator delete[](void* p) noexcept { std::free(p); }
+void operator delete(void* p, std::size_t) noexcept { std::free(p); }
+void operator delete[](void* p, std::size_t) noexcept { std::free(p); }
+void operator delete(void* p, const std::nothrow_t&) noexcept { std::free(p); }
+void operator delete[](void* p, const std::nothrow_t&) noexcept { std::free(p); }
 
 #endif
