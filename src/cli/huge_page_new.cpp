@@ -6,41 +6,30 @@
 // once or twice. Where the kernel gives huge pages only to memory that asks
 // (/sys/kernel/mm/transparent_hugepage/enabled "madvise", Debian's default),
 // every first touch of a 4 KiB page is a fault, and in a virtual machine a
-// costly one: the 100M glass view's simplify took 516,000 faults in 14.3 s,
-// and 125,000 in 11.4 s with huge pages (README, "The store"). So a block of
-// kMinimumBytes or more is advised (madvise MADV_HUGEPAGE) over the 2 MiB
-// pages it wholly covers. The block still comes from malloc and goes back to
-// free (the library's operator delete), so nothing else changes; where the
-// kernel says "never" or "always" the advice changes nothing, and
-// RAYLOD_HUGE_PAGES=0 turns it off.
+// costly one: the 100M glass view's simplify took 519,000 faults in 13.1 s
+// without the advice and 136,000 in 10.2 s with it (README, "The store").
+// So a block of kHugePageAdviceMinimum or more is advised (madvise
+// MADV_HUGEPAGE) over the 2 MiB pages it wholly covers. The block still
+// comes from malloc and goes back to free (the deletes below), so nothing
+// else changes; where the kernel says "never" or "always" the advice
+// changes nothing, and RAYLOD_HUGE_PAGES=0 turns it off.
 // core/system.h's ScopedSmallPages still turns huge pages off where they
 // cost more than they save (Embree's BVH build).
 //
-// Not under AddressSanitizer, whose own operator new must pair with its
-// operator delete.
-#include <sys/mman.h>
+// Not under AddressSanitizer (huge_page_new.h).
+#include "cli/huge_page_new.h"
 
 #include <cerrno>
 #include <cstdint>
 #include <cstdlib>
 #include <new>
 
-#if defined(__has_feature)
-#if __has_feature(address_sanitizer)
-#define RAYLOD_NEW_UNDER_ASAN 1
-#endif
-#endif
-#if defined(__SANITIZE_ADDRESS__)
-#define RAYLOD_NEW_UNDER_ASAN 1
-#endif
-
-#if defined(__linux__) && defined(MADV_HUGEPAGE) && !defined(RAYLOD_NEW_UNDER_ASAN)
+#if RAYLOD_HUGE_PAGE_NEW
 
 namespace {
 
-constexpr std::size_t kHugePage = std::size_t(2) << 20;
-// At least one whole huge page inside, wherever malloc places the block.
-constexpr std::size_t kMinimumBytes = 2 * kHugePage;
+using raylod::kHugePageAdviceMinimum;
+using raylod::kHugePageBytes;
 
 // RAYLOD_HUGE_PAGES=0 in the environment: no advice (to measure without).
 bool advise() noexcept {
@@ -53,9 +42,9 @@ bool advise() noexcept {
 
 void* allocate(std::size_t bytes) noexcept {
   void* p = std::malloc(bytes ? bytes : 1);
-  if (p && bytes >= kMinimumBytes && advise()) {
-    const std::uintptr_t lo = (reinterpret_cast<std::uintptr_t>(p) + kHugePage - 1) & ~(kHugePage - 1);
-    const std::uintptr_t hi = (reinterpret_cast<std::uintptr_t>(p) + bytes) & ~(kHugePage - 1);
+  if (p && bytes >= kHugePageAdviceMinimum && advise()) {
+    const std::uintptr_t lo = (reinterpret_cast<std::uintptr_t>(p) + kHugePageBytes - 1) & ~(kHugePageBytes - 1);
+    const std::uintptr_t hi = (reinterpret_cast<std::uintptr_t>(p) + bytes) & ~(kHugePageBytes - 1);
     if (hi > lo) {
       const int saved = errno;  // advice: its failure is harmless, and errno stays the caller's
       ::madvise(reinterpret_cast<void*>(lo), hi - lo, MADV_HUGEPAGE);

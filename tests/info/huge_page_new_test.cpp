@@ -14,16 +14,10 @@
 #include <sstream>
 #include <string>
 
-namespace {
+#include "cli/huge_page_new.h"
 
-#if defined(__has_feature)
-#if __has_feature(address_sanitizer)
-#define RAYLOD_TEST_UNDER_ASAN 1
-#endif
-#endif
-#if defined(__SANITIZE_ADDRESS__)
-#define RAYLOD_TEST_UNDER_ASAN 1
-#endif
+namespace raylod {
+namespace {
 
 // The VmFlags of the mapping that holds `address` ("" if none is found).
 std::string mapping_flags(std::uintptr_t address) {
@@ -44,14 +38,14 @@ std::string mapping_flags(std::uintptr_t address) {
 }
 
 TEST(HugePageNew, LargeBlocksAskForHugePages) {
-#if defined(RAYLOD_TEST_UNDER_ASAN) || !defined(__linux__)
-  GTEST_SKIP() << "the operator new is AddressSanitizer's here (or not Linux)";
+#if !RAYLOD_HUGE_PAGE_NEW
+  GTEST_SKIP() << "this build keeps the library's operator new (AddressSanitizer's, or not Linux)";
 #else
   if (const char* v = std::getenv("RAYLOD_HUGE_PAGES"); v && std::string(v) == "0")
     GTEST_SKIP() << "RAYLOD_HUGE_PAGES=0 turns the advice off";
   if (!std::filesystem::exists("/sys/kernel/mm/transparent_hugepage/enabled"))
     GTEST_SKIP() << "this kernel has no transparent huge pages";
-  constexpr std::size_t kHuge = std::size_t(2) << 20;
+  constexpr std::size_t kHuge = kHugePageBytes;
   const std::size_t bytes = 8 * kHuge;
   std::unique_ptr<char[]> block(new char[bytes]);
   const std::uintptr_t start = reinterpret_cast<std::uintptr_t>(block.get());
@@ -66,3 +60,4 @@ TEST(HugePageNew, LargeBlocksAskForHugePages) {
 }
 
 }  // namespace
+}  // namespace raylod
