@@ -94,6 +94,13 @@ StatusOr<GltfSummary> describe_gltf(const std::filesystem::path& file);
 // the content decides between GLB and JSON (used by open_mesh).
 StatusOr<std::unique_ptr<MeshReader>> open_gltf_reader(const std::filesystem::path& path, ReaderOptions options = {});
 
+// The files the buffers of a glTF file name (not data URIs, not images),
+// beside the file as its reader looks for them, each once in buffer order.
+// Reads only the JSON (a .glb's JSON chunk); a file whose JSON does not
+// parse gives none (its reader reports why). The store's fingerprint of a
+// glTF mesh covers them (octree_store.h, fingerprint_file).
+std::vector<std::filesystem::path> gltf_external_buffers(const std::filesystem::path& file);
+
 // ---- Writing ----
 
 // A mesh of a .glb: Draco-encoded bytes (encode_draco, or a .drc file's

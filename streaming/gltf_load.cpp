@@ -13,6 +13,7 @@
 #include <nlohmann/json.hpp>
 
 #include "core/system.h"
+#include "streaming/gltf_io.h"
 #include "streaming/gltf_model.h"
 
 namespace raylod::gltf {
@@ -222,12 +223,22 @@ StatusOr<std::shared_ptr<const LoadedModel>> load_model(const std::filesystem::p
   std::error_code ec;
   const std::filesystem::path canonical = std::filesystem::weakly_canonical(std::filesystem::absolute(file, ec), ec);
   const uint64_t mtime = uint64_t(st.st_mtim.tv_sec) * 1000000000ull + uint64_t(st.st_mtim.tv_nsec);
+  // The .bin files beside a .gltf belong to its content: their status joins
+  // the cache's key, so an edited .bin is read again.
+  uint64_t buffers_key = 0;
+  for (const std::filesystem::path& b : gltf_external_buffers(file)) {
+    struct stat bs {};
+    if (::stat(b.c_str(), &bs) != 0) continue;
+    for (uint64_t v : {uint64_t(bs.st_size), uint64_t(bs.st_ino), uint64_t(bs.st_mtim.tv_sec), uint64_t(bs.st_mtim.tv_nsec),
+                       uint64_t(bs.st_ctim.tv_sec), uint64_t(bs.st_ctim.tv_nsec)})
+      buffers_key = (buffers_key ^ v) * 0x100000001b3ull + 0x9e3779b97f4a7c15ull;
+  }
   // One entry: the per-mesh readers of a scene's glTF (build passes, render)
   // open the same file one after the other. /proc/self/fd paths (the fuzz
   // targets) are never cached: their numbers are reused for other files.
   static std::mutex mutex;
   static std::string cached_path;
-  static uint64_t cached_size = 0, cached_mtime = 0;
+  static uint64_t cached_size = 0, cached_mtime = 0, cached_buffers = 0;
   static std::weak_ptr<const LoadedModel> cached;
   static std::shared_ptr<const LoadedModel> kept;  // small files stay loaded between readers
   const bool cacheable = file.string().rfind("/proc/", 0) != 0;
@@ -235,7 +246,7 @@ StatusOr<std::shared_ptr<const LoadedModel>> load_model(const std::filesystem::p
     std::lock_guard<std::mutex> lock(mutex);
     std::shared_ptr<const LoadedModel> hit = cached.lock();
     if (cacheable && hit && cached_path == canonical.string() && cached_size == uint64_t(st.st_size) &&
-        cached_mtime == mtime && hit->name == file.string())
+        cached_mtime == mtime && cached_buffers == buffers_key && hit->name == file.string())
       return hit;
   }
   RAYLOD_ASSIGN_OR_RETURN(std::shared_ptr<const LoadedModel> loaded, load_uncached(file, uint64_t(st.st_size)));
@@ -248,6 +259,7 @@ StatusOr<std::shared_ptr<const LoadedModel>> load_model(const std::filesystem::p
     cached_path = canonical.string();
     cached_size = uint64_t(st.st_size);
     cached_mtime = mtime;
+    cached_buffers = buffers_key;
   }
   return loaded;
 }

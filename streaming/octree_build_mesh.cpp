@@ -12,6 +12,8 @@
 
 #include "core/system.h"
 #include "streaming/octree_store.h"
+#include "streaming/distinct_keys.h"
+#include "streaming/gltf_io.h"
 #include "streaming/source_record.h"
 
 namespace raylod {
@@ -85,11 +87,30 @@ StatusOr<SourceFingerprint> fingerprint_file(const std::filesystem::path& mesh, 
   fp.path = (ec ? std::filesystem::absolute(path) : abs).string();
   if (ref.gltf_mesh >= 0) fp.path = gltf_mesh_path(fp.path, ref.gltf_mesh).string();
   fp.status = file_status_of(st);
-  fp.bytes = fp.status.bytes;
-  fp.mtime_ns = fp.status.mtime_ns;
   if (with_hash) {
     RAYLOD_ASSIGN_OR_RETURN(fp.hash, hash_file(path));
   }
+  // A .gltf's mesh lives in the .bin files beside it: they join the
+  // fingerprint (sizes summed, the latest times, inodes and hashes mixed
+  // in), so that editing one changes it as editing the .gltf would. A
+  // missing one is left out (the reader says it is missing).
+  auto format = mesh_format_from_extension(path);
+  if (format.is_ok() && *format == MeshFormat::Gltf)
+    for (const std::filesystem::path& buffer : gltf_external_buffers(path)) {
+      struct stat bs {};
+      if (::stat(buffer.c_str(), &bs) != 0 || !S_ISREG(bs.st_mode)) continue;
+      const FileStatus b = file_status_of(bs);
+      fp.status.bytes += b.bytes;
+      fp.status.mtime_ns = std::max(fp.status.mtime_ns, b.mtime_ns);
+      fp.status.ctime_ns = std::max(fp.status.ctime_ns, b.ctime_ns);
+      fp.status.inode = mix64_finalise(fp.status.inode ^ mix64_finalise(b.inode + b.device));
+      if (with_hash) {
+        RAYLOD_ASSIGN_OR_RETURN(const uint64_t h, hash_file(buffer));
+        fp.hash = mix64_finalise(fp.hash ^ mix64_finalise(h));
+      }
+    }
+  fp.bytes = fp.status.bytes;
+  fp.mtime_ns = fp.status.mtime_ns;
   return fp;
 }
 

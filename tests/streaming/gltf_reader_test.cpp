@@ -3,12 +3,20 @@
 // through the .glb writer within the Draco bound, and bad input.
 #include <gtest/gtest.h>
 
+#include <fcntl.h>
+#include <sys/stat.h>
+
+#include <chrono>
 #include <cmath>
+#include <cstring>
+#include <thread>
 
 #include "gltf_test_util.h"
 #include "reader_test_util.h"
 #include "streaming/draco_io.h"
+#include "core/progress.h"
 #include "streaming/gltf_io.h"
+#include "streaming/octree_store.h"
 
 namespace raylod {
 namespace {
@@ -344,6 +352,62 @@ TEST(GltfDescribe, ListsMeshesWithTriangleCountsAndInstances) {
   EXPECT_TRUE(s->materials[0].has_base_color);
   EXPECT_FALSE(s->materials[0].mirror);
   EXPECT_TRUE(s->materials[1].mirror);
+}
+
+// The files a .gltf's buffers name, resolved beside it and percent-decoded;
+// data URIs and a .glb's own chunk name none.
+TEST(GltfExternal, BuffersBesideTheFileAreListed) {
+  GltfBuilder b;
+  b.mesh({GltfBuilder::primitive(b.positions({{0, 0, 0}, {1, 0, 0}, {0, 1, 0}}))});
+  json doc = b.with_buffer("my%20tri.bin");
+  doc["buffers"].push_back({{"byteLength", 4}, {"uri", "data:application/octet-stream;base64,AAAAAA=="}});
+  doc["buffers"].push_back({{"byteLength", 4}, {"uri", "my%20tri.bin"}});  // the same file again: listed once
+  const auto gltf = test::write_file("listed.gltf", doc.dump());
+  const auto found = gltf_external_buffers(gltf);
+  ASSERT_EQ(found.size(), 1u);
+  EXPECT_EQ(found[0], gltf.parent_path() / "my tri.bin");
+  EXPECT_TRUE(gltf_external_buffers(test::write_file("inline.gltf", b.gltf())).empty());
+  EXPECT_TRUE(gltf_external_buffers(test::write_file("own.glb", b.glb())).empty());
+  EXPECT_TRUE(gltf_external_buffers(test::write_file("broken.gltf", "{\"buffers\": [")).empty());
+}
+
+// Editing the .bin beside a .gltf (same size and modification time, other
+// content) makes its store stale, even once a check record vouched for the
+// mesh, and the rebuilt store holds the new geometry.
+TEST(GltfExternal, EditingTheBinMakesTheStoreStale) {
+  Progress::set_enabled(false);
+  GltfBuilder b;
+  b.mesh({GltfBuilder::primitive(b.positions({{0, 0, 0}, {1, 0, 0}, {0, 1, 0}}))});
+  const auto bin = test::write_file("tri.bin", b.bin);
+  const auto gltf = test::write_file("tri.gltf", b.with_buffer("tri.bin").dump());
+  const auto store = default_store_path(gltf);
+  StoreOptions opt;
+  opt.memory_limit = 64 << 20;
+  // A check record is written only for files last changed a second before.
+  std::this_thread::sleep_for(std::chrono::milliseconds(1100));
+  auto built = build_store(gltf, store, opt);
+  ASSERT_TRUE(built.is_ok()) << built.status().message();
+  std::string why;
+  ASSERT_TRUE(store_is_current(gltf, store, opt, &why)) << why;
+  EXPECT_NE(why.find("last content check"), std::string::npos) << why;
+
+  struct stat before {};
+  ASSERT_EQ(::stat(bin.c_str(), &before), 0);
+  std::string moved = b.bin;
+  const float x = 5.0f;
+  std::memcpy(&moved[12], &x, 4);  // the second corner's x: 1 -> 5
+  test::write_file("tri.bin", moved);
+  struct timespec times[2] = {before.st_atim, before.st_mtim};
+  ASSERT_EQ(::utimensat(AT_FDCWD, bin.c_str(), times, 0), 0);
+  EXPECT_FALSE(store_is_current(gltf, store, opt, &why));
+  EXPECT_NE(why.find("content"), std::string::npos) << why;
+
+  auto rebuilt = build_store(gltf, store, opt);
+  ASSERT_TRUE(rebuilt.is_ok()) << rebuilt.status().message();
+  EXPECT_FALSE(rebuilt->reused);
+  auto opened = OctreeStore::open(store);
+  ASSERT_TRUE(opened.is_ok()) << opened.status().message();
+  EXPECT_FLOAT_EQ(float((*opened)->header().bounds.hi.x), 5.0f);
 }
 
 }  // namespace
