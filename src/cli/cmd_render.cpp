@@ -73,6 +73,8 @@ Status run_render(int argc, char** argv, bool& help) {
     if (opts.aov_normal) outputs.push_back({aov_path(output, "normal"), "the normal AOV"});
     if (opts.aov_triangle_id) outputs.push_back({aov_path(output, "triangle-id"), "the triangle-id AOV"});
     RAYLOD_RETURN_IF_ERROR(check_outputs_apart(outputs, scene_input_files(args, scene)));
+    for (size_t i = 1; i < outputs.size(); ++i)  // the AOVs: fail before rendering, not after
+      if (outputs[i].role != "--stats-json") RAYLOD_RETURN_IF_ERROR(check_output_image(outputs[i].path));
   }
   RAYLOD_ASSIGN_OR_RETURN(int64_t width, args.get_int("--width", scene.camera.width, 1, 32768));
   RAYLOD_ASSIGN_OR_RETURN(int64_t height, args.get_int("--height", scene.camera.height, 1, 32768));
@@ -94,7 +96,13 @@ Status run_render(int argc, char** argv, bool& help) {
   // whether it could, so that a failed write ends the job like any failure.
   auto write_outputs = [&]() -> Status {
     RAYLOD_RETURN_IF_ERROR(write_image(output, result.color));
-    RAYLOD_ASSIGN_OR_RETURN(auto aovs, write_aovs(output, result));
+    auto written_aovs = write_aovs(output, result);
+    if (!written_aovs.is_ok()) {  // nothing of a failed render stays: the image goes with its AOVs
+      std::error_code ec;
+      std::filesystem::remove(output, ec);
+      return written_aovs.status();
+    }
+    const auto& aovs = *written_aovs;
     const RenderStats& s = result.stats;
     if (!quiet)
       std::fprintf(stderr,

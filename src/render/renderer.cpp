@@ -565,7 +565,11 @@ Status check_output_image(const std::filesystem::path& path) {
   if (!out) return Status::error(path.string() + ": no image writer for '" + path.extension().string() + "' files");
   const auto dir = path.has_parent_path() ? path.parent_path() : std::filesystem::path(".");
   std::error_code ec;
-  if (!std::filesystem::is_directory(dir, ec)) return Status::error(path.string() + ": directory does not exist");
+  if (std::filesystem::is_directory(path, ec)) return Status::error(path.string() + ": is a directory");
+  if (std::filesystem::exists(dir, ec) && !std::filesystem::is_directory(dir, ec))
+    return Status::error(path.string() + ": " + dir.string() + " is not a directory");
+  if (!std::filesystem::is_directory(dir, ec))
+    return Status::error(path.string() + ": directory " + dir.string() + " does not exist");
   return {};
 }
 
@@ -601,6 +605,15 @@ std::filesystem::path aov_path(const std::filesystem::path& output, const std::s
 
 StatusOr<std::vector<std::filesystem::path>> write_aovs(const std::filesystem::path& output, const RenderResult& r) {
   std::vector<std::filesystem::path> written;
+  // All or none: a failed write removes the AOVs this call wrote before it.
+  struct Undo {
+    std::vector<std::filesystem::path>* written;
+    bool done = false;
+    ~Undo() {
+      std::error_code ec;
+      if (!done) for (const auto& p : *written) std::filesystem::remove(p, ec);
+    }
+  } undo{&written};
   if (!r.depth.empty()) {
     written.push_back(aov_path(output, "depth"));
     RAYLOD_RETURN_IF_ERROR(write_image(written.back(), r.depth));
@@ -613,6 +626,7 @@ StatusOr<std::vector<std::filesystem::path>> write_aovs(const std::filesystem::p
     written.push_back(aov_path(output, "triangle-id"));
     RAYLOD_RETURN_IF_ERROR(write_triangle_id_image(written.back(), r.color.width, r.color.height, r.triangle_id));
   }
+  undo.done = true;
   return written;
 }
 

@@ -95,5 +95,39 @@ TEST(OutputsApart, CommandsRefuseToWriteOverTheirInputs) {
   std::filesystem::remove_all(dir);
 }
 
+// Output paths that cannot be written are refused before rendering, and a
+// render whose AOV cannot be written leaves neither the image nor the AOVs
+// written before it.
+TEST(OutputsApart, UnwritableOutputsFailBeforeRendering) {
+  const std::filesystem::path dir = test::scratch_dir("outputs-unwritable");
+  std::ofstream(dir / "tetra.ply") << "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\n"
+                                      "property float z\nelement face 4\nproperty list uchar int vertex_indices\n"
+                                      "end_header\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n3 0 2 1\n3 0 1 3\n3 0 3 2\n3 1 2 3\n";
+  std::ofstream(dir / "scene.json") << R"({"camera": {"eye": [2, 1.5, 3], "look_at": [0.3, 0.3, 0.3], "fov_y": 40, "width": 64, "height": 48},
+       "materials": {"m": {"type": "diffuse", "color": [0.8, 0.3, 0.2]}},
+       "objects": [{"mesh": "tetra.ply", "material": "m"}], "spp": 1})";
+  std::filesystem::create_directories(dir / "d.png");
+  std::filesystem::create_directories(dir / "o.normal.exr");
+  struct Case {
+    std::string args, expect;
+  };
+  const Case cases[] = {
+      {"render scene.json -o d.png -q", "d.png: is a directory"},
+      {"render scene.json -o o.png --aov depth,normal -q", "o.normal.exr: is a directory"},
+      {"render scene.json -o tetra.ply/x.png -q", "tetra.ply is not a directory"},
+      {"render scene.json -o missing/x.png -q", "directory missing does not exist"},
+  };
+  for (const Case& c : cases) {
+    const test::CommandResult r =
+        test::run_command("cd '" + dir.string() + "' && '" + std::string(RAYLOD_EXE) + "' " + c.args);
+    EXPECT_NE(r.status, 0) << c.args << "\n" << r.out;
+    EXPECT_NE(r.out.find(c.expect), std::string::npos) << c.args << "\n" << r.out;
+    EXPECT_EQ(r.out.find("render:"), r.out.rfind("render:")) << "one line, no progress: " << r.out;
+  }
+  EXPECT_FALSE(std::filesystem::exists(dir / "o.png"));
+  EXPECT_FALSE(std::filesystem::exists(dir / "o.depth.exr"));
+  std::filesystem::remove_all(dir);
+}
+
 }  // namespace
 }  // namespace raylod
