@@ -126,6 +126,19 @@ StatusOr<MeshFraming> frame_mesh(const Bbox& bounds, const FramingOptions& optio
   const double where = std::max({std::abs(f.bounds.lo.x), std::abs(f.bounds.lo.y), std::abs(f.bounds.lo.z),
                                  std::abs(f.bounds.hi.x), std::abs(f.bounds.hi.y), std::abs(f.bounds.hi.z)});
   if (!(diag > 1e-12 * std::max(1.0, where))) return Status::error("the mesh is a single point: nothing to frame");
+  // Rays are traced in single precision about the look-at point, with
+  // offsets and a ground plane that scale with the scene; outside this range
+  // the ground or a light's contribution is lost (measured: a triangle of
+  // side 1e-10 renders darker, 1e-12 without its ground, 1e13 with the
+  // ground cutting it; 1e-9 to 3e12 render as at 1).
+  if (!(diag >= kMinFramedDiagonal && diag <= kMaxFramedDiagonal)) {
+    char text[320];
+    std::snprintf(text, sizeof text,
+                  "the mesh is %.3g units across; raylod scene frames meshes from %.0e to %.0e units across "
+                  "(single-precision rays lose the ground or the lights beyond it): convert it to other units",
+                  diag, kMinFramedDiagonal, kMaxFramedDiagonal);
+    return Status::error(text);
+  }
 
   const Vec3d c = f.bounds.center();
   const Vec3d w = kViewDirection;  // from the look-at point towards the eye

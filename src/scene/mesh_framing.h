@@ -47,8 +47,12 @@ struct MeshFraming {
   double light_intensity = 0;
 };
 
+// The sizes (bounding-box diagonals) frame_mesh frames: a measured range
+// with margin (mesh_framing.cpp).
+inline constexpr double kMinFramedDiagonal = 1e-8, kMaxFramedDiagonal = 1e12;
+
 // `bounds`: the mesh's, in its file's coordinates (summarize_mesh); an error
-// if empty, not finite, or a single point.
+// if empty, not finite, a single point, or outside the framed sizes.
 StatusOr<MeshFraming> frame_mesh(const Bbox& bounds, const FramingOptions& options);
 
 enum class MaterialPreset { Glossy, Diffuse, Mirror, Glass };

@@ -133,6 +133,16 @@ TEST(MeshFraming, NothingToFrameIsAnError) {
   EXPECT_FALSE(frame_mesh(Bbox{Vec3d(1, 2, 3), Vec3d(1, 2, 3)}, {}).is_ok());
   EXPECT_FALSE(frame_mesh(Bbox{Vec3d(0), Vec3d(NAN, 1, 1)}, {}).is_ok());
   EXPECT_FALSE(frame_mesh(Bbox{Vec3d(0), Vec3d(1, INFINITY, 1)}, {}).is_ok());
+  // Too small or too large for single-precision rays: an error that says so.
+  for (double side : {1e-12, 1e-9, 1e13, 1e18}) {
+    auto f = frame_mesh(Bbox{Vec3d(0), Vec3d(side, side, 0)}, {});
+    EXPECT_FALSE(f.is_ok()) << side;
+    if (!f.is_ok()) {
+      EXPECT_NE(f.status().message().find("units across"), std::string::npos) << f.status().message();
+    }
+  }
+  EXPECT_TRUE(frame_mesh(Bbox{Vec3d(0), Vec3d(1e-8, 1e-8, 0)}, {}).is_ok());
+  EXPECT_TRUE(frame_mesh(Bbox{Vec3d(0), Vec3d(5e11, 5e11, 0)}, {}).is_ok());
   FramingOptions o;
   o.fill = 0;
   EXPECT_FALSE(frame_mesh(Bbox{Vec3d(0), Vec3d(1)}, o).is_ok());
