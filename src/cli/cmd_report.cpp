@@ -93,11 +93,12 @@ Status run_report_cmd(int argc, char** argv) {
   if (args.has("--scales")) RAYLOD_RETURN_IF_ERROR(parse_list(args.get("--scales"), "--scales", cfg.footprint_scales));
   if (args.has("--rays")) RAYLOD_RETURN_IF_ERROR(parse_list(args.get("--rays"), "--rays", cfg.ray_counts));
   RAYLOD_ASSIGN_OR_RETURN(cfg.default_scale, args.get_double("--default-scale", cfg.default_scale));
+  if (!(cfg.default_scale > 0)) return Status::error("--default-scale must be positive");
   RAYLOD_ASSIGN_OR_RETURN(int64_t default_rays, args.get_int("--default-rays", int64_t(cfg.default_rays), 1, 100000000));
   cfg.default_rays = uint64_t(default_rays);
-  RAYLOD_ASSIGN_OR_RETURN(int64_t spp, args.get_int("--spp", cfg.spp, 0, 4096));
-  RAYLOD_ASSIGN_OR_RETURN(int64_t width, args.get_int("--width", cfg.width, 0, 32768));
-  RAYLOD_ASSIGN_OR_RETURN(int64_t height, args.get_int("--height", cfg.height, 0, 32768));
+  RAYLOD_ASSIGN_OR_RETURN(int64_t spp, args.get_int("--spp", cfg.spp, 1, 4096));
+  RAYLOD_ASSIGN_OR_RETURN(int64_t width, args.get_int("--width", cfg.width, 1, 32768));
+  RAYLOD_ASSIGN_OR_RETURN(int64_t height, args.get_int("--height", cfg.height, 1, 32768));
   RAYLOD_ASSIGN_OR_RETURN(const MemoryBudget budget, memory_budget_from_args(args));
   cfg.memory_limit = budget.total;
   cfg.spp = int(spp);

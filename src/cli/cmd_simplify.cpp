@@ -101,7 +101,8 @@ int run_simplify(int argc, char** argv) {
   if (!fold_passes) return fail("simplify", fold_passes.status());
   auto position_error = args.get_double("--position-error", 0);
   if (!position_error) return fail("simplify", position_error.status());
-  if (*position_error < 0) return fail("simplify", Status::error("--position-error must be positive"));
+  if (*position_error < 0 || (args.has("--position-error") && *position_error == 0))
+    return fail("simplify", Status::error("--position-error must be positive"));
 
   using Clock = std::chrono::steady_clock;
   auto since = [](Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); };
@@ -184,6 +185,11 @@ int run_simplify(int argc, char** argv) {
                   report->position_bits, report->max_position_error, report->requested_position_error,
                   report->normal_bits, report->max_normal_error * 180.0 / M_PI);
     quantisation = line;
+    if (*position_error > 0 && report->max_position_error > *position_error)
+      std::fprintf(stderr,
+                   "raylod simplify: warning: --position-error %.3g cannot be met: the decoded positions are floats, "
+                   "whose rounding bounds the error at %.3g here (%d bits)\n",
+                   *position_error, report->max_position_error, report->position_bits);
   } else {
     Status st = ext == ".ply" ? write_indexed_ply(out_path, r.mesh) : write_indexed_obj(out_path, r.mesh);
     if (!st) return fail("simplify", st);

@@ -1,0 +1,33 @@
+// Options outside their range are refused before any work, naming the
+// option, the same way in every command that takes them.
+#include <gtest/gtest.h>
+
+#include <string>
+
+#include "run_command.h"
+
+namespace raylod {
+namespace {
+
+TEST(OptionRanges, ZeroSizesSamplesAndErrorsAreRefused) {
+  struct Case {
+    std::string args, expect;
+  };
+  const Case cases[] = {
+      {"report --width 0 -o unused-report", "--width must be between 1 and 32768"},
+      {"report --height 0 -o unused-report", "--height must be between 1 and 32768"},
+      {"report --spp 0 -o unused-report", "--spp must be between 1 and 4096"},
+      {"report --default-scale 0 -o unused-report", "--default-scale must be positive"},
+      {"render --spp 0 -o unused.png", "--spp must be between 1 and 4096"},
+      {"simplify missing.raylod missing.cut -o unused.drc --position-error 0", "--position-error must be positive"},
+      {"simplify missing.raylod missing.cut -o unused.drc --position-error -1", "--position-error must be positive"},
+  };
+  for (const Case& c : cases) {
+    std::string out;
+    EXPECT_NE(test::run_raylod(c.args, out), 0) << c.args << "\n" << out;
+    EXPECT_NE(out.find(c.expect), std::string::npos) << c.args << "\n" << out;
+  }
+}
+
+}  // namespace
+}  // namespace raylod
