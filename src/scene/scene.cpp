@@ -206,6 +206,12 @@ Status parse_material(const Parser& p, const std::string& name, const json& j, M
   else if (type == "mirror") m.type = MaterialType::Mirror;
   else if (type == "glass") m.type = MaterialType::Glass;
   else return p.fail(where + ".type", "'" + type + "' is not one of diffuse, glossy, mirror, glass");
+  // Keys another type uses would be ignored here: refused, as typos are.
+  for (const auto& [key, owner, used] : {std::tuple{"reflectance", "mirror", m.type == MaterialType::Mirror},
+                                         std::tuple{"ior", "glass", m.type == MaterialType::Glass},
+                                         std::tuple{"tint", "glass", m.type == MaterialType::Glass}})
+    if (j.contains(key) && !used)
+      return p.fail(where + "." + key, "is not used by a " + type + " material (only by " + owner + ")");
   if (m.type == MaterialType::Mirror || m.type == MaterialType::Glass) m.color = Vec3(0);
   if (j.contains("color")) RAYLOD_RETURN_IF_ERROR(p.color(j["color"], where + ".color", m.color));
   if (j.contains("specular")) RAYLOD_RETURN_IF_ERROR(p.color(j["specular"], where + ".specular", m.specular));
@@ -324,10 +330,12 @@ Status parse_light(const Parser& p, const json& j, const std::string& where, Lig
   if (type == "point") {
     l.type = LightType::Point;
     if (!j.contains("position")) return p.fail(where, "a point light needs 'position'");
+    if (j.contains("direction")) return p.fail(where + ".direction", "is not used by a point light (it shines every way)");
     RAYLOD_RETURN_IF_ERROR(p.vec3(j["position"], where + ".position", l.position));
   } else if (type == "directional") {
     l.type = LightType::Directional;
     if (!j.contains("direction")) return p.fail(where, "a directional light needs 'direction'");
+    if (j.contains("position")) return p.fail(where + ".position", "is not used by a directional light (it has none)");
     RAYLOD_RETURN_IF_ERROR(p.vec3(j["direction"], where + ".direction", l.direction));
     if (glm::length(l.direction) == 0) return p.fail(where + ".direction", "must not be zero");
     l.direction = glm::normalize(l.direction);

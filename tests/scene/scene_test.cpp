@@ -60,8 +60,9 @@ TEST(Scene, ParsesAllFields) {
 
 TEST(Scene, DiffuseOnlySceneCallsForNoSpecularRays) {
   std::string text = kMinimal;
-  const std::string glass = "\"glass\": {\"type\": \"glass\"";
-  text.replace(text.find(glass), glass.size(), "\"glass\": {\"type\": \"glossy\"");
+  const std::string glass = "\"glass\": {\"type\": \"glass\", \"ior\": 1.5, \"tint\": [0.9, 1, 0.9]}";
+  ASSERT_NE(text.find(glass), std::string::npos);
+  text.replace(text.find(glass), glass.size(), "\"glass\": {\"type\": \"glossy\"}");
   auto scene = parse_scene(text, ".", "s.json");
   ASSERT_TRUE(scene.is_ok()) << scene.status().message();
   EXPECT_FALSE(scene->any_refraction());
@@ -154,6 +155,17 @@ INSTANTIATE_TEST_SUITE_P(
         BadCase{"non_affine_matrix", "\"translate\": [1, 2, 3], \"scale\": 2",
                 "\"matrix\": [1, 0, 0, 0,  0, 1, 0, 0,  0, 0, 1, 0,  0.2, 0, 0, 1]", "the last row must be 0 0 0 1"},
         BadCase{"flat_transform", "\"scale\": 2", "\"scale\": [1, 1, 0]", "singular"},
+        // Keys another type uses would be ignored: refused, naming the key.
+        BadCase{"tint_on_diffuse", "\"color\": [0.8, 0.1, 0.1]}", "\"color\": [0.8, 0.1, 0.1], \"tint\": [1, 1, 1]}",
+                "materials.red.tint: is not used by a diffuse material (only by glass)"},
+        BadCase{"reflectance_on_glass", "\"ior\": 1.5,", "\"ior\": 1.5, \"reflectance\": 0.5,",
+                "materials.glass.reflectance: is not used by a glass material (only by mirror)"},
+        BadCase{"ior_on_diffuse", "\"color\": [0.8, 0.1, 0.1]}", "\"color\": [0.8, 0.1, 0.1], \"ior\": 1.3}",
+                "materials.red.ior: is not used by a diffuse material"},
+        BadCase{"position_on_directional", "\"direction\": [0, -2, 0]", "\"direction\": [0, -2, 0], \"position\": [1, 2, 3]",
+                "lights[1].position: is not used by a directional light"},
+        BadCase{"direction_on_point", "\"position\": [0, 5, 0]", "\"position\": [0, 5, 0], \"direction\": [0, -1, 0]",
+                "lights[0].direction: is not used by a point light"},
         // Embree refuses ray origins beyond about 1.8e18 (it asserted before).
         BadCase{"eye_too_far", "\"eye\": [0, 1, 5]", "\"eye\": [2e18, 1, 5]",
                 "camera.eye: is more than 1e18 from look_at"}),
