@@ -62,7 +62,7 @@ class ObjLines {
 
 // One face corner "v", "v/vt", "v//vn" or "v/vt/vn"; 0 means absent.
 struct Corner {
-  int64_t v = 0, vn = 0;
+  int64_t v = 0, vt = 0, vn = 0;
 };
 
 bool parse_corner(std::string_view tok, Corner& c) {
@@ -73,8 +73,7 @@ bool parse_corner(std::string_view tok, Corner& c) {
   std::string_view rest = tok.substr(s1 + 1);
   const size_t s2 = rest.find('/');
   std::string_view vt = rest.substr(0, s2);
-  int64_t ignored = 0;
-  if (!vt.empty() && (!text::parse_number(vt, ignored) || ignored == 0)) return false;
+  if (!vt.empty() && (!text::parse_number(vt, c.vt) || c.vt == 0)) return false;
   if (s2 == std::string_view::npos) return !vt.empty();
   std::string_view vn = rest.substr(s2 + 1);
   return text::parse_number(vn, c.vn) && c.vn != 0;
@@ -93,7 +92,7 @@ class ObjReader final : public MeshReader {
   Status first_pass();
   // Parses the corners of an f line into corners_; checks syntax and the
   // relative indices against the counts seen so far.
-  Status parse_face(text::Tokens& tok, uint64_t line, uint64_t v_seen, uint64_t vn_seen);
+  Status parse_face(text::Tokens& tok, uint64_t line, uint64_t v_seen, uint64_t vt_seen, uint64_t vn_seen);
 
   MappedFile file_;
   ReaderOptions options_;
@@ -104,15 +103,16 @@ class ObjReader final : public MeshReader {
   std::vector<Vec3> poly_pos_, poly_nrm_;
   // Pass 2 state.
   ObjLines lines_;
-  uint64_t v_seen_ = 0, vn_seen_ = 0, faces_done_ = 0, face_count_ = 0, triangles_ = 0;
+  uint64_t v_seen_ = 0, vt_seen_ = 0, vn_seen_ = 0, faces_done_ = 0, face_count_ = 0, triangles_ = 0;
+  uint64_t vt_count_ = 0;  // texture coordinates (not read; their indices are checked)
   bool done_ = false;
   size_t released_ = 0;
   // Where pass 2 starts: the first f line, and the v / vn counts before it.
   size_t first_face_offset_ = 0;
-  uint64_t first_face_line_ = 1, v_before_ = 0, vn_before_ = 0;
+  uint64_t first_face_line_ = 1, v_before_ = 0, vt_before_ = 0, vn_before_ = 0;
 };
 
-Status ObjReader::parse_face(text::Tokens& tok, uint64_t line, uint64_t v_seen, uint64_t vn_seen) {
+Status ObjReader::parse_face(text::Tokens& tok, uint64_t line, uint64_t v_seen, uint64_t vt_seen, uint64_t vn_seen) {
   corners_.clear();
   std::string_view t;
   while (tok.next(t)) {
@@ -122,6 +122,9 @@ Status ObjReader::parse_face(text::Tokens& tok, uint64_t line, uint64_t v_seen, 
     if (c.v < 0 && uint64_t(-c.v) > v_seen)
       return at(line, "relative vertex index " + std::to_string(c.v) + " refers before the first vertex (" +
                           std::to_string(v_seen) + " defined so far)");
+    if (c.vt < 0 && uint64_t(-c.vt) > vt_seen)
+      return at(line, "relative texture coordinate index " + std::to_string(c.vt) +
+                          " refers before the first texture coordinate (" + std::to_string(vt_seen) + " defined so far)");
     if (c.vn < 0 && uint64_t(-c.vn) > vn_seen)
       return at(line, "relative normal index " + std::to_string(c.vn) + " refers before the first normal (" +
                           std::to_string(vn_seen) + " defined so far)");
@@ -137,7 +140,7 @@ Status ObjReader::first_pass() {
   RAYLOD_ASSIGN_OR_RETURN(vn_spill_, SpillFile::create(path_.string() + " normal table"));
   ObjLines lines(file_.text(), text::utf8_bom_bytes(file_.text()), 1);
   std::string_view line, kw, t;
-  uint64_t ln = 0, nv = 0, nn = 0, faces = 0, faces_with_normals = 0, triangles = 0;
+  uint64_t ln = 0, nv = 0, nt = 0, nn = 0, faces = 0, faces_with_normals = 0, triangles = 0;
   size_t line_start = 0;
   while (true) {
     line_start = lines.offset();
@@ -179,12 +182,15 @@ Status ObjReader::first_pass() {
         RAYLOD_RETURN_IF_ERROR(vn_spill_.append(x, sizeof x));
         ++nn;
       }
+    } else if (kw == "vt") {
+      ++nt;
     } else if (kw == "f") {
-      RAYLOD_RETURN_IF_ERROR(parse_face(tok, ln, nv, nn));
+      RAYLOD_RETURN_IF_ERROR(parse_face(tok, ln, nv, nt, nn));
       if (faces == 0) {
         first_face_offset_ = line_start;
         first_face_line_ = ln;
         v_before_ = nv;
+        vt_before_ = nt;
         vn_before_ = nn;
       }
       bool all = true;
@@ -193,7 +199,7 @@ Status ObjReader::first_pass() {
       ++faces;
       triangles += corners_.size() - 2;
     }
-    // Everything else (vt, vp, g, o, s, usemtl, mtllib, l, p, ...) is ignored.
+    // Everything else (vp, g, o, s, usemtl, mtllib, l, p, ...) is ignored.
   }
   if (faces == 0) return error("empty mesh: no faces ('f' lines)");
   if (nv == 0) return error("empty mesh: faces but no vertices ('v' lines)");
@@ -208,6 +214,7 @@ Status ObjReader::first_pass() {
   nrm_.count = nn;
   nrm_.finalize();
   use_normals_ = faces_with_normals == faces;
+  vt_count_ = nt;
   face_count_ = faces;
   header_.vertex_count = nv;
   header_.face_count = faces;
@@ -233,6 +240,7 @@ StatusOr<std::unique_ptr<MeshReader>> ObjReader::open(const std::filesystem::pat
   r->lines_ = ObjLines(r->file_.text(), r->first_face_offset_, r->first_face_line_);
   r->v_seen_ = r->v_before_;
   r->vn_seen_ = r->vn_before_;
+  r->vt_seen_ = r->vt_before_;
   r->released_ = 0;
   return std::unique_ptr<MeshReader>(std::move(r));
 }
@@ -251,8 +259,9 @@ StatusOr<bool> ObjReader::next(TriangleBatch& batch) {
     if (!tok.next(kw)) continue;
     if (kw == "v") { ++v_seen_; continue; }
     if (kw == "vn") { ++vn_seen_; continue; }
+    if (kw == "vt") { ++vt_seen_; continue; }
     if (kw != "f") continue;
-    RAYLOD_RETURN_IF_ERROR(parse_face(tok, ln, v_seen_, vn_seen_));
+    RAYLOD_RETURN_IF_ERROR(parse_face(tok, ln, v_seen_, vt_seen_, vn_seen_));
     const size_t n = corners_.size();
     poly_pos_.resize(n);
     poly_nrm_.resize(n);
@@ -265,6 +274,9 @@ StatusOr<bool> ObjReader::next(TriangleBatch& batch) {
         return at(ln, "vertex index " + std::to_string(c.v) + " is out of range (the file has " +
                           std::to_string(pos_.count) + " vertices)");
       poly_pos_[k] = pos_.load(uint64_t(vi));
+      if (c.vt > 0 && uint64_t(c.vt) > vt_count_)  // texture coordinates are not read, but a bad index is an error
+        return at(ln, "texture coordinate index " + std::to_string(c.vt) + " is out of range (the file has " +
+                          std::to_string(vt_count_) + " texture coordinates)");
       if (!use_normals_) continue;
       const int64_t ni = c.vn > 0 ? c.vn - 1 : int64_t(vn_seen_) + c.vn;
       if (uint64_t(ni) >= nrm_.count)

@@ -176,6 +176,10 @@ Status PlyReader::parse_header() {
       }
       if (!parse_scalar_type(t1, p.type)) return bad("unsupported property type '" + std::string(text::clip(t1)) + "'");
       p.name = std::string(name);
+      for (const PlyProperty& q : elements_.back().props)
+        if (q.name == p.name)  // which of the two is x? Ambiguous: refused
+          return bad("property '" + std::string(text::clip(name)) + "' is declared twice in element '" +
+                     elements_.back().name + "'");
       elements_.back().props.push_back(std::move(p));
       continue;
     }

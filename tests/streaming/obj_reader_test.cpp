@@ -145,6 +145,14 @@ TEST(ObjReaderErrors, IndexOutOfRange) {
   EXPECT_READ_ERROR(write_file("zero.obj", kSquare + "f 0 1 2\n"), "line 5: bad face corner '0'");
   EXPECT_READ_ERROR(write_file("nrm.obj", kSquare + "vn 0 0 1\nf 1//1 2//2 3//1\n"), "line 6: normal index 2 is out of range (the file has 1 normals)");
   EXPECT_READ_ERROR(write_file("nrel.obj", kSquare + "vn 0 0 1\nf 1//-2 2//1 3//1\n"), "line 6: relative normal index -2 refers before the first normal");
+  // Texture coordinates are not read, but their indices are checked like the others'.
+  EXPECT_READ_ERROR(write_file("tex.obj", kSquare + "vt 0 0\nf 1/1 2/2 3/1\n"),
+                    "line 6: texture coordinate index 2 is out of range (the file has 1 texture coordinates)");
+  EXPECT_READ_ERROR(write_file("trel.obj", kSquare + "vt 0 0\nf 1/-2 2/1 3/1\n"),
+                    "line 6: relative texture coordinate index -2 refers before the first texture coordinate");
+  const auto textured = read_all(write_file("texok.obj", kSquare + "vt 0 0\nvt 1 0\nf 1/1 2/2 3/-1\n"));
+  EXPECT_TRUE(textured.status.ok()) << textured.status.message();
+  EXPECT_EQ(textured.triangles(), 1u);
 }
 
 TEST(ObjReaderErrors, MalformedStatements) {

@@ -297,6 +297,9 @@ TEST(PlyReaderErrors, UnknownHeaderKeywordAndMalformedLines) {
   EXPECT_READ_ERROR(write_file("kw.ply", "ply\nformat ascii 1.0\nvertex 3\nend_header\n"), "line 3: unknown header keyword 'vertex'");
   EXPECT_READ_ERROR(write_file("elem.ply", "ply\nformat ascii 1.0\nelement vertex many\nend_header\n"), "line 3: element 'vertex' has an invalid count");
   EXPECT_READ_ERROR(write_file("prop.ply", "ply\nformat ascii 1.0\nproperty float x\nend_header\n"), "line 3: property declared before any element");
+  EXPECT_READ_ERROR(write_file("twice.ply", "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+                                            "property float x\nend_header\n"),
+                    "line 6: property 'x' is declared twice in element 'vertex'");
 }
 
 TEST(PlyReaderErrors, MissingElementsAndProperties) {
