@@ -168,6 +168,10 @@ StatusOr<CutOptions> cut_options_from_args(const Args& args) {
   if (!(o.tolerance_px > 0)) return Status::error("--tolerance must be > 0 (pixels)");
   RAYLOD_ASSIGN_OR_RETURN(o.angle_tolerance_px, args.get_double("--angle-tolerance", kDefaultAngleTolerancePx));
   if (!(o.angle_tolerance_px > 0)) return Status::error("--angle-tolerance must be > 0 (pixel angles)");
+  if (o.criterion == CutCriterion::Diagonal && (o.tolerance_given || o.angle_tolerance_given))
+    return Status::error(std::string(o.tolerance_given ? "--tolerance" : "--angle-tolerance") +
+                         " bounds the deviation criterion; --criterion diagonal compares cell diagonals with K "
+                         "footprints alone (--footprint-scale)");
   const double default_k =
       o.criterion == CutCriterion::Diagonal ? kDefaultDiagonalFootprintScale : kDefaultFootprintScale;
   RAYLOD_ASSIGN_OR_RETURN(o.footprint_scale, args.get_double("--footprint-scale", default_k));

@@ -21,6 +21,8 @@ TEST(OptionRanges, ZeroSizesSamplesAndErrorsAreRefused) {
       {"render --spp 0 -o unused.png", "--spp must be between 1 and 4096"},
       {"simplify missing.raylod missing.cut -o unused.drc --position-error 0", "--position-error must be positive"},
       {"simplify missing.raylod missing.cut -o unused.drc --position-error -1", "--position-error must be positive"},
+      {"probe --criterion diagonal --tolerance 2 -o unused.cut", "--tolerance bounds the deviation criterion"},
+      {"run --criterion diagonal --angle-tolerance 4 -o unused.png", "--angle-tolerance bounds the deviation criterion"},
   };
   for (const Case& c : cases) {
     std::string out;
