@@ -92,6 +92,38 @@ uint32_t AccessorView::index(size_t i) const {
   }
 }
 
+namespace {
+
+// The names the glTF JSON uses ("SCALAR", "FLOAT (5126)"), for messages:
+// tinygltf keeps the type as its own code (SCALAR is 65).
+std::string type_name(int type) {
+  switch (type) {
+    case TINYGLTF_TYPE_SCALAR: return "SCALAR";
+    case TINYGLTF_TYPE_VEC2: return "VEC2";
+    case TINYGLTF_TYPE_VEC3: return "VEC3";
+    case TINYGLTF_TYPE_VEC4: return "VEC4";
+    case TINYGLTF_TYPE_MAT2: return "MAT2";
+    case TINYGLTF_TYPE_MAT3: return "MAT3";
+    case TINYGLTF_TYPE_MAT4: return "MAT4";
+    default: return "an unknown type";
+  }
+}
+std::string component_type_name(int type) {
+  const char* name = "an unknown component type";
+  switch (type) {
+    case TINYGLTF_COMPONENT_TYPE_BYTE: name = "BYTE"; break;
+    case TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE: name = "UNSIGNED_BYTE"; break;
+    case TINYGLTF_COMPONENT_TYPE_SHORT: name = "SHORT"; break;
+    case TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT: name = "UNSIGNED_SHORT"; break;
+    case TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT: name = "UNSIGNED_INT"; break;
+    case TINYGLTF_COMPONENT_TYPE_FLOAT: name = "FLOAT"; break;
+    default: break;
+  }
+  return std::string(name) + " (" + std::to_string(type) + ")";
+}
+
+}  // namespace
+
 StatusOr<AccessorView> view_accessor(const tinygltf::Model& model, int index, AccessorUse use, const std::string& where) {
   const std::string what = std::string(" (") + use_name(use) + ")";
   auto fail = [&](const std::string& message) { return Status::error(where + ": " + message); };
@@ -102,7 +134,7 @@ StatusOr<AccessorView> view_accessor(const tinygltf::Model& model, int index, Ac
   const std::string acc = "accessor " + std::to_string(index) + what;
   if (a.sparse.isSparse) return fail(acc + " is sparse; sparse accessors are not supported");
   if (!allowed(use, a.type, a.componentType))
-    return fail(acc + " has type " + std::to_string(a.type) + " with component type " + std::to_string(a.componentType) +
+    return fail(acc + " has type " + type_name(a.type) + " with component type " + component_type_name(a.componentType) +
                 ", which glTF (with KHR_mesh_quantization) does not allow for " + use_name(use));
   if (use == AccessorUse::Indices && a.normalized) return fail(acc + " is normalized; indices must not be");
   if (a.count == 0) return fail(acc + " has no elements");

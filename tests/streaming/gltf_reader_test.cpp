@@ -285,6 +285,14 @@ TEST(GltfReaderErrors, IndexOutOfRange) {
   expect_error("index.gltf", b.gltf(), "index 7 (indices element 2) is out of range: POSITION has 3 elements");
 }
 
+TEST(GltfReaderErrors, TypesAreNamedAsTheFileWritesThem) {
+  GltfBuilder b;
+  const int pos = b.positions({{0, 0, 0}, {1, 0, 0}, {0, 1, 0}});
+  const int idx = b.accessor(std::vector<float>{0, 1, 2}, test::kFloat, "SCALAR", 3);
+  b.mesh({GltfBuilder::primitive(pos, idx)});
+  expect_error("float_indices.gltf", b.gltf(), "accessor 1 (indices) has type SCALAR with component type FLOAT (5126)");
+}
+
 TEST(GltfReaderErrors, MissingAccessorBufferAndExternalFile) {
   GltfBuilder b = triangle_file();
   b.doc["meshes"][0]["primitives"][0]["attributes"]["POSITION"] = 9;
