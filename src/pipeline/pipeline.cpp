@@ -693,8 +693,11 @@ StatusOr<StagedMeshes> simplify_or_reuse(RunSession& session, const Scene& scene
     // Exact normals change the mesh (simplify_cut_to_draco): the cache keeps it apart.
     const int fold_passes = fold_passes_for(scene, stores.objects, i);
     const bool exact_normals = exact_normals_for(*stores.stores[i], fold_passes);
+    // The normals' quantisation follows the materials (shading_normal_tolerance):
+    // part of the key, so a glossier scene never takes a coarser entry.
+    const int normal_bits = choose_normal_bits(shading_normal_tolerance(scene));
     if (cache) {
-      const std::string key = SimplifiedCache::key_for(cut, scene.crease_angle_deg, exact_normals);
+      const std::string key = SimplifiedCache::key_for(cut, scene.crease_angle_deg, exact_normals, normal_bits);
       std::string note;
       std::optional<CacheEntry> entry = cache->find_exact(key, &note);
       if (entry) {
@@ -703,7 +706,7 @@ StatusOr<StagedMeshes> simplify_or_reuse(RunSession& session, const Scene& scene
         if (!note.empty()) say(log, note);
         std::string why;
         entry = cache->find_reusable(cut, draco_error_bound(cut, *stores.stores[i]), &why, scene.crease_angle_deg,
-                                     session.reusable ? &*session.reusable : nullptr, exact_normals);
+                                     session.reusable ? &*session.reusable : nullptr, exact_normals, normal_bits);
         if (entry) note = "reusing " + entry->key + ": " + why;
       }
       if (entry) {
@@ -729,6 +732,8 @@ StatusOr<StagedMeshes> simplify_or_reuse(RunSession& session, const Scene& scene
         }
         RAYLOD_RETURN_IF_ERROR(checked);
         sm.triangles = entry->triangles;
+        sm.max_position_error = entry->max_position_error;
+        sm.position_bits = entry->position_bits;
         sm.cache_hit = true;
         sm.cache_note = note;
       }
@@ -780,7 +785,8 @@ StatusOr<StagedMeshes> simplify_or_reuse(RunSession& session, const Scene& scene
       sm.cache_note = options.use_cache ? "simplified; not cached" : "simplified (cache disabled)";
       if (cache) {
         auto entry =
-            cache->insert(cut, staged, sm.triangles, sm.max_position_error, scene.crease_angle_deg, exact_normals);
+            cache->insert(cut, staged, sm.triangles, sm.max_position_error, scene.crease_angle_deg, exact_normals,
+                          normal_bits, sm.position_bits);
         if (!entry.is_ok()) {
           // A full cache disk costs the reuse, not the image.
           session.warnings.push_back("cannot cache the simplified mesh (" + entry.status().message() +

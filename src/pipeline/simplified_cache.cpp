@@ -68,6 +68,8 @@ std::optional<CacheEntry> read_meta(const fs::path& json_path) {
     e.crease_angle_deg = j.contains("crease_angle") ? j.at("crease_angle").get<double>()
                                                     : std::numeric_limits<double>::quiet_NaN();
     e.exact_normals = j.contains("exact_normals") && j.at("exact_normals").get<bool>();
+    e.normal_bits = j.contains("normal_bits") ? j.at("normal_bits").get<int>() : 0;
+    e.position_bits = j.contains("position_bits") ? j.at("position_bits").get<int>() : 0;
     e.last_used_ns = j.at("last_used_ns").get<int64_t>();
     fs::path dir = json_path.parent_path();
     e.mesh = dir / (e.key + ".drc");
@@ -92,6 +94,8 @@ Status write_meta(const fs::path& dir, const CacheEntry& e) {
   j["max_position_error"] = e.max_position_error;
   j["crease_angle"] = e.crease_angle_deg;
   j["exact_normals"] = e.exact_normals;
+  j["normal_bits"] = e.normal_bits;
+  j["position_bits"] = e.position_bits;
   j["last_used_ns"] = e.last_used_ns;
   return write_file_atomic(dir / (e.key + ".json"), j.dump(2) + "\n");
 }
@@ -175,13 +179,14 @@ StatusOr<SimplifiedCache> SimplifiedCache::open(const fs::path& dir, uint64_t si
   return SimplifiedCache(dir, size_limit);
 }
 
-std::string SimplifiedCache::key_for(const Cut& cut, double crease_angle_deg, bool exact_normals) {
+std::string SimplifiedCache::key_for(const Cut& cut, double crease_angle_deg, bool exact_normals, int normal_bits) {
   // Version 2 of the normal rule: crease-angle normals (geometry/crease_normals.h);
   // 3: the same with exact normals at representatives (simplify/collapse.h).
   const uint32_t normal_rule = exact_normals ? 3 : 2;
   uint64_t h = fnv1a64(&cut.store_hash, sizeof cut.store_hash);
   h = fnv1a64(&normal_rule, sizeof normal_rule, h);
   h = fnv1a64(&crease_angle_deg, sizeof crease_angle_deg, h);
+  if (normal_bits != 0) h = fnv1a64(&normal_bits, sizeof normal_bits, h);
   for (const auto& c : cut.cells) {
     h = fnv1a64(&c.key.level, sizeof c.key.level, h);
     h = fnv1a64(&c.key.code, sizeof c.key.code, h);
@@ -215,7 +220,8 @@ std::optional<CacheEntry> SimplifiedCache::find_exact(const std::string& key, st
 
 std::optional<CacheEntry> SimplifiedCache::find_reusable(const Cut& wanted, double max_position_error,
                                                          std::string* why, double crease_angle_deg,
-                                                         const std::set<std::string>* candidates, bool exact_normals) {
+                                                         const std::set<std::string>* candidates, bool exact_normals,
+                                                         int normal_bits) {
   CacheLock lock(dir_);
   // Candidates by the cheap checks first (metadata and cut); only the chosen
   // one is hashed, and a corrupt one is removed and the next tried.
@@ -224,6 +230,7 @@ std::optional<CacheEntry> SimplifiedCache::find_reusable(const Cut& wanted, doub
     if (e.store_hash != wanted.store_hash || e.max_position_error > max_position_error * (1 + 1e-9)) continue;
     if (!(e.crease_angle_deg == crease_angle_deg)) continue;  // another normal rule (or an old entry)
     if (e.exact_normals != exact_normals) continue;
+    if (e.normal_bits < normal_bits) continue;  // normals quantised more coarsely than asked (or unknown)
     if (candidates && !candidates->count(e.key)) continue;
     auto cut = read_cut(e.cut);
     if (!cut.is_ok()) {  // corrupt or missing: the entry can never be reused
@@ -264,11 +271,13 @@ Status SimplifiedCache::checkout(const CacheEntry& entry, const fs::path& dest) 
 
 StatusOr<CacheEntry> SimplifiedCache::insert(const Cut& cut, const fs::path& drc_file, uint64_t triangles,
                                              double max_position_error, double crease_angle_deg,
-                                             bool exact_normals) {
+                                             bool exact_normals, int normal_bits, int position_bits) {
   CacheEntry e;
-  e.key = key_for(cut, crease_angle_deg, exact_normals);
+  e.key = key_for(cut, crease_angle_deg, exact_normals, normal_bits);
   e.crease_angle_deg = crease_angle_deg;
   e.exact_normals = exact_normals;
+  e.normal_bits = normal_bits;
+  e.position_bits = position_bits;
   fs::path dir = dir_ / "simplified";
   e.mesh = dir / (e.key + ".drc");
   e.cut = dir / (e.key + ".cut");

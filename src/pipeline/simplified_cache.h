@@ -43,6 +43,10 @@ struct CacheEntry {
   // Made with exact normals (SimplifyConfig::exact_normals: the meshes a
   // mirror or glass object uses); entries from before it say false.
   bool exact_normals = false;
+  // Draco's normal quantisation (0: an entry from before it was recorded,
+  // never reused where bits are asked for) and position bits, for stats.
+  int normal_bits = 0;
+  int position_bits = 0;
   int64_t last_used_ns = 0;
 };
 
@@ -61,10 +65,12 @@ class SimplifiedCache {
   const std::filesystem::path& dir() const { return dir_; }
   uint64_t size_limit() const { return limit_; }
 
-  // Key of a cut for a store: stable hash of the store hash, the cut cells
-  // and the normal rule (crease angle).
+  // Key of a cut for a store: stable hash of the store hash, the cut cells,
+  // the normal rule (crease angle, exact normals) and the normals'
+  // quantisation (normal_bits, left out when 0): a glossier material asks
+  // for more bits, and an exact hit must be the mesh a fresh run writes.
   static std::string key_for(const Cut& cut, double crease_angle_deg = kDefaultCreaseAngleDeg,
-                             bool exact_normals = false);
+                             bool exact_normals = false, int normal_bits = 0);
 
   // Exact hit for this key, verified (content hash); a corrupt entry is
   // removed and reported through `note`.
@@ -73,16 +79,17 @@ class SimplifiedCache {
   // fine as `wanted` needs and whose quantisation error is at most
   // `max_position_error`; `why` says which and why.
   // Only entries made with the same crease angle and exact-normals setting
-  // qualify, and, if `candidates` is given, only entries whose key it holds.
+  // and at least normal_bits normal bits qualify, and, if `candidates` is
+  // given, only entries whose key it holds.
   std::optional<CacheEntry> find_reusable(const Cut& wanted, double max_position_error, std::string* why = nullptr,
                                           double crease_angle_deg = kDefaultCreaseAngleDeg,
                                           const std::set<std::string>* candidates = nullptr,
-                                          bool exact_normals = false);
+                                          bool exact_normals = false, int normal_bits = 0);
   // Copies a finished .drc (written elsewhere, e.g. a temporary file) into the
   // cache with its cut, then evicts least-recently-used entries over the limit.
   StatusOr<CacheEntry> insert(const Cut& cut, const std::filesystem::path& drc_file, uint64_t triangles,
                               double max_position_error, double crease_angle_deg = kDefaultCreaseAngleDeg,
-                              bool exact_normals = false);
+                              bool exact_normals = false, int normal_bits = 0, int position_bits = 0);
   // Links (or copies) an entry's mesh to `dest` under the cache lock, so that
   // a concurrent eviction cannot remove the file this run is about to render.
   Status checkout(const CacheEntry& entry, const std::filesystem::path& dest);

@@ -170,6 +170,32 @@ TEST(SimplifiedCache, ExactNormalsAreAnotherNormalRule) {
   EXPECT_EQ(cache->find_reusable(cut, 0.01, nullptr, 30, nullptr, false)->triangles, 50u);
 }
 
+// The normals' quantisation follows the materials (a glossier scene asks
+// for more bits): an exact hit needs the same bits, a reused entry at least
+// as many, and an entry that does not record them is not reused where bits
+// are asked for. The bits recorded come back with the entry.
+TEST(SimplifiedCache, NormalBitsAreAskedForAndRecorded) {
+  fs::path dir = fresh_dir("normal-bits");
+  auto cache = SimplifiedCache::open(dir, 1 << 20);
+  ASSERT_TRUE(cache.is_ok());
+  Cut cut = make_cut(9, {{3, 5}});
+  EXPECT_NE(SimplifiedCache::key_for(cut, 30, false, 10), SimplifiedCache::key_for(cut, 30, false, 14));
+  ASSERT_TRUE(cache->insert(cut, write_file(dir / "a.drc", 100, 'a'), 50, 0.01, 30, false, 10, 21).is_ok());
+  EXPECT_FALSE(cache->find_exact(SimplifiedCache::key_for(cut, 30, false, 14)).has_value());
+  EXPECT_FALSE(cache->find_reusable(cut, 0.01, nullptr, 30, nullptr, false, 14).has_value());
+  auto coarser = cache->find_reusable(cut, 0.01, nullptr, 30, nullptr, false, 8);
+  ASSERT_TRUE(coarser.has_value());
+  EXPECT_EQ(coarser->normal_bits, 10);
+  EXPECT_EQ(coarser->position_bits, 21);
+  auto exact = cache->find_exact(SimplifiedCache::key_for(cut, 30, false, 10));
+  ASSERT_TRUE(exact.has_value());
+  EXPECT_EQ(exact->position_bits, 21);
+  // An entry without recorded bits (0) serves only where none are asked for.
+  ASSERT_TRUE(cache->insert(cut, write_file(dir / "b.drc", 100, 'b'), 40, 0.01, 25, false).is_ok());
+  EXPECT_FALSE(cache->find_reusable(cut, 0.01, nullptr, 25, nullptr, false, 8).has_value());
+  EXPECT_TRUE(cache->find_reusable(cut, 0.01, nullptr, 25, nullptr, false).has_value());
+}
+
 TEST(SimplifiedCache, CheckoutSurvivesEviction) {
   fs::path dir = fresh_dir("checkout");
   auto cache = SimplifiedCache::open(dir, 1500);
