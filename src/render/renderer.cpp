@@ -266,8 +266,14 @@ StatusOr<std::vector<TriangleMesh>> load_scene_meshes(const Scene& world_scene, 
   if (bvh) *bvh = chosen;
   stats.estimated_bytes = estimate_render_memory(declared, chosen);
   if (options.memory_limit > 0 && stats.estimated_bytes > options.memory_limit) {
+    // The least any layout needs: the compact one with the medium builder
+    // (bvh_for_memory_limit's last resort), not the default layout it returns.
+    BvhConfig tightest = wanted;
+    tightest.high_quality_below = 0;
+    tightest.compact_from = 0;
+    tightest.camera_rays = 0;
     return Status::error("the scene has " + std::to_string(declared) + " triangles, which need about " +
-                         format_bytes(stats.estimated_bytes) +
+                         format_bytes(estimate_render_memory(declared, tightest)) +
                          " for the mesh and its BVH (compact layout), more than the memory limit of " +
                          format_bytes(options.memory_limit) + "; about " +
                          std::to_string(triangles_that_fit(options.memory_limit, options.bvh)) + " triangles would fit." +

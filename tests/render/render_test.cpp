@@ -532,6 +532,15 @@ TEST(SceneFiles, MemoryLimitStopsBeforeLoadingAndSaysWhatFits) {
   EXPECT_NE(msg.find("memory limit"), std::string::npos) << msg;
   EXPECT_NE(msg.find("would fit"), std::string::npos) << msg;
   EXPECT_NE(msg.find("raylod run"), std::string::npos) << msg;
+  // The need it states is the least of any layout's (the compact one with the
+  // medium builder), and that much is enough.
+  BvhConfig tight;
+  tight.high_quality_below = 0;
+  tight.compact_from = 0;
+  tight.camera_rays = 0;
+  EXPECT_NE(msg.find("need about " + format_bytes(estimate_render_memory(4, tight))), std::string::npos) << msg;
+  o.memory_limit = estimate_render_memory(4, tight);
+  EXPECT_TRUE(render(*scene, o).is_ok());
   o.memory_limit = estimate_render_memory(4);
   EXPECT_TRUE(render(*scene, o).is_ok());
   // The advertised count is consistent with the estimate of the layout the
