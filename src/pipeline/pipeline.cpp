@@ -586,6 +586,16 @@ StatusOr<std::vector<ProbeTrace>> trace_views_across_ranks(RunSession& session, 
     if (!status) break;
     if (cluster::active()) mine += cluster::to_bytes(uint64_t(i)) + packed_size(pack_trace(*traced));
     else traces[i] = std::move(traced.value());
+    // Every view's hits are held until the shared cut is selected: past the
+    // memory limit, stop and say so rather than grow without bound.
+    if (const uint64_t rss = current_rss_bytes(); session.budget.limited() && rss > session.budget.total) {
+      status = Status::error("--shared-cut holds every view's test-ray hits until the cut is selected: after " +
+                             std::to_string(i + 1) + " of " + std::to_string(cameras.size()) + " views this process uses " +
+                             format_bytes(rss) + ", more than the memory limit of " + format_bytes(session.budget.total) +
+                             "; use fewer views or --rays, raise --memory-limit, or leave out --shared-cut (each "
+                             "view then gets its own cut)");
+      break;
+    }
   }
   RAYLOD_RETURN_IF_ERROR(cluster::agree(status));
   if (!cluster::active()) return traces;
