@@ -105,6 +105,11 @@ StatusOr<ProbeConfig> make_probe_config(const Scene& scene, uint64_t rays, doubl
   // for the test rays' hit records.
   // A cache kept from earlier views counts as free: it is this cache.
   const uint64_t held = pages ? pages->resident_bytes() : 0;
+  // What an earlier view freed (its render, its simplify) is not resident
+  // for this one: the allocator gives it back first.
+#if defined(__GLIBC__)
+  if (budget.limited()) malloc_trim(0);
+#endif
   const uint64_t rss_now = current_rss_bytes();
   const uint64_t rss = rss_now > held ? rss_now - held : 0;
   probe.pages = pages;
