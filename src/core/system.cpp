@@ -13,6 +13,7 @@
 
 #include <atomic>
 #include <cctype>
+#include <cmath>
 #include <csignal>
 #include <cerrno>
 #include <charconv>
@@ -139,8 +140,27 @@ StatusOr<uint64_t> parse_size(const std::string& text) {
   else if (unit == "M" || unit == "MB" || unit == "MIB") shift = 20;
   else if (unit == "G" || unit == "GB" || unit == "GIB") shift = 30;
   else if (unit == "T" || unit == "TB" || unit == "TIB") shift = 40;
-  else if (!unit.empty() && (unit[0] == '.' || unit[0] == ','))
+  else if (!unit.empty() && (unit[0] == '.' || unit[0] == ',')) {
+    // A fraction: say it in the next smaller unit ("1.5M" -> 1536K).
+    std::string number(begin, end);
+    for (char& ch : number) if (ch == ',') ch = '.';
+    char* rest = nullptr;
+    const double x = std::strtod(number.c_str(), &rest);
+    std::string suffix(rest ? rest : "");
+    for (auto& ch : suffix) ch = char(std::toupper(static_cast<unsigned char>(ch)));
+    const std::string units = "BKMGT";
+    const size_t u = suffix.empty() ? 0 : units.find(suffix[0]);
+    if (u != std::string::npos && u > 0 && std::isfinite(x) && x > 0) {
+      const double smaller = x * 1024.0;
+      const double whole = std::round(smaller);
+      char amount[32];
+      std::snprintf(amount, sizeof amount, "%.0f", whole);
+      const std::string in_smaller = std::string(amount) + (u == 1 ? "" : std::string(1, units[u - 1]));
+      return Status::error(quoted + " is not a whole number of bytes (write " + (whole == smaller ? "" : "about ") +
+                           in_smaller + " for " + text + ")");
+    }
     return Status::error(quoted + " is not a whole number of bytes (write e.g. 1536M for 1.5G)");
+  }
   else return Status::error(quoted + ": unknown size unit '" + std::string(digits_end, end) + "' (use K, M, G or T)");
   if (value == 0) return Status::error(quoted + ": the size must be at least 1 byte");
   if (value > (UINT64_MAX >> shift)) return Status::error(quoted + " is too large (more than 2^64 - 1 bytes)");
