@@ -1,12 +1,16 @@
 // The external files a glTF file's buffers name: the store's fingerprint of
 // a glTF mesh covers them, so that editing a .bin beside its .gltf rebuilds
 // the store (octree_build_mesh.cpp).
+#include <sys/stat.h>
+
+#include <algorithm>
 #include <cstring>
 #include <fstream>
 #include <iterator>
 
 #include <nlohmann/json.hpp>
 
+#include "streaming/distinct_keys.h"
 #include "streaming/gltf_io.h"
 
 namespace raylod {
@@ -83,6 +87,19 @@ std::vector<std::filesystem::path> gltf_external_buffers(const std::filesystem::
     if (std::find(out.begin(), out.end(), path) == out.end()) out.push_back(path);
   }
   return out;
+}
+
+FileStatus with_external_buffers(FileStatus file, std::span<const std::filesystem::path> buffers) {
+  for (const std::filesystem::path& buffer : buffers) {
+    struct stat st {};
+    if (::stat(buffer.c_str(), &st) != 0 || !S_ISREG(st.st_mode)) continue;
+    const FileStatus b = file_status_of(st);
+    file.bytes += b.bytes;
+    file.mtime_ns = std::max(file.mtime_ns, b.mtime_ns);
+    file.ctime_ns = std::max(file.ctime_ns, b.ctime_ns);
+    file.inode = mix64_finalise(file.inode ^ mix64_finalise(b.inode + b.device));
+  }
+  return file;
 }
 
 }  // namespace raylod

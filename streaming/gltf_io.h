@@ -43,6 +43,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <memory>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -50,6 +51,7 @@
 #include "core/status.h"
 #include "streaming/draco_io.h"
 #include "streaming/mesh_reader.h"
+#include "streaming/source_record.h"
 
 namespace raylod {
 
@@ -100,6 +102,11 @@ StatusOr<std::unique_ptr<MeshReader>> open_gltf_reader(const std::filesystem::pa
 // parse gives none (its reader reports why). The store's fingerprint of a
 // glTF mesh covers them (octree_store.h, fingerprint_file).
 std::vector<std::filesystem::path> gltf_external_buffers(const std::filesystem::path& file);
+// `file`'s status with those buffers' folded in (sizes summed, the latest
+// modification and change times, devices and inodes mixed into the inode),
+// so that writing, replacing or removing a buffer changes it as writing the
+// file would. Buffers that are not regular files are left out.
+FileStatus with_external_buffers(FileStatus file, std::span<const std::filesystem::path> buffers);
 
 // ---- Writing ----
 

@@ -222,33 +222,30 @@ StatusOr<std::shared_ptr<const LoadedModel>> load_model(const std::filesystem::p
   if (::stat(file.c_str(), &st) != 0) return Status::error(file.string() + ": " + std::strerror(errno));
   std::error_code ec;
   const std::filesystem::path canonical = std::filesystem::weakly_canonical(std::filesystem::absolute(file, ec), ec);
-  const uint64_t mtime = uint64_t(st.st_mtim.tv_sec) * 1000000000ull + uint64_t(st.st_mtim.tv_nsec);
-  // The .bin files beside a .gltf belong to its content: their status joins
-  // the cache's key, so an edited .bin is read again.
-  uint64_t buffers_key = 0;
-  for (const std::filesystem::path& b : gltf_external_buffers(file)) {
-    struct stat bs {};
-    if (::stat(b.c_str(), &bs) != 0) continue;
-    for (uint64_t v : {uint64_t(bs.st_size), uint64_t(bs.st_ino), uint64_t(bs.st_mtim.tv_sec), uint64_t(bs.st_mtim.tv_nsec),
-                       uint64_t(bs.st_ctim.tv_sec), uint64_t(bs.st_ctim.tv_nsec)})
-      buffers_key = (buffers_key ^ v) * 0x100000001b3ull + 0x9e3779b97f4a7c15ull;
-  }
   // One entry: the per-mesh readers of a scene's glTF (build passes, render)
   // open the same file one after the other. /proc/self/fd paths (the fuzz
   // targets) are never cached: their numbers are reused for other files.
   static std::mutex mutex;
   static std::string cached_path;
-  static uint64_t cached_size = 0, cached_mtime = 0, cached_buffers = 0;
+  // The file's status with its external buffers' (an edited .bin is read
+  // again); the buffers are those of the cached model's JSON, which cannot
+  // change while the file's own status does not.
+  static FileStatus cached_status;
+  static std::vector<std::filesystem::path> cached_buffers;
   static std::weak_ptr<const LoadedModel> cached;
   static std::shared_ptr<const LoadedModel> kept;  // small files stay loaded between readers
   const bool cacheable = file.string().rfind("/proc/", 0) != 0;
   {
     std::lock_guard<std::mutex> lock(mutex);
     std::shared_ptr<const LoadedModel> hit = cached.lock();
-    if (cacheable && hit && cached_path == canonical.string() && cached_size == uint64_t(st.st_size) &&
-        cached_mtime == mtime && cached_buffers == buffers_key && hit->name == file.string())
+    if (cacheable && hit && cached_path == canonical.string() && hit->name == file.string() &&
+        with_external_buffers(file_status_of(st), cached_buffers) == cached_status)
       return hit;
   }
+  // Their status before the load: a buffer written meanwhile is read again next time.
+  std::vector<std::filesystem::path> buffers;
+  if (cacheable) buffers = gltf_external_buffers(file);
+  const FileStatus status = with_external_buffers(file_status_of(st), buffers);
   RAYLOD_ASSIGN_OR_RETURN(std::shared_ptr<const LoadedModel> loaded, load_uncached(file, uint64_t(st.st_size)));
   if (cacheable) {
     std::lock_guard<std::mutex> lock(mutex);
@@ -257,9 +254,8 @@ StatusOr<std::shared_ptr<const LoadedModel>> load_model(const std::filesystem::p
     // render does not keep a huge glTF's buffers beside its own mesh.
     kept = loaded->file_bytes <= (uint64_t(256) << 20) ? loaded : nullptr;
     cached_path = canonical.string();
-    cached_size = uint64_t(st.st_size);
-    cached_mtime = mtime;
-    cached_buffers = buffers_key;
+    cached_status = status;
+    cached_buffers = std::move(buffers);
   }
   return loaded;
 }

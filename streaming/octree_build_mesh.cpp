@@ -95,20 +95,17 @@ StatusOr<SourceFingerprint> fingerprint_file(const std::filesystem::path& mesh, 
   // in), so that editing one changes it as editing the .gltf would. A
   // missing one is left out (the reader says it is missing).
   auto format = mesh_format_from_extension(path);
-  if (format.is_ok() && *format == MeshFormat::Gltf)
-    for (const std::filesystem::path& buffer : gltf_external_buffers(path)) {
-      struct stat bs {};
-      if (::stat(buffer.c_str(), &bs) != 0 || !S_ISREG(bs.st_mode)) continue;
-      const FileStatus b = file_status_of(bs);
-      fp.status.bytes += b.bytes;
-      fp.status.mtime_ns = std::max(fp.status.mtime_ns, b.mtime_ns);
-      fp.status.ctime_ns = std::max(fp.status.ctime_ns, b.ctime_ns);
-      fp.status.inode = mix64_finalise(fp.status.inode ^ mix64_finalise(b.inode + b.device));
-      if (with_hash) {
+  if (format.is_ok() && *format == MeshFormat::Gltf) {
+    const std::vector<std::filesystem::path> buffers = gltf_external_buffers(path);
+    fp.status = with_external_buffers(fp.status, buffers);
+    if (with_hash)
+      for (const std::filesystem::path& buffer : buffers) {
+        std::error_code not_regular;
+        if (!std::filesystem::is_regular_file(buffer, not_regular)) continue;  // with_external_buffers leaves it out too
         RAYLOD_ASSIGN_OR_RETURN(const uint64_t h, hash_file(buffer));
         fp.hash = mix64_finalise(fp.hash ^ mix64_finalise(h));
       }
-    }
+  }
   fp.bytes = fp.status.bytes;
   fp.mtime_ns = fp.status.mtime_ns;
   return fp;

@@ -69,12 +69,14 @@ Status run_render(int argc, char** argv, bool& help) {
   {
     std::vector<FileRole> outputs = {{output, "the image (-o)"}};
     if (args.has("--stats-json")) outputs.push_back({args.get("--stats-json"), "--stats-json"});
-    if (opts.aov_depth) outputs.push_back({aov_path(output, "depth"), "the depth AOV"});
-    if (opts.aov_normal) outputs.push_back({aov_path(output, "normal"), "the normal AOV"});
-    if (opts.aov_triangle_id) outputs.push_back({aov_path(output, "triangle-id"), "the triangle-id AOV"});
+    for (const auto& [on, aov] : {std::pair{opts.aov_depth, "depth"}, std::pair{opts.aov_normal, "normal"},
+                                  std::pair{opts.aov_triangle_id, "triangle-id"}}) {
+      if (!on) continue;
+      // Checked like the image: a path that cannot be written fails before rendering, not after.
+      RAYLOD_RETURN_IF_ERROR(check_output_image(aov_path(output, aov)));
+      outputs.push_back({aov_path(output, aov), std::string("the ") + aov + " AOV"});
+    }
     RAYLOD_RETURN_IF_ERROR(check_outputs_apart(outputs, scene_input_files(args, scene)));
-    for (size_t i = 1; i < outputs.size(); ++i)  // the AOVs: fail before rendering, not after
-      if (outputs[i].role != "--stats-json") RAYLOD_RETURN_IF_ERROR(check_output_image(outputs[i].path));
   }
   RAYLOD_ASSIGN_OR_RETURN(int64_t width, args.get_int("--width", scene.camera.width, 1, 32768));
   RAYLOD_ASSIGN_OR_RETURN(int64_t height, args.get_int("--height", scene.camera.height, 1, 32768));

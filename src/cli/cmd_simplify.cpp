@@ -101,7 +101,7 @@ int run_simplify(int argc, char** argv) {
   if (!fold_passes) return fail("simplify", fold_passes.status());
   auto position_error = args.get_double("--position-error", 0);
   if (!position_error) return fail("simplify", position_error.status());
-  if (*position_error < 0 || (args.has("--position-error") && *position_error == 0))
+  if (args.has("--position-error") && !(*position_error > 0))  // 0 (not given): the pipeline's bound
     return fail("simplify", Status::error("--position-error must be positive"));
 
   using Clock = std::chrono::steady_clock;

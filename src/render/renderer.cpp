@@ -159,14 +159,21 @@ uint64_t estimate_render_memory(uint64_t triangles, const BvhConfig& config) {
   return uint64_t(16ull << 20) + uint64_t(double(triangles) * (mesh + bvh));
 }
 
+BvhConfig smallest_bvh_layout(BvhConfig config) {
+  config.high_quality_below = 0;
+  config.compact_from = 0;
+  config.camera_rays = 0;  // the medium builder, whose compact build peaks lower than the low one's
+  return config;
+}
+
 BvhConfig bvh_for_memory_limit(uint64_t triangles, uint64_t limit, BvhConfig config) {
   if (limit == 0 || estimate_render_memory(triangles, config) <= limit) return config;
   BvhConfig compact = config;
   compact.high_quality_below = 0;
   compact.compact_from = 0;
   if (estimate_render_memory(triangles, compact) <= limit) return compact;
-  compact.camera_rays = 0;  // the medium builder, whose compact build peaks lower than the low one's
-  return estimate_render_memory(triangles, compact) <= limit ? compact : config;
+  const BvhConfig smallest = smallest_bvh_layout(config);
+  return estimate_render_memory(triangles, smallest) <= limit ? smallest : config;
 }
 
 uint64_t triangles_that_fit(uint64_t bytes, const BvhConfig& config) {
@@ -266,14 +273,10 @@ StatusOr<std::vector<TriangleMesh>> load_scene_meshes(const Scene& world_scene, 
   if (bvh) *bvh = chosen;
   stats.estimated_bytes = estimate_render_memory(declared, chosen);
   if (options.memory_limit > 0 && stats.estimated_bytes > options.memory_limit) {
-    // The least any layout needs: the compact one with the medium builder
-    // (bvh_for_memory_limit's last resort), not the default layout it returns.
-    BvhConfig tightest = wanted;
-    tightest.high_quality_below = 0;
-    tightest.compact_from = 0;
-    tightest.camera_rays = 0;
+    // The least any layout needs (bvh_for_memory_limit's last resort), not
+    // the default layout it returns when nothing fits.
     return Status::error("the scene has " + std::to_string(declared) + " triangles, which need about " +
-                         format_bytes(estimate_render_memory(declared, tightest)) +
+                         format_bytes(estimate_render_memory(declared, smallest_bvh_layout(wanted))) +
                          " for the mesh and its BVH (compact layout), more than the memory limit of " +
                          format_bytes(options.memory_limit) + "; about " +
                          std::to_string(triangles_that_fit(options.memory_limit, options.bvh)) + " triangles would fit." +

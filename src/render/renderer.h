@@ -98,6 +98,9 @@ uint64_t estimate_render_memory(uint64_t triangles, const BvhConfig& config = {}
 BvhConfig bvh_for_memory_limit(uint64_t triangles, uint64_t limit, BvhConfig config = {});
 // The largest triangle count that fits in bytes with the layout
 // bvh_for_memory_limit would pick.
+// The layout that needs the least memory: compact, built by the medium
+// builder (bvh_for_memory_limit's last resort).
+BvhConfig smallest_bvh_layout(BvhConfig config = {});
 uint64_t triangles_that_fit(uint64_t bytes, const BvhConfig& config = {});
 
 // The triangles the scene's mesh files (or their overrides) declare, the
