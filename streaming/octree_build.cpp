@@ -57,6 +57,7 @@
 
 #include "core/progress.h"
 #include "core/fault_point.h"
+#include "core/memory_budget.h"
 #include "core/ordered_pipeline.h"
 #include "core/parallelism.h"
 #include "core/system.h"
@@ -1092,7 +1093,7 @@ StatusOr<BuildReport> build_store_from_stream(const MeshStreamOpener& open, cons
   if (options.max_depth < 0 || options.max_depth > int(kMaxLevel))
     return Status::error("--max-depth must be between 0 and " + std::to_string(kMaxLevel));
   const uint64_t memory_limit = resolved_memory_limit(options);
-  if (memory_limit < (1u << 20)) return Status::error("--memory-limit must be at least 1M");
+  if (memory_limit < kMinMemoryLimit) return Status::error("--memory-limit must be at least 1M");
   const size_t concurrency = size_t(ambient_parallelism());
   const size_t ntokens = std::clamp<size_t>(2 * concurrency, 2, 8);
 

@@ -211,6 +211,9 @@ StatusOr<MemoryBudget> memory_budget_from_args(const Args& args) {
   std::optional<uint64_t> given;
   if (args.has("--memory-limit")) {
     RAYLOD_ASSIGN_OR_RETURN(given, args.get_size("--memory-limit", 0));
+    if (*given < kMinMemoryLimit)
+      return Status::error("--memory-limit: '" + args.get("--memory-limit") +
+                           "' is less than 1M, the least any command accepts");
   }
   return MemoryBudget::resolve(given);
 }

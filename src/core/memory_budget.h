@@ -31,6 +31,11 @@
 
 namespace raylod {
 
+// The least --memory-limit any command accepts (the store build's plan
+// needs this much for its reader and batches; the process itself holds
+// about 140 MiB before a stage starts, so real limits are far larger).
+inline constexpr uint64_t kMinMemoryLimit = uint64_t(1) << 20;
+
 struct MemoryBudget {
   uint64_t total = 0;     // bytes; 0 = no limit
   uint64_t baseline = 0;  // resident bytes when the budget was made

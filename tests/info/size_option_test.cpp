@@ -66,7 +66,7 @@ TEST(SizeOption, BadMemoryLimitFailsTheCommandAndWritesNothing) {
   const fs::path mesh = dir / "tri.obj";
   std::ofstream(mesh) << "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";
   const fs::path store = dir / "tri.raylod";
-  for (const char* value : {"0", "0.5", "99999999T"}) {
+  for (const char* value : {"0", "0.5", "99999999T", "1023K"}) {
     std::string out;
     EXPECT_EQ(run("build -q " + mesh.string() + " -o " + store.string() + " --memory-limit " + value, out), 1) << out;
     EXPECT_NE(out.find(std::string("raylod build: error: --memory-limit: '") + value + "'"), std::string::npos) << out;
