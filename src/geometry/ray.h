@@ -23,6 +23,10 @@ struct RayDifferential {
   // False once the differentials blew up and were dropped (see
   // ray_differential.h for the rule); the hit's footprint is then estimated.
   bool has_differentials = false;
+  // The distance travelled from the camera (world units, summed by
+  // transfer): what dP/dx is measured against when deciding whether it blew
+  // up, so that the rule does not depend on the scene's unit of length.
+  double travelled = 0;
 };
 
 }  // namespace raylod

@@ -24,9 +24,14 @@ void check(RayDifferential& r, const DifferentialLimits& limits) {
 }  // namespace
 
 bool differentials_ok(const RayDifferential& r, const DifferentialLimits& limits) {
-  for (const Vec3d* v : {&r.dp_dx, &r.dp_dy, &r.dd_dx, &r.dd_dy}) {
+  const double max_dp = limits.max_ratio * r.travelled;
+  for (const Vec3d* v : {&r.dp_dx, &r.dp_dy}) {
     if (!is_finite(*v)) return false;
-    if (squared(*v) > limits.max_squared) return false;
+    if (r.travelled > 0 && squared(*v) > max_dp * max_dp) return false;
+  }
+  for (const Vec3d* v : {&r.dd_dx, &r.dd_dy}) {
+    if (!is_finite(*v)) return false;
+    if (squared(*v) > limits.max_turn * limits.max_turn) return false;
   }
   return true;
 }
@@ -52,6 +57,7 @@ RayDifferential camera_ray_differential(const PinholeCamera& camera, double px, 
 void transfer(RayDifferential& r, double t, const Vec3d& plane_normal, const DifferentialLimits& limits) {
   const Vec3d d = r.ray.direction;
   r.ray.origin = r.ray.origin + t * d;
+  r.travelled += std::abs(t);
   if (!r.has_differentials) return;
   const double n_len = glm::length(plane_normal);
   if (!(n_len > 0)) { drop_differentials(r); return; }
@@ -89,6 +95,7 @@ RayDifferential reflect_about(const RayDifferential& in, const HitSurface& s, co
   const Vec3d d = in.ray.direction;
   const double dn = glm::dot(d, n);
   out.ray.origin = in.ray.origin;
+  out.travelled = in.travelled;
   out.ray.direction = direction;  // Igehy eq. 13: D - 2 (D.N) N, normalised
   out.dp_dx = in.dp_dx;
   out.dp_dy = in.dp_dy;
@@ -139,6 +146,7 @@ Refraction refract(const RayDifferential& in, const HitSurface& s, double ior, c
   result.tilt_gain = -tn > 0 ? std::abs(mu) / -tn : std::numeric_limits<double>::infinity();
   RayDifferential& out = result.ray;
   out.ray.origin = in.ray.origin;
+  out.travelled = in.travelled;
   out.ray.direction = t.direction;  // eta D - mu N, normalised
   out.dp_dx = in.dp_dx;
   out.dp_dy = in.dp_dy;

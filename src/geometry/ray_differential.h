@@ -11,8 +11,14 @@
 //     angle, |T.N| < min_cos (dmu/dx carries 1 / (T.N));
 //   - the interpolated vertex normal is degenerate (|n| < min_normal_length,
 //     normals that cancel), so dN/dx is undefined;
-//   - any resulting vector has squared length above max_squared (1e16, as in
-//     pbrt) or is not finite.
+//   - a direction's derivative is longer than max_turn (1e8 radians per
+//     pixel: pbrt's limit of 1e16 on the square, which for a direction has
+//     no unit), or a position's derivative longer than max_ratio (1e8) times
+//     the distance the ray has travelled from the camera (pbrt's limit made
+//     relative, so that a scene in kilometres and the same scene in
+//     micrometres drop the same differentials; a differential made by hand,
+//     with no distance travelled, is held to finiteness alone); or any
+//     vector is not finite.
 // A dropped differential stays dropped along the rest of the path; the probe
 // then estimates that hit's footprint conservatively (probe.h).
 // Total internal reflection is treated as a reflection (with differentials).
@@ -31,7 +37,8 @@ namespace raylod {
 
 struct DifferentialLimits {
   double min_cos = 1e-4;             // grazing / critical-angle cut-off (cosine)
-  double max_squared = 1e16;         // squared length past which a vector "blew up"
+  double max_turn = 1e8;    // |dD/dx| (radians per pixel) past which it "blew up"
+  double max_ratio = 1e8;   // |dP/dx| over the distance travelled past which it did
   double min_normal_length = 1e-6;   // interpolated normal shorter than this is degenerate
 };
 
@@ -98,7 +105,7 @@ Refraction refract(const RayDifferential& incident, const HitSurface& s, double 
 // Undefined (0) when the ray has no differentials.
 double footprint(const RayDifferential& ray);
 
-// True if the differentials are finite and below limits.max_squared.
+// True if the differentials are finite and within limits.max_turn and max_ratio.
 bool differentials_ok(const RayDifferential& ray, const DifferentialLimits& limits = {});
 // Zeroes the differentials and clears has_differentials.
 void drop_differentials(RayDifferential& ray);

@@ -528,7 +528,8 @@ std::string probe_key(const Scene& scene, const OctreeStore& store, std::span<co
   mix(config.curved_unreached_tilt);
   mix(config.shadow_factor);
   mix(config.limits.min_cos);
-  mix(config.limits.max_squared);
+  mix(config.limits.max_turn);
+  mix(config.limits.max_ratio);
   mix(config.limits.min_normal_length);
   char buf[17];
   std::snprintf(buf, sizeof(buf), "%016llx", static_cast<unsigned long long>(k));
