@@ -243,8 +243,9 @@ StatusOr<uint64_t> declared_scene_triangles(const Scene& scene, const RenderOpti
 
 Scene in_render_frame(const Scene& scene) {
   Scene s = scene;
-  // A scene built in code rather than parsed has no render origin: the same
-  // rule from its camera.
+  // A scene built in code rather than parsed has none: a reader's local
+  // origin rule (from 4096 units out) from its camera, which leaves meshes
+  // built in the world frame near zero where they are.
   const Vec3d r = scene.render_origin != Vec3d(0) ? scene.render_origin : local_origin_for(scene.camera.look_at);
   if (r == Vec3d(0)) return s;
   s.camera.eye -= r;

@@ -117,9 +117,10 @@ StatusOr<uint64_t> declared_scene_triangles(const Scene& scene, const RenderOpti
 // same BVH multiplies them.
 // Warns through options.log about a mesh whose every triangle is degenerate.
 // The scene as the renderer sees it: every world position minus
-// scene.render_origin (if that is zero, as in a scene built in code, the
-// parse rule applied to the camera's look-at point), computed in double (camera, point lights, ground
-// height, object transforms), and render_origin zero. Images do not change
+// scene.render_origin (parse_scene's; in a scene built in code, which has
+// none, local_origin_for its camera's look-at point, so meshes built in the
+// world frame near zero stay where they are), computed in double (camera,
+// point lights, ground height, object transforms), and render_origin zero. Images do not change
 // (distances and directions are the same); floats near a far scene's camera
 // keep their detail. load_scene_meshes and render_embree_scene apply it
 // themselves; whoever builds an EmbreeScene by other means applies it to

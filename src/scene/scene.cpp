@@ -483,8 +483,13 @@ StatusOr<Scene> parse_scene(const std::string& text, const std::filesystem::path
     if (!(deg >= 0 && deg <= 180)) return p.fail("crease_angle", "must be between 0 and 180 degrees");
     scene.crease_angle_deg = deg;
   }
-  scene.render_origin = local_origin_for(scene.camera.look_at);
+  scene.render_origin = render_origin_for(scene.camera.look_at);
   return scene;
+}
+
+Vec3d render_origin_for(const Vec3d& look_at) {
+  if (!is_finite(look_at)) return Vec3d(0);
+  return Vec3d(std::round(look_at.x), std::round(look_at.y), std::round(look_at.z));
 }
 
 StatusOr<Scene> load_scene(const std::filesystem::path& path, bool first_mesh_replaced) {

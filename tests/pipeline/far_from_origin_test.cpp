@@ -22,6 +22,7 @@
 #include "probe/bvh.h"
 #include "probe/store_tracer.h"
 #include "render/renderer.h"
+#include "scene/scene.h"
 #include "streaming/draco_io.h"
 #include "streaming/indexed_ply_writer.h"
 #include "streaming/mesh_reader.h"
@@ -184,6 +185,40 @@ TEST(FarFromOrigin, FullRenderAgreesWithDoublePrecisionBruteForce) {
   // fills most of the rest: both checks bite.
   EXPECT_GT(inside, pixels / 20);
   EXPECT_GT(empty, pixels / 10);
+}
+
+// A scene file placing the staircase (0.05 across) 1000 units out, camera
+// and light moved with it, renders as it does at zero: the renderer's frame
+// is the look-at point rounded at any distance (render_origin_for). With a
+// frame only from 4096 units out, Embree's floats near 1000 (6e-5 apart)
+// gave jagged treads and self-shadowing.
+TEST(FarFromOrigin, ParsedSceneAtAModerateOffsetRendersAsAtZero) {
+  test::ScratchDir scratch("far-from-origin");
+  const fs::path mesh = write_staircase(scratch.path / "stairs.ply", make_staircase(), Vec3d(0));
+  auto scene_at = [&](double d) {
+    char json[1024];
+    std::snprintf(json, sizeof json,
+                  R"({"camera": {"eye": [%.17g, %.17g, %.17g], "look_at": [%.17g, %.17g, %.17g],
+                      "fov_y": 40, "width": 120, "height": 90},
+                      "materials": {"m": {"type": "diffuse", "color": [0.7, 0.6, 0.5]}},
+                      "objects": [{"mesh": "stairs.ply", "material": "m",
+                                   "transform": {"translate": [%.17g, %.17g, %.17g]}}],
+                      "lights": [{"type": "point", "position": [%.17g, %.17g, %.17g], "intensity": 0.05}],
+                      "spp": 1, "seed": 3})",
+                  d - 0.025, d + 0.035, d + 0.045, d + 0.022, d + 0.006, d + 0.01, d, d, d, d + 0.1, d + 0.2,
+                  d + 0.15);
+    auto s = parse_scene(json, scratch.path, "stairs.json");
+    EXPECT_TRUE(s.is_ok()) << s.status().message();
+    return *s;
+  };
+  RenderOptions ro;
+  ro.progress = false;
+  auto near = render(scene_at(0), ro);
+  auto far = render(scene_at(1000), ro);
+  ASSERT_TRUE(near.is_ok() && far.is_ok());
+  auto e = compare_images(far->color, near->color);
+  ASSERT_TRUE(e.is_ok());
+  EXPECT_GT(e->psnr, 60.0);
 }
 
 TEST(FarFromOrigin, RunMatchesTheSameStaircaseNearZero) {
