@@ -26,6 +26,7 @@
 #include <mutex>
 #include <random>
 #include <sstream>
+#include <vector>
 
 namespace raylod {
 namespace {
@@ -354,11 +355,37 @@ void release_temporary(int& slot) {
 
 }  // namespace
 
+namespace {
+
+// The file a chain of symlinks ends at (relative links taken from their own
+// directory); `p` itself if it is not a link, or after 40 links (a loop,
+// which the write then reports).
+std::filesystem::path follow_symlinks(std::filesystem::path p) {
+  namespace fs = std::filesystem;
+  for (int i = 0; i < 40; ++i) {
+    std::error_code ec;
+    if (!fs::is_symlink(fs::symlink_status(p, ec))) return p;
+    const fs::path next = fs::read_symlink(p, ec);
+    if (ec) return p;
+    p = next.is_absolute() ? next : p.parent_path() / next;
+  }
+  return p;
+}
+
+}  // namespace
+
 AtomicOutput::AtomicOutput(std::filesystem::path destination) : dest_(std::move(destination)) {
-  remove_stale_temporaries(dest_);
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  const fs::file_status st = fs::status(dest_, ec);  // through symlinks
+  pass_through_ = !ec && fs::exists(st) && !fs::is_regular_file(st) && !fs::is_directory(st);
+  target_ = pass_through_ ? dest_ : follow_symlinks(dest_);
+  // A device's directory (/dev) is no place for a temporary.
+  const fs::path beside = pass_through_ ? fs::temp_directory_path(ec) / ("raylod-" + dest_.filename().string()) : target_;
+  remove_stale_temporaries(beside);
   static std::atomic<uint64_t> counter{0};
   std::random_device rd;
-  temp_ = dest_;
+  temp_ = beside;
   temp_ += ".tmp-" + process_tag() + "-" + std::to_string(counter++) + "-" + std::to_string(rd() & 0xffff);
   install_temporary_handlers();
   slot_ = register_temporary(temp_);
@@ -373,6 +400,34 @@ AtomicOutput::~AtomicOutput() {
 }
 
 Status AtomicOutput::commit() {
+  if (pass_through_) {
+    const std::string dest = dest_.string();
+    std::ifstream in(temp_, std::ios::binary);
+    if (!in) return Status::write_failed(dest, dest + ": output was not written", errno);
+    const int out = ::open(dest_.c_str(), O_WRONLY | O_CLOEXEC);
+    if (out < 0) return Status::write_failed(dest, dest + ": cannot open for writing: " + std::strerror(errno), errno);
+    std::vector<char> buf(1 << 16);
+    int write_errno = 0;
+    while (in && write_errno == 0) {
+      in.read(buf.data(), std::streamsize(buf.size()));
+      const char* p = buf.data();
+      for (std::streamsize left = in.gcount(); left > 0 && write_errno == 0;) {
+        const ssize_t n = ::write(out, p, size_t(left));
+        if (n < 0 && errno == EINTR) continue;
+        if (n <= 0) { write_errno = n < 0 ? errno : EIO; break; }
+        p += n;
+        left -= n;
+      }
+    }
+    ::close(out);
+    std::error_code ec;
+    std::filesystem::remove(temp_, ec);
+    committed_ = true;
+    release_temporary(slot_);
+    if (write_errno != 0)
+      return Status::write_failed(dest, dest + ": write failed: " + std::strerror(write_errno), write_errno);
+    return Status::ok();
+  }
   int fd = ::open(temp_.c_str(), O_RDONLY);
   if (fd < 0) return Status::write_failed(dest_.string(), dest_.string() + ": output was not written", errno);
   bool synced = ::fsync(fd) == 0;
@@ -381,14 +436,14 @@ Status AtomicOutput::commit() {
   if (!synced)
     return Status::write_failed(dest_.string(), dest_.string() + ": could not flush to disk (disk full?)", sync_errno);
   std::error_code ec;
-  std::filesystem::rename(temp_, dest_, ec);
+  std::filesystem::rename(temp_, target_, ec);
   if (ec)
     return Status::write_failed(dest_.string(), dest_.string() + ": could not rename into place: " + ec.message(),
                                 ec.value());
   committed_ = true;
   release_temporary(slot_);
   // Make the rename itself durable.
-  auto dir = dest_.parent_path().empty() ? std::filesystem::path(".") : dest_.parent_path();
+  auto dir = target_.parent_path().empty() ? std::filesystem::path(".") : target_.parent_path();
   int dfd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY);
   if (dfd >= 0) { ::fsync(dfd); ::close(dfd); }
   return Status::ok();

@@ -117,6 +117,12 @@ size_t remove_stale_temporaries(const std::filesystem::path& destination);
 // of this machine, no longer exists.
 bool is_dead_process_temporary(const std::string& filename);
 
+// An output written whole or not at all: to a temporary, then renamed over
+// the destination. A symlink is followed to the file it names, which is
+// replaced in its own directory (the link stays). A destination that exists
+// and is neither a regular file nor a directory (a device such as
+// /dev/null, a FIFO, /dev/stdout's terminal or pipe) is never replaced: the
+// temporary, then in the system's temporary directory, is copied into it.
 class AtomicOutput {
  public:
   explicit AtomicOutput(std::filesystem::path destination);
@@ -124,14 +130,17 @@ class AtomicOutput {
   AtomicOutput(const AtomicOutput&) = delete;
   AtomicOutput& operator=(const AtomicOutput&) = delete;
 
-  // Path to write to (a temporary name in the destination's directory).
+  // Path to write to (a temporary name beside the file replaced).
   const std::filesystem::path& temp_path() const { return temp_; }
   const std::filesystem::path& destination() const { return dest_; }
-  // fsyncs the temporary and renames it to the destination.
+  // fsyncs the temporary and renames it to the destination (or copies it
+  // into a device, FIFO or socket, and removes it).
   Status commit();
 
  private:
   std::filesystem::path dest_, temp_;
+  std::filesystem::path target_;  // the file renamed over: dest_, or the file its symlinks name
+  bool pass_through_ = false;     // dest_ is a device, FIFO or socket
   bool committed_ = false;
   int slot_ = -1;  // in the signal handler's table of live temporaries
 };

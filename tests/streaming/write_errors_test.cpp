@@ -5,6 +5,7 @@
 
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <string>
 
 #include "core/system.h"
@@ -85,6 +86,33 @@ TEST_F(WriteErrors, PiecesArriveInOrderWithTheHookBetweenThem) {
   std::ifstream in(dest, std::ios::binary);
   EXPECT_EQ(std::string(std::istreambuf_iterator<char>(in), {}), "abcde");
   EXPECT_EQ(seen, "01");  // after each piece but the last
+}
+
+// A symlink is followed: the file it names is replaced, the link stays.
+TEST_F(WriteErrors, SymlinkStaysAndItsFileIsReplaced) {
+  std::ofstream(dir_ / "real.json") << "old";
+  fs::create_directory(dir_ / "sub");
+  fs::create_symlink("../real.json", dir_ / "sub" / "link.json");
+  ASSERT_TRUE(write_file_atomic(dir_ / "sub" / "link.json", "new").is_ok());
+  EXPECT_TRUE(fs::is_symlink(dir_ / "sub" / "link.json"));
+  std::ifstream in(dir_ / "real.json");
+  EXPECT_EQ(std::string(std::istreambuf_iterator<char>(in), {}), "new");
+  EXPECT_EQ(std::distance(fs::directory_iterator(dir_ / "sub"), fs::directory_iterator{}), 1);  // no temporary left
+}
+
+// A device is written into, never replaced (as root a rename would swap
+// /dev/null for a regular file): through a link to /dev/null, and
+// /dev/full's "disk full" is reported.
+TEST_F(WriteErrors, DevicesAreWrittenIntoNotReplaced) {
+  fs::create_symlink("/dev/null", dir_ / "null.json");
+  ASSERT_TRUE(write_file_atomic(dir_ / "null.json", "{}").is_ok());
+  EXPECT_TRUE(fs::is_symlink(dir_ / "null.json"));
+  EXPECT_TRUE(fs::is_character_file("/dev/null"));
+  if (fs::exists("/dev/full")) {
+    const Status s = write_file_atomic("/dev/full", "{}");
+    EXPECT_TRUE(s.is_write_failure()) << s.message();
+    EXPECT_TRUE(fs::is_character_file("/dev/full"));
+  }
 }
 
 }  // namespace
