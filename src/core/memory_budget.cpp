@@ -8,13 +8,13 @@ namespace raylod {
 uint64_t MemoryBudget::default_total() { return physical_memory_bytes() / 4; }
 
 MemoryBudget MemoryBudget::resolve(std::optional<uint64_t> requested) {
-  return measured(requested ? *requested : default_total());
+  return of(requested ? *requested : default_total());
 }
 
-MemoryBudget MemoryBudget::measured(uint64_t total) {
+MemoryBudget MemoryBudget::of(uint64_t total) {
   MemoryBudget b;
   b.total = total;
-  b.baseline = current_rss_bytes();
+  b.baseline = kProgramBytes;
   return b;
 }
 

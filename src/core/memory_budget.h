@@ -6,8 +6,12 @@
 //              Inside the library 0 means no limit, here and in every
 //              options struct with a memory_limit (and cache_bytes).
 //   baseline   what the process holds before any stage starts (code, the
-//              libraries' data, the runtime: about 140 MiB here), measured
-//              when the budget is resolved; it counts against total.
+//              libraries' data, the runtime): kProgramBytes, a fixed
+//              allowance, not the resident size measured when the budget is
+//              made, which wanders by megabytes from run to run, with the
+//              thread count and under mpirun: a cut coarsened to fit the
+//              limit must not depend on it (same inputs, same image). It
+//              counts against total.
 //   build      the store build plans within total (its own plan reserves
 //              the reader, the batches in flight and a base for the rest;
 //              octree_build.cpp), so a store depends on total alone.
@@ -36,19 +40,24 @@ namespace raylod {
 // about 140 MiB before a stage starts, so real limits are far larger).
 inline constexpr uint64_t kMinMemoryLimit = uint64_t(1) << 20;
 
+// The program's own resident size at the start of a run, as the budget
+// counts it: 128 to 132 MiB measured on Debian 12 (one process or a rank
+// under mpirun, 1 or 2 threads, small and 2M-triangle scenes), with a margin.
+inline constexpr uint64_t kProgramBytes = uint64_t(144) << 20;
+
 struct MemoryBudget {
   uint64_t total = 0;     // bytes; 0 = no limit
-  uint64_t baseline = 0;  // resident bytes when the budget was made
+  uint64_t baseline = 0;  // the program's own bytes (kProgramBytes)
 
   // The command line's default --memory-limit: a quarter of physical memory.
   static uint64_t default_total();
   // --memory-limit at the command line boundary: the size given, or
-  // default_total() when the option is absent (nullopt); baseline = the
-  // resident size now. Commands call this once and pass `total` down.
+  // default_total() when the option is absent (nullopt). Commands call this
+  // once and pass `total` down.
   static MemoryBudget resolve(std::optional<uint64_t> requested);
-  // A budget of `total` bytes (0 = no limit) whose baseline is the resident
-  // size now: what a library stage makes of the limit it was given.
-  static MemoryBudget measured(uint64_t total);
+  // A budget of `total` bytes (0 = no limit), baseline kProgramBytes: what a
+  // library stage makes of the limit it was given.
+  static MemoryBudget of(uint64_t total);
 
   bool limited() const { return total != 0; }
   // What the stages after the build may use: total - baseline, at least 1

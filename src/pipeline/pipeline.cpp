@@ -412,7 +412,7 @@ StatusOr<RunSession> open_run_session(Scene& scene, const RunOptions& options, c
   const fs::path cache_dir = options.cache_dir.empty() ? default_cache_dir() : options.cache_dir;
   // One budget for the whole run (memory_budget.h): the build plans within
   // its total; simplify and render share what the program itself leaves.
-  session.budget = MemoryBudget::measured(options.memory_limit);
+  session.budget = MemoryBudget::of(options.memory_limit);
   StoreOptions store_options;
   store_options.memory_limit = session.budget.total;
   session.memory_limit = session.budget.working();

@@ -357,7 +357,7 @@ StatusOr<ReportResult> run_report(const Scene& input_scene, const std::optional<
   Scene base = input_scene;
   if (cfg.width > 0) base.camera.width = cfg.width;
   if (cfg.height > 0) base.camera.height = cfg.height;
-  const MemoryBudget budget = MemoryBudget::measured(cfg.memory_limit);
+  const MemoryBudget budget = MemoryBudget::of(cfg.memory_limit);
   StoreOptions store_options;
   store_options.memory_limit = budget.total;
   const uint64_t memory_limit = budget.working();

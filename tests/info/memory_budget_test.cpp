@@ -9,6 +9,7 @@
 #include <filesystem>
 #include <fstream>
 #include <string>
+#include <vector>
 
 #include "core/memory_budget.h"
 #include "core/system.h"
@@ -37,13 +38,25 @@ TEST(MemoryBudget, TheDefaultIsAQuarterOfPhysicalMemory) {
   EXPECT_GT(MemoryBudget::resolve(std::nullopt).baseline, 0u);
 }
 
+// What the stages may use does not follow the process's resident size,
+// which wanders by megabytes from run to run, with the thread count and
+// under mpirun: a cut coarsened to fit must come out the same every time.
+TEST(MemoryBudget, WhatTheStagesMayUseDoesNotDependOnWhatIsResident) {
+  const uint64_t limit = uint64_t(512) << 20;
+  const uint64_t before = MemoryBudget::of(limit).working();
+  std::vector<char> held(size_t(64) << 20, 1);  // 64 MiB resident more
+  EXPECT_EQ(MemoryBudget::of(limit).working(), before) << int(held[held.size() / 2]);
+  EXPECT_EQ(MemoryBudget::resolve(limit).working(), before);
+  EXPECT_EQ(before, limit - kProgramBytes);
+}
+
 TEST(MemoryBudget, ZeroMeansNoLimit) {
-  const MemoryBudget none = MemoryBudget::measured(0);
+  const MemoryBudget none = MemoryBudget::of(0);
   EXPECT_FALSE(none.limited());
   EXPECT_EQ(none.working(), 0u);  // no limit for simplify and render
   EXPECT_EQ(none.page_cache(uint64_t(1) << 40, uint64_t(1) << 40), UINT64_MAX);
   // A limit below what is already resident leaves nothing, which is not "no limit".
-  const MemoryBudget tiny = MemoryBudget::measured(1);
+  const MemoryBudget tiny = MemoryBudget::of(1);
   EXPECT_TRUE(tiny.limited());
   EXPECT_EQ(tiny.working(), 1u);
   EXPECT_EQ(tiny.page_cache(1 << 20, 0), 0u);

@@ -26,11 +26,11 @@ const char* kScene = R"({
 TEST(NoMemoryLimit, ProbeConfigHasAnUnboundedPageCache) {
   auto scene = parse_scene(kScene, ".", "scene.json");
   ASSERT_TRUE(scene.is_ok()) << scene.status().message();
-  auto probe = make_probe_config(*scene, 1000, 32, MemoryBudget::measured(0), false);
+  auto probe = make_probe_config(*scene, 1000, 32, MemoryBudget::of(0), false);
   ASSERT_TRUE(probe.is_ok()) << probe.status().message();
   EXPECT_EQ(probe->cache_bytes, UINT64_MAX);
   // Under a limit below what is resident, nothing is left: an error, not "no limit".
-  EXPECT_FALSE(make_probe_config(*scene, 1000, 32, MemoryBudget::measured(1), false).is_ok());
+  EXPECT_FALSE(make_probe_config(*scene, 1000, 32, MemoryBudget::of(1), false).is_ok());
 }
 
 TEST(NoMemoryLimit, RunPipelineWithZeroRunsUnlimited) {
