@@ -68,7 +68,8 @@ int run_simplify(int argc, char** argv) {
                              "(default 1; raylod run uses one per million triangles from 2M)", true, "N"},
              {"--crease-angle", "", std::string("normals: facets meeting at more than DEG degrees keep separate\n"
                                                 "                              normals (default ") +
-                                        format_degrees(kDefaultCreaseAngleDeg) + ", as the scene's crease_angle)", true, "DEG"},
+                                        format_degrees(kDefaultCreaseAngleDeg) + ", as the scene's crease_angle; meshes without\n"
+                                                "                              normals: one with its own keeps the default)", true, "DEG"},
              {"--fold-passes", "", "passes that refine cells whose collapse turns a triangle over\n"
                                    "                              (default 0; raylod run uses 3 on mirror and glass meshes)", true, "N"},
              {"--exact-normals", "", "meshes with normals: a representative takes the input normal at the\n"

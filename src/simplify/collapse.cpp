@@ -1121,7 +1121,12 @@ StatusOr<SimplifyResult> simplify(const OctreeStore& store, const Cut& cut, cons
   }
   result.fold_seconds = seconds_since(fold_start);
   {
-    CollapseBuilder builder(reps, h.has_normals, config.crease_angle_deg);
+    // A mesh with normals of its own is shaded by them in the full render,
+    // whatever --crease-angle says (crease_normals.h): its representatives
+    // group them by the default angle, so the option does not change the
+    // simplified mesh alone (a faceted PLY at 180 degrees got one smooth
+    // normal per representative: radial streaks, 14 dB below the floor).
+    CollapseBuilder builder(reps, h.has_normals, h.has_normals ? kDefaultCreaseAngleDeg : config.crease_angle_deg);
     RAYLOD_RETURN_IF_ERROR(collapse_pass(store, keys, config, estimate, builder, result.pages_read, result.pages_skipped));
     const auto finish_start = std::chrono::steady_clock::now();
     result.mesh = builder.finish(&result.stats);

@@ -311,7 +311,10 @@ inline constexpr int kSpecularFoldPasses = 3;
 
 struct SimplifyConfig {
   QemSolveConfig qem;
-  double crease_angle_deg = kDefaultCreaseAngleDeg;  // the normal rule (geometry/crease_normals.h)
+  // The normal rule (geometry/crease_normals.h) for a store without
+  // normals; a store with its own groups them at representatives by the
+  // default angle, as the full render ignores the option for it.
+  double crease_angle_deg = kDefaultCreaseAngleDeg;
   // Memory the simplified mesh may use while it is built (bytes); 0 = no limit.
   uint64_t memory_limit = 0;
   bool progress = false;  // show a progress bar over the store's pages

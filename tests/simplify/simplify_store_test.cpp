@@ -363,6 +363,29 @@ TEST(SimplifyStore, ExactNormalsKeepCreasesSplit) {
   EXPECT_EQ(off_face, 0u);
 }
 
+// A mesh with normals of its own renders with them whatever the crease
+// angle (the full render ignores it), so the simplified mesh does too: a
+// faceted box at 180 degrees keeps its faces' normals as at the default.
+TEST(SimplifyStore, TheCreaseAngleLeavesMeshesWithNormalsAlone) {
+  TriangleBatch box = test::closed_box({-1, -1, -1}, {1, 1, 1}, 12);
+  for (size_t t = 0; t < box.size(); ++t) {
+    const Vec3 f(face_normal(Vec3d(box.positions[3 * t]), Vec3d(box.positions[3 * t + 1]),
+                             Vec3d(box.positions[3 * t + 2])));
+    box.normals.insert(box.normals.end(), {f, f, f});
+  }
+  BuiltStore b = build(box, "crease-box");
+  ASSERT_TRUE(b.store);
+  const Cut cut = uniform_cut(*b.store, 4);
+  SimplifyConfig at_default, at_180;
+  at_180.crease_angle_deg = 180;
+  auto a = simplify(*b.store, cut, at_default);
+  auto c = simplify(*b.store, cut, at_180);
+  ASSERT_TRUE(a.is_ok() && c.is_ok());
+  EXPECT_EQ(a->mesh.positions, c->mesh.positions);
+  EXPECT_EQ(a->mesh.normals, c->mesh.normals);
+  EXPECT_EQ(a->mesh.indices, c->mesh.indices);
+}
+
 TEST(SimplifyStore, PagesInsideOneCollapsedCellAreNotReadAndChangeNothing) {
   // A cut coarser than the pages: many pages lie wholly inside one collapsed
   // cell and are not read, and the mesh is the one built from every page.
