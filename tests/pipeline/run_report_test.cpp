@@ -303,6 +303,29 @@ TEST(Run, MeshThatCollapsesToNothingIsLeftOutWithTheReason) {
   }
 }
 
+// The cut's bounds assume the default crease rule: another crease angle on
+// a mesh without normals is run as asked, with a warning naming the mesh;
+// at the default, no warning.
+TEST(Run, ACreaseAngleOtherThanTheDefaultIsRunWithAWarning) {
+  write_stl(work_dir() / "pair.stl", {{0, 0, 0, 1, 0, 0, 0, 1, 0}, {1, 0, 0, 1, 1, 0.5f, 0, 1, 0}});
+  const fs::path scene = work_dir() / "pair.json";
+  std::ofstream(scene) << R"({"camera": {"eye": [0.5, 0.5, 4], "look_at": [0.5, 0.5, 0], "fov_y": 30, "width": 32, "height": 24},
+    "materials": {"m": {"type": "diffuse", "color": [0.7, 0.7, 0.7]}},
+    "objects": [{"mesh": "pair.stl", "material": "m"}],
+    "lights": [{"type": "point", "position": [2, 5, 3], "intensity": 40}], "spp": 1})";
+  for (const char* angle : {"0", "25"}) {
+    std::string out;
+    ASSERT_EQ(raylod("run '" + scene.string() + "' --no-cache --crease-angle " + angle + " -o '" +
+                         (work_dir() / "pair.png").string() + "'",
+                     &out),
+              0)
+        << out;
+    const bool warned = out.find("warning: crease angle " + std::string(angle) + " degrees") != std::string::npos;
+    EXPECT_EQ(warned, std::string(angle) == "0") << out;
+    if (warned) EXPECT_NE(out.find((work_dir() / "pair.stl").string() + " (no normals of its own)"), std::string::npos) << out;
+  }
+}
+
 TEST(Run, UnusableCacheRendersWithoutCaching) {
   // The cache folder cannot be used (its "simplified" folder is a file, as a
   // full or read-only cache disk would refuse it): the run still renders,
