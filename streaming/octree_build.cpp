@@ -807,6 +807,7 @@ struct BinToken : TokenBase {
   NodeTable local;
   std::vector<uint64_t> page_codes;
   std::vector<uint32_t> page_ids;
+  uint64_t grid_merged = 0;  // triangles two of whose distinct corners the grid made one
 };
 
 void bin_batch(BinToken& t, const Plan& plan, int depth, bool has_normals) {
@@ -821,10 +822,17 @@ void bin_batch(BinToken& t, const Plan& plan, int depth, bool has_normals) {
   // so quadrics, sums and pages are computed from what read_page returns.
   t.grid_positions.resize(9 * n);
   t.normal_codes.resize(has_normals ? 3 * n : 0);
-  for (size_t c = 0; c < 3 * n; ++c) {
-    quantise_position(t.batch.positions[c], plan.grid, &t.grid_positions[3 * c]);
-    t.batch.positions[c] = grid_position(&t.grid_positions[3 * c], plan.grid);
-    if (has_normals) t.normal_codes[c] = t.normal_cache->encode(t.batch.normals[c], t.batch.normals[c]);
+  t.grid_merged = 0;
+  for (size_t i = 0; i < n; ++i) {
+    const Vec3 in[3] = {t.batch.positions[3 * i], t.batch.positions[3 * i + 1], t.batch.positions[3 * i + 2]};
+    for (size_t c = 3 * i; c < 3 * i + 3; ++c) {
+      quantise_position(t.batch.positions[c], plan.grid, &t.grid_positions[3 * c]);
+      t.batch.positions[c] = grid_position(&t.grid_positions[3 * c], plan.grid);
+      if (has_normals) t.normal_codes[c] = t.normal_cache->encode(t.batch.normals[c], t.batch.normals[c]);
+    }
+    const uint32_t* q = &t.grid_positions[9 * i];
+    auto same = [&](int a, int b) { return q[3 * a] == q[3 * b] && q[3 * a + 1] == q[3 * b + 1] && q[3 * a + 2] == q[3 * b + 2]; };
+    t.grid_merged += (same(0, 1) && in[0] != in[1]) || (same(1, 2) && in[1] != in[2]) || (same(0, 2) && in[0] != in[2]);
   }
   for (size_t i = 0; i < n; ++i) {
     const Vec3d p[3] = {Vec3d(t.batch.positions[3 * i]), Vec3d(t.batch.positions[3 * i + 1]),
@@ -872,6 +880,7 @@ struct Binned {
   PageIds pages;
   std::vector<uint64_t> page_counts;  // by page id
   uint64_t triangles = 0;
+  uint64_t grid_merged = 0;  // BinToken::grid_merged, summed
 };
 
 Status bin_pass(MeshReader& reader, size_t ntokens, const Plan& plan, bool has_normals, uint64_t expected,
@@ -918,6 +927,7 @@ Status bin_pass(MeshReader& reader, size_t ntokens, const Plan& plan, bool has_n
           t.page_ids[i] = id;
         }
         out.triangles += t.batch.size();
+        out.grid_merged += t.grid_merged;
         if (out.triangles > expected)
           return Status::error(name + ": the mesh yielded more triangles than in the first pass (changed while building?)");
         RAYLOD_RETURN_IF_ERROR(runs.set_hold_limit(hold_limit(global.nodes.size())));
@@ -1086,6 +1096,21 @@ std::string describe_memory_limit(uint64_t memory_limit) {
   return memory_limit ? format_bytes(memory_limit) : "no limit";
 }
 
+std::string grid_merged_warning(uint64_t merged, uint64_t triangles, const Bbox& bounds, double step) {
+  // One in a hundred, or one at all in a small mesh: the grid follows the
+  // bounding box, so a few vertices far from the rest (a stray coordinate
+  // in a CAD export) make it too coarse for everything else.
+  if (merged == 0 || merged * 100 < triangles) return "";
+  char text[512];
+  std::snprintf(text, sizeof text,
+                "%llu of %llu triangles lose a corner to the store's position grid (points %.3g apart, set by the "
+                "mesh's bounding box from (%.6g, %.6g, %.6g) to (%.6g, %.6g, %.6g)): if the part is far smaller than "
+                "that box, a few vertices lie far from the rest",
+                (unsigned long long)merged, (unsigned long long)triangles, step, bounds.lo.x, bounds.lo.y, bounds.lo.z,
+                bounds.hi.x, bounds.hi.y, bounds.hi.z);
+  return text;
+}
+
 StatusOr<BuildReport> build_store_from_stream(const MeshStreamOpener& open, const SourceFingerprint& source,
                                               const std::filesystem::path& store_path, const StoreOptions& options,
                                               const std::function<StatusOr<uint64_t>()>& source_hash) {
@@ -1236,6 +1261,10 @@ StatusOr<BuildReport> build_store_from_stream(const MeshStreamOpener& open, cons
     report.warning = "--memory-limit " + format_bytes(memory_limit) + " is below what the reader's vertex table (" +
                      format_bytes(scan.reader_bytes) + ") and the minimal buffers need (" +
                      format_bytes(plan.budget_bytes) + "); peak memory may exceed it";
+  report.grid_merged = binned.grid_merged;
+  if (const std::string w = grid_merged_warning(binned.grid_merged, scan.triangles, scan.bounds, plan.grid.step);
+      !w.empty())
+    report.warning += (report.warning.empty() ? "" : "; ") + w;
   return report;
 }
 

@@ -202,6 +202,9 @@ struct BuildReport {
   // Wall time of the phases: pass 1 (bounds), pass 2 (binning and quadrics),
   // page assembly and writing, fsync + rename.
   double scan_seconds = 0, bin_seconds = 0, write_seconds = 0, commit_seconds = 0;
+  // Triangles two of whose distinct corners the store's position grid made
+  // one (a grid made coarse by a few far-away vertices warns).
+  uint64_t grid_merged = 0;
   std::string warning;            // e.g. a memory limit too small to honour
   // Reused: the store as the up-to-date check opened it (checksums of the
   // header and tables verified), so that the caller need not open it again,

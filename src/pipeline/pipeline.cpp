@@ -460,6 +460,11 @@ StatusOr<RunSession> open_run_session(Scene& scene, const RunOptions& options, c
                                  " in this scene; `raylod scene " + options.mesh_override->string() +
                                  "` writes a scene that frames it");
   }
+  // What a store build had to say (a position grid made coarse by a few
+  // far-away vertices; a memory limit below its minimum).
+  for (size_t i = 0; i < session.stores.builds.size(); ++i)
+    if (!session.stores.builds[i].reused && !session.stores.builds[i].warning.empty())
+      session.warnings.push_back(session.stores.meshes[i].string() + ": " + session.stores.builds[i].warning);
   // The cut's bounds take a representative's normals as the default crease
   // rule makes them (smooth within a CAD face, split at its edges): flat
   // shading (0) shows each collapsed cell's facets, 90 to 180 smooth across
@@ -808,7 +813,22 @@ StatusOr<StagedMeshes> simplify_or_reuse(RunSession& session, const Scene& scene
         // Nothing to cache or render: the object is left out, and the user told why.
         sm.cache_note = "not cached (no triangles)";
         sm.name = stores.meshes[i].filename().string();
-        session.warnings.push_back(stores.meshes[i].string() + ": " + sm.empty_reason + "; it is left out of the image");
+        std::string why = sm.empty_reason;
+        // Every triangle flat on the store's grid: say how coarse that grid
+        // is and what set it (the bounding box, which one stray vertex
+        // stretches).
+        if (why.find("degenerate") != std::string::npos) {
+          const StoreHeader& h = stores.stores[i]->header();
+          const double step = page_grid(h.root_lo, h.root_size, h.grid_bits).step;
+          const Vec3d lo = h.bounds.lo + h.mesh_origin, hi = h.bounds.hi + h.mesh_origin;
+          char text[400];
+          std::snprintf(text, sizeof text,
+                        " on the store's position grid (points %.3g apart, set by the mesh's bounding box from "
+                        "(%.6g, %.6g, %.6g) to (%.6g, %.6g, %.6g))",
+                        step, lo.x, lo.y, lo.z, hi.x, hi.y, hi.z);
+          why += text;
+        }
+        session.warnings.push_back(stores.meshes[i].string() + ": " + why + "; it is left out of the image");
         out.meshes.push_back(sm);
         continue;
       }
