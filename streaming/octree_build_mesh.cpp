@@ -141,7 +141,9 @@ bool store_is_current(const std::filesystem::path& mesh, const std::filesystem::
   if (h.source_path != fp->path) return say("the store was built from another mesh (" + h.source_path + ")");
   if (h.source_bytes != fp->bytes)
     return say("the mesh changed size (" + std::to_string(h.source_bytes) + " -> " + std::to_string(fp->bytes) + " bytes)");
-  if (h.source_mtime_ns != fp->mtime_ns) return say("the mesh's modification time changed");
+  // Another modification time alone (touch, a copy without -p, a checkout
+  // of the same bytes) is not a change: the content hash below decides, and
+  // the store, and every simplified mesh cached from it, stays.
   // A store is reused under any memory limit for which a fresh build would
   // make the same store (reuse_limit_lo/hi), so the output never depends on
   // which limit built it.
@@ -164,7 +166,9 @@ bool store_is_current(const std::filesystem::path& mesh, const std::filesystem::
   auto store_after = file_status(store);
   if (after.is_ok() && after->status == before && store_after.is_ok() && *store_after == *store_status)
     note_source_checked(store, before, h.source_hash, started);
-  return current("up to date (same mesh size, modification time, content hash and options)");
+  return current(fp->mtime_ns == h.source_mtime_ns
+                     ? "up to date (same mesh size, modification time, content hash and options)"
+                     : "up to date (same mesh size, content hash and options; only its modification time changed)");
 }
 
 StatusOr<BuildReport> build_store(const std::filesystem::path& mesh, const std::filesystem::path& store,

@@ -4,6 +4,8 @@
 #include <fcntl.h>
 #include <gtest/gtest.h>
 
+#include <chrono>
+
 #include "file_damage.h"
 #include <sys/stat.h>
 #include <unistd.h>
@@ -359,6 +361,18 @@ TEST(OctreeStore, RebuildIsANoOpUntilTheMeshChanges) {
   deeper.max_depth = 9;
   EXPECT_FALSE(store_is_current(mesh, store, deeper, &why));
   EXPECT_NE(why.find("options"), std::string::npos) << why;
+
+  // Touched (another modification time, the same bytes): the hash finds
+  // the same content and the store stays; the record then vouches again.
+  {
+    const auto t = std::filesystem::last_write_time(mesh);
+    std::filesystem::last_write_time(mesh, t + std::chrono::hours(1));
+  }
+  EXPECT_TRUE(store_is_current(mesh, store, opt, &why)) << why;
+  EXPECT_NE(why.find("only its modification time changed"), std::string::npos) << why;
+  auto touched = build_store(mesh, store, opt);
+  ASSERT_TRUE(touched.is_ok());
+  EXPECT_TRUE(touched->reused) << touched->reason;
 
   // Same size and modification time, different content: caught by the hash.
   auto moved = m;
