@@ -139,6 +139,11 @@ Status run_run(int argc, char** argv, bool& help) {
   RAYLOD_ASSIGN_OR_RETURN(opts.cache_limit, args.get_size("--cache-limit", uint64_t(4) << 30));
   opts.rays = uint64_t(rays);
   opts.spp = int(spp);
+  // An empty --cache (an unset variable in a cluster script) names no folder:
+  // refused, not taken for the default, which would give each node its own.
+  if (args.has("--cache") && args.get("--cache").empty())
+    return Status::error("--cache: an empty folder name (leave the option out for the default, " +
+                         default_cache_dir().string() + ")");
   opts.cache_dir = args.get("--cache", default_cache_dir().string());
   opts.use_cache = !args.has("--no-cache");
   if (args.has("--mesh")) opts.mesh_override = std::filesystem::path(args.get("--mesh"));

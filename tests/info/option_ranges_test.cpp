@@ -23,6 +23,7 @@ TEST(OptionRanges, ZeroSizesSamplesAndErrorsAreRefused) {
       {"simplify missing.raylod missing.cut -o unused.drc --position-error -1", "--position-error must be positive"},
       {"probe --criterion diagonal --tolerance 2 -o unused.cut", "--tolerance bounds the deviation criterion"},
       {"run --criterion diagonal --angle-tolerance 4 -o unused.png", "--angle-tolerance bounds the deviation criterion"},
+      {"run --cache '' -o unused.png", "--cache: an empty folder name"},
   };
   for (const Case& c : cases) {
     std::string out;
