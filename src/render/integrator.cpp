@@ -99,7 +99,16 @@ SpecularScatter scatter_specular(const Material& m, const Vec3d& dir, const Surf
 
 Integrator::Integrator(const EmbreeScene& geometry, const Scene& scene, const PinholeCamera& camera,
                        const Effects& effects, const IntegratorConfig& config)
-    : geometry_(geometry), scene_(scene), camera_(camera), effects_(effects), config_(config) {}
+    : geometry_(geometry), scene_(scene), camera_(camera), effects_(effects), config_(config),
+      camera_skip_(camera_skip_for(camera.eye, geometry.info().bounds)) {}
+
+double camera_skip_for(const Vec3d& eye, const Bbox& bounds) {
+  if (bounds.empty() || !is_finite(eye)) return 0;
+  const Vec3d nearest = glm::clamp(eye, bounds.lo, bounds.hi);
+  const double distance = glm::length(eye - nearest), diagonal = glm::length(bounds.hi - bounds.lo);
+  if (!(distance > 8 * diagonal)) return 0;
+  return distance - diagonal;  // a diagonal short of the box: well clear of rounding
+}
 
 template <class Emit>
 void Integrator::shadow_queries(const Material& m, const Vec3d& dir, const SurfacePoint& sp, double offset,
@@ -143,10 +152,13 @@ CameraSample Integrator::sample(double px, double py, RayCounters& counters) con
   const Ray ray = camera_.generate(px, py);
   ++counters.camera;
   Hit hit;
-  if (!geometry_.intersect(ray, 0.0, kInf, hit)) {
+  Ray start = ray;
+  start.origin += camera_skip_ * ray.direction;
+  if (!geometry_.intersect(start, 0.0, kInf, hit)) {
     out.color = scene_.background;
     return out;
   }
+  hit.t += camera_skip_;
   const SurfacePoint sp = surface_point(geometry_, hit, config_.wireframe);
   record_camera_hit(ray, hit, sp, out);
   out.color = shade(ray, hit, sp, 0, Vec3(1.0f), counters);
@@ -160,7 +172,18 @@ void Integrator::trace_camera_packet(std::span<const glm::dvec2> pixels, CameraP
   const int n = packet.size = int(pixels.size());
   for (int i = 0; i < n; ++i) packet.rays[i] = camera_.generate(pixels[size_t(i)].x, pixels[size_t(i)].y);
   counters.camera += uint64_t(n);
-  geometry_.intersect_packet({packet.rays, size_t(n)}, kInf, true, packet.hits, packet.found);
+  if (camera_skip_ > 0) {
+    Ray start[EmbreeScene::kPacketSize];
+    for (int i = 0; i < n; ++i) {
+      start[i] = packet.rays[i];
+      start[i].origin += camera_skip_ * start[i].direction;
+    }
+    geometry_.intersect_packet({start, size_t(n)}, kInf, true, packet.hits, packet.found);
+    for (int i = 0; i < n; ++i)
+      if (packet.found[i]) packet.hits[i].t += camera_skip_;
+  } else {
+    geometry_.intersect_packet({packet.rays, size_t(n)}, kInf, true, packet.hits, packet.found);
+  }
   prefetch_indices(geometry_, packet.hits, packet.found, n);
 }
 

@@ -157,7 +157,18 @@ class Integrator {
   PinholeCamera camera_;
   Effects effects_;
   IntegratorConfig config_;
+  // How far along its direction a camera ray starts (camera_skip_for): 0
+  // unless the eye is far from everything there is to hit.
+  double camera_skip_ = 0;
 };
+
+// How far camera rays may start along their direction: nothing lies nearer
+// the eye than `bounds` (the scene's, ground included), so a ray's first hit
+// is at least the eye's distance to it away. Used only when that distance is
+// over 8 diagonals of the box, where Embree's float origin and direction,
+// taken at the eye, would miss by more than the scene's detail (an eye 1e5
+// object sizes away shattered a sphere); 0 otherwise, or if the eye is inside.
+double camera_skip_for(const Vec3d& eye, const Bbox& bounds);
 
 // Follows a ray through mirror and glass surfaces the way the integrator
 // does, always taking the refracted branch when there is one (the reflected
