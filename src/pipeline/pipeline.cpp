@@ -650,6 +650,13 @@ StatusOr<FittedCuts> select_fitting_cuts(RunSession& session, std::span<const Pr
   uint64_t previous_estimate = UINT64_MAX;
   uint64_t input_triangles = 0;
   for (const auto& st : stores.stores) input_triangles += st->header().triangle_count;
+  // A frame that alone outgrows the limit: no cut helps.
+  if (const uint64_t image = estimate_image_memory(scene.camera.width, scene.camera.height, RenderOptions{});
+      budget.limited() && image >= memory_limit)
+    return Status::error("the " + std::to_string(scene.camera.width) + " x " + std::to_string(scene.camera.height) +
+                         " image needs about " + format_bytes(image) + ", more than the " + format_bytes(memory_limit) +
+                         " the memory limit of " + format_bytes(budget.total) + " leaves after the program's own " +
+                         format_bytes(budget.baseline) + "; render a smaller image or raise --memory-limit");
   // The cells' needs are computed once; each coarsening step only decides.
   RAYLOD_ASSIGN_OR_RETURN(CutSelection selection,
                           CutSelection::make(views, scene, stores.probe_stores, stores.objects, probe));
@@ -667,8 +674,12 @@ StatusOr<FittedCuts> select_fitting_cuts(RunSession& session, std::span<const Pr
     }
     simplify_need += node_tables;
     const uint64_t scene_triangles = estimate + 2;  // and the ground's two
+    // The render's need counts its frame (renderer.h, estimate_image_memory).
+    const uint64_t image = estimate_image_memory(scene.camera.width, scene.camera.height, RenderOptions{});
     const uint64_t need = std::max(
-        simplify_need, estimate_render_memory(scene_triangles, bvh_for_memory_limit(scene_triangles, memory_limit)));
+        simplify_need, image + estimate_render_memory(scene_triangles, bvh_for_memory_limit(
+                                                                        scene_triangles,
+                                                                        memory_limit > image ? memory_limit - image : 1)));
     if (!budget.limited() || need <= memory_limit) break;
     // Stop once coarsening no longer helps (the estimate bottoms out at the
     // renderer's fixed overhead) or after max_coarsening_steps doublings.

@@ -159,6 +159,12 @@ uint64_t estimate_render_memory(uint64_t triangles, const BvhConfig& config) {
   return uint64_t(16ull << 20) + uint64_t(double(triangles) * (mesh + bvh));
 }
 
+uint64_t estimate_image_memory(int width, int height, const RenderOptions& options) {
+  const uint64_t per_pixel = 18 + (options.aov_depth ? 8 : 0) + (options.aov_normal ? 15 : 0) +
+                             (options.aov_triangle_id ? 8 : 0);
+  return uint64_t(std::max(width, 0)) * uint64_t(std::max(height, 0)) * per_pixel;
+}
+
 BvhConfig smallest_bvh_layout(BvhConfig config) {
   config.high_quality_below = 0;
   config.compact_from = 0;
@@ -270,17 +276,25 @@ StatusOr<std::vector<TriangleMesh>> load_scene_meshes(const Scene& world_scene, 
   if (wanted.camera_rays == 0)
     wanted.camera_rays = uint64_t(scene.camera.width) * uint64_t(scene.camera.height) *
                          uint64_t(options.spp > 0 ? options.spp : scene.spp);
-  const BvhConfig chosen = bvh_for_memory_limit(declared, options.memory_limit, wanted);
+  // The frame first: what it leaves is the mesh's and the BVH's.
+  const uint64_t image = estimate_image_memory(scene.camera.width, scene.camera.height, options);
+  if (options.memory_limit > 0 && image >= options.memory_limit)
+    return Status::error("the " + std::to_string(scene.camera.width) + " x " + std::to_string(scene.camera.height) +
+                         " image" + (options.aov_depth || options.aov_normal || options.aov_triangle_id ? " and its AOVs need" : " needs") +
+                         " about " + format_bytes(image) + ", more than the memory limit of " +
+                         format_bytes(options.memory_limit) + "; render a smaller image or raise --memory-limit");
+  const uint64_t mesh_limit = options.memory_limit > 0 ? options.memory_limit - image : 0;
+  const BvhConfig chosen = bvh_for_memory_limit(declared, mesh_limit, wanted);
   if (bvh) *bvh = chosen;
-  stats.estimated_bytes = estimate_render_memory(declared, chosen);
+  stats.estimated_bytes = estimate_render_memory(declared, chosen) + image;
   if (options.memory_limit > 0 && stats.estimated_bytes > options.memory_limit) {
     // The least any layout needs (bvh_for_memory_limit's last resort), not
     // the default layout it returns when nothing fits.
     return Status::error("the scene has " + std::to_string(declared) + " triangles, which need about " +
                          format_bytes(estimate_render_memory(declared, smallest_bvh_layout(wanted))) +
-                         " for the mesh and its BVH (compact layout), more than the memory limit of " +
-                         format_bytes(options.memory_limit) + "; about " +
-                         std::to_string(triangles_that_fit(options.memory_limit, options.bvh)) + " triangles would fit." +
+                         " for the mesh and its BVH (compact layout), and the image " + format_bytes(image) +
+                         ", more than the memory limit of " + format_bytes(options.memory_limit) + "; about " +
+                         std::to_string(triangles_that_fit(mesh_limit, options.bvh)) + " triangles would fit." +
                          (options.over_limit_hint.empty() ? std::string() : " " + options.over_limit_hint));
   }
   if (options.log && chosen.compact_from != options.bvh.compact_from && declared < options.bvh.compact_from)

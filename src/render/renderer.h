@@ -30,7 +30,7 @@ struct Image {
 
 struct RenderOptions {
   int spp = 0;                  // samples per pixel; 0 = the scene's spp
-  uint64_t memory_limit = 0;    // bytes for meshes + BVH; 0 = no limit
+  uint64_t memory_limit = 0;    // bytes for meshes + BVH and the image (estimate_image_memory); 0 = no limit
   // mesh_override[i] replaces the mesh of scene.objects[i] (empty path = keep).
   std::vector<std::filesystem::path> mesh_override;
   // omit_object[i] != 0 leaves scene.objects[i] out (its simplified mesh is
@@ -68,7 +68,7 @@ struct RenderStats {
   int width = 0, height = 0, spp = 0;
   int threads = 0;               // the parallelism it ran with (ambient_parallelism(), core/parallelism.h)
   uint64_t triangles = 0, vertices = 0;
-  uint64_t estimated_bytes = 0;  // estimate_render_memory() before loading
+  uint64_t estimated_bytes = 0;  // estimate_render_memory() + estimate_image_memory() before loading
   uint64_t mesh_bytes = 0, bvh_bytes = 0, bvh_peak_bytes = 0;
   uint64_t peak_rss = 0;         // of the process, after rendering
   std::string bvh_quality;
@@ -92,6 +92,12 @@ struct RenderResult {
 // welded mesh arrays plus the Embree BVH (with the layout BvhConfig picks),
 // measured on the teapot meshes (tools/bench_render) and rounded up.
 uint64_t estimate_render_memory(uint64_t triangles, const BvhConfig& config = {});
+// Resident bytes the frame takes: the float image (12 bytes a pixel), the
+// 8-bit copy and encoded bytes written from it (3 + 3), and each AOV asked
+// for with its own copy to write (depth 8, normal 15, triangle id 8). A
+// 6000 x 6000 frame is 618 MiB; under --memory-limit 300M it ran to 566 to
+// 677 MiB before the frame was counted.
+uint64_t estimate_image_memory(int width, int height, const RenderOptions& options);
 // The BVH configuration for a scene of this many triangles under a memory
 // limit (0 = none): `config`, switched to the compact layout (medium builder,
 // index-only leaves) when only that fits, whatever the scene's size.

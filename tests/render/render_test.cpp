@@ -539,10 +539,19 @@ TEST(SceneFiles, MemoryLimitStopsBeforeLoadingAndSaysWhatFits) {
   tight.compact_from = 0;
   tight.camera_rays = 0;
   EXPECT_NE(msg.find("need about " + format_bytes(estimate_render_memory(4, tight))), std::string::npos) << msg;
-  o.memory_limit = estimate_render_memory(4, tight);
+  // The frame counts too (estimate_image_memory): beside the mesh's need,
+  // and alone past the limit it is what the message names.
+  const uint64_t image = estimate_image_memory(scene->camera.width, scene->camera.height, o);
+  EXPECT_GT(image, 0u);
+  o.memory_limit = estimate_render_memory(4, tight) + image;
   EXPECT_TRUE(render(*scene, o).is_ok());
-  o.memory_limit = estimate_render_memory(4);
+  o.memory_limit = estimate_render_memory(4) + image;
   EXPECT_TRUE(render(*scene, o).is_ok());
+  o.memory_limit = image;
+  auto frame = render(*scene, o);
+  ASSERT_FALSE(frame.is_ok());
+  EXPECT_NE(frame.status().message().find("image needs about " + format_bytes(image)), std::string::npos)
+      << frame.status().message();
   // The advertised count is consistent with the estimate of the layout the
   // renderer would pick (the compact one where only that fits).
   for (uint64_t budget : {uint64_t(64) << 20, uint64_t(1) << 30, uint64_t(2) << 30, uint64_t(8) << 30}) {
@@ -557,8 +566,8 @@ TEST(SceneFiles, MemoryLimitStopsBeforeLoadingAndSaysWhatFits) {
   // instead of failing, and says so.
   BvhConfig compact;
   compact.high_quality_below = compact.compact_from = 0;
-  o.memory_limit = estimate_render_memory(4, compact);
-  ASSERT_LT(o.memory_limit, estimate_render_memory(4));
+  o.memory_limit = estimate_render_memory(4, compact) + image;
+  ASSERT_LT(o.memory_limit, estimate_render_memory(4) + image);
   std::string said;
   o.log = [&](const std::string& m) { said += m + "\n"; };
   EXPECT_TRUE(render(*scene, o).is_ok());
