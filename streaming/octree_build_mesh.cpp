@@ -180,6 +180,9 @@ StatusOr<BuildReport> build_store(const std::filesystem::path& mesh, const std::
                                   const StoreOptions& options, bool force, bool verify,
                                   const std::function<void(const std::string& reason)>& before_building) {
   BuildLock lock(parse_mesh_ref(mesh).file);
+  // A build killed earlier (kill -9) left its temporary beside the store;
+  // the store it was to replace may be current, so no build would remove it.
+  remove_stale_temporaries(store);
   std::string reason = "--force";
   BuildReport report;
   if (!force && store_is_current(mesh, store, options, &reason, verify, &report)) {

@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "core/system.h"
+#include "streaming/octree_store.h"
 #include "test_tmp.h"
 
 namespace raylod {
@@ -44,6 +45,25 @@ TEST(StaleTemporaries, DeadProcessesTemporariesAreRemovedLiveOnesKept) {
   EXPECT_TRUE(std::filesystem::exists(dir / mine));
   EXPECT_TRUE(std::filesystem::exists(dir / other)) << "another destination's temporaries are its own business";
   EXPECT_TRUE(std::filesystem::exists(dest));
+  std::filesystem::remove_all(dir);
+}
+
+// A store build killed while it wrote leaves its temporary, and the store
+// it was to replace stays current: the next check of that store (a run, a
+// `raylod build` that reuses it) removes the dead process's temporary.
+TEST(StaleTemporaries, AReusedStoreTakesAKilledBuildsTemporaryAway) {
+  const std::filesystem::path dir = test::scratch_dir("stale-temporaries");
+  const std::filesystem::path mesh = dir / "tri.obj", store = dir / "tri.raylod";
+  std::ofstream(mesh) << "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";
+  StoreOptions options;
+  options.memory_limit = uint64_t(64) << 20;
+  ASSERT_TRUE(build_store(mesh, store, options).is_ok());
+  const std::filesystem::path left = dir / ("tri.raylod.tmp-" + std::to_string(dead_pid()) + "-0-5");
+  std::ofstream(left) << "half a store";
+  auto again = build_store(mesh, store, options);
+  ASSERT_TRUE(again.is_ok()) << again.status().message();
+  EXPECT_TRUE(again->reused) << again->reason;
+  EXPECT_FALSE(std::filesystem::exists(left));
   std::filesystem::remove_all(dir);
 }
 
