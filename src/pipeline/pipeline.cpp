@@ -94,6 +94,15 @@ double draco_error_bound(const Cut& cut, const OctreeStore& store) {
   return bound;
 }
 
+namespace {
+
+// What the probe keeps free for its test rays' hit records.
+uint64_t probe_reserve_bytes(uint64_t rays, const Scene& scene) {
+  return rays * 64 * uint64_t(std::max(1, scene.max_depth + 1)) + (uint64_t(32) << 20);
+}
+
+}  // namespace
+
 StatusOr<ProbeConfig> make_probe_config(const Scene& scene, uint64_t rays, double footprint_scale,
                                         const MemoryBudget& budget, bool progress, PageCache* pages) {
   ProbeConfig probe;
@@ -114,7 +123,7 @@ StatusOr<ProbeConfig> make_probe_config(const Scene& scene, uint64_t rays, doubl
   const uint64_t rss_now = current_rss_bytes();
   const uint64_t rss = rss_now > held ? rss_now - held : 0;
   probe.pages = pages;
-  const uint64_t reserve = rays * 64 * uint64_t(std::max(1, scene.max_depth + 1)) + (uint64_t(32) << 20);
+  const uint64_t reserve = probe_reserve_bytes(rays, scene);
   probe.cache_bytes = budget.page_cache(rss, reserve);
   if (budget.limited() && probe.cache_bytes == 0)
     return Status::error("the memory limit of " + format_bytes(budget.total) + " leaves nothing for the probe's pages: " +
@@ -414,6 +423,13 @@ StatusOr<RunSession> open_run_session(Scene& scene, const RunOptions& options, c
   // One budget for the whole run (memory_budget.h): the build plans within
   // its total; simplify and render share what the program itself leaves.
   session.budget = MemoryBudget::of(options.memory_limit);
+  // A limit that leaves the probe nothing even before any store is open
+  // fails now, not after rebuilding a good store for it.
+  if (const uint64_t reserve = probe_reserve_bytes(options.rays, scene);
+      session.budget.limited() && session.budget.total <= session.budget.baseline + reserve)
+    return Status::error("the memory limit of " + format_bytes(session.budget.total) + " leaves nothing for the probe: " +
+                         "the program's own " + format_bytes(session.budget.baseline) + " and the test rays' " +
+                         format_bytes(reserve) + " already take it; raise --memory-limit");
   StoreOptions store_options;
   store_options.memory_limit = session.budget.total;
   session.memory_limit = session.budget.working();

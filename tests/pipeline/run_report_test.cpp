@@ -326,6 +326,27 @@ TEST(Run, ACreaseAngleOtherThanTheDefaultIsRunWithAWarning) {
   }
 }
 
+// A limit too small for the program and the test rays fails before the
+// store check, so a good store is not rebuilt for it first.
+TEST(Run, AHopelessMemoryLimitLeavesTheStoreAlone) {
+  write_stl(work_dir() / "keep.stl", {{0, 0, 0, 1, 0, 0, 0, 1, 0}, {1, 0, 0, 1, 1, 0.5f, 0, 1, 0}});
+  const fs::path scene = work_dir() / "keep.json";
+  std::ofstream(scene) << R"({"camera": {"eye": [0.5, 0.5, 4], "look_at": [0.5, 0.5, 0], "fov_y": 30, "width": 32, "height": 24},
+    "materials": {"m": {"type": "diffuse", "color": [0.7, 0.7, 0.7]}},
+    "objects": [{"mesh": "keep.stl", "material": "m"}],
+    "lights": [{"type": "point", "position": [2, 5, 3], "intensity": 40}], "spp": 1})";
+  const std::string image = (work_dir() / "keep.png").string();
+  std::string out;
+  ASSERT_EQ(raylod("run '" + scene.string() + "' --no-cache -q -o '" + image + "'", &out), 0) << out;
+  const fs::path store = work_dir() / "keep.stl.raylod";
+  ASSERT_TRUE(fs::exists(store));
+  const auto built = fs::last_write_time(store);
+  EXPECT_EQ(raylod("run '" + scene.string() + "' --no-cache -q --memory-limit 150M -o '" + image + "'", &out), 1) << out;
+  EXPECT_NE(out.find("leaves nothing for the probe"), std::string::npos) << out;
+  EXPECT_EQ(out.find("building store"), std::string::npos) << out;
+  EXPECT_EQ(fs::last_write_time(store), built);
+}
+
 TEST(Run, UnusableCacheRendersWithoutCaching) {
   // The cache folder cannot be used (its "simplified" folder is a file, as a
   // full or read-only cache disk would refuse it): the run still renders,
