@@ -1,6 +1,7 @@
 // raylod report: what accuracy costs in time (sweeps of K and test rays,
 // uniform baselines, REPORT.md with tables, plots and difference images).
 #include <cstdio>
+#include <algorithm>
 #include <sstream>
 
 #include "cli/cli.h"
@@ -21,6 +22,9 @@ Status parse_list(const std::string& text, const char* what, std::vector<T>& out
       size_t pos = 0;
       double v = std::stod(item, &pos);
       if (pos != item.size() || !(v > 0)) throw std::invalid_argument(item);
+      // A value given twice would give the same row twice.
+      if (std::find(out.begin(), out.end(), T(v)) != out.end())
+        return Status::error(std::string(what) + ": '" + item + "' is given twice");
       out.push_back(T(v));
     } catch (...) {
       return Status::error(std::string(what) + ": '" + item + "' is not a positive number");

@@ -24,6 +24,7 @@ TEST(OptionRanges, ZeroSizesSamplesAndErrorsAreRefused) {
       {"probe --criterion diagonal --tolerance 2 -o unused.cut", "--tolerance bounds the deviation criterion"},
       {"run --criterion diagonal --angle-tolerance 4 -o unused.png", "--angle-tolerance bounds the deviation criterion"},
       {"run --cache '' -o unused.png", "--cache: an empty folder name"},
+      {"report --scales 8,16,8 -o unused-report", "--scales: '8' is given twice"},
   };
   for (const Case& c : cases) {
     std::string out;
