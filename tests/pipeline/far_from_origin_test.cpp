@@ -187,6 +187,38 @@ TEST(FarFromOrigin, FullRenderAgreesWithDoublePrecisionBruteForce) {
   EXPECT_GT(empty, pixels / 10);
 }
 
+// stairs.ply in `dir` through a scene file: the camera, the object moved by
+// `translate`, one light (its JSON object).
+Scene stairs_scene_file(const fs::path& dir, const Vec3d& eye, const Vec3d& look, double fov_y, const Vec3d& translate,
+                        const std::string& light) {
+  char json[1024];
+  std::snprintf(json, sizeof json,
+                R"({"camera": {"eye": [%.17g, %.17g, %.17g], "look_at": [%.17g, %.17g, %.17g],
+                    "fov_y": %.17g, "width": 120, "height": 90},
+                    "materials": {"m": {"type": "diffuse", "color": [0.7, 0.6, 0.5]}},
+                    "objects": [{"mesh": "stairs.ply", "material": "m",
+                                 "transform": {"translate": [%.17g, %.17g, %.17g]}}],
+                    "lights": [%s], "spp": 1, "seed": 3})",
+                eye.x, eye.y, eye.z, look.x, look.y, look.z, fov_y, translate.x, translate.y, translate.z,
+                light.c_str());
+  auto s = parse_scene(json, dir, "stairs.json");
+  EXPECT_TRUE(s.is_ok()) << s.status().message();
+  return s.is_ok() ? *s : Scene{};
+}
+
+// PSNR of scene b's full render against scene a's.
+double render_psnr(const Scene& a, const Scene& b) {
+  RenderOptions ro;
+  ro.progress = false;
+  auto ra = render(a, ro);
+  auto rb = render(b, ro);
+  EXPECT_TRUE(ra.is_ok() && rb.is_ok());
+  if (!ra.is_ok() || !rb.is_ok()) return 0;
+  auto e = compare_images(rb->color, ra->color);
+  EXPECT_TRUE(e.is_ok());
+  return e.is_ok() ? e->psnr : 0;
+}
+
 // A scene file placing the staircase (0.05 across) 1000 units out, camera
 // and light moved with it, renders as it does at zero: the renderer's frame
 // is the look-at point rounded at any distance (render_origin_for). With a
@@ -194,31 +226,16 @@ TEST(FarFromOrigin, FullRenderAgreesWithDoublePrecisionBruteForce) {
 // gave jagged treads and self-shadowing.
 TEST(FarFromOrigin, ParsedSceneAtAModerateOffsetRendersAsAtZero) {
   test::ScratchDir scratch("far-from-origin");
-  const fs::path mesh = write_staircase(scratch.path / "stairs.ply", make_staircase(), Vec3d(0));
+  write_staircase(scratch.path / "stairs.ply", make_staircase(), Vec3d(0));
   auto scene_at = [&](double d) {
-    char json[1024];
-    std::snprintf(json, sizeof json,
-                  R"({"camera": {"eye": [%.17g, %.17g, %.17g], "look_at": [%.17g, %.17g, %.17g],
-                      "fov_y": 40, "width": 120, "height": 90},
-                      "materials": {"m": {"type": "diffuse", "color": [0.7, 0.6, 0.5]}},
-                      "objects": [{"mesh": "stairs.ply", "material": "m",
-                                   "transform": {"translate": [%.17g, %.17g, %.17g]}}],
-                      "lights": [{"type": "point", "position": [%.17g, %.17g, %.17g], "intensity": 0.05}],
-                      "spp": 1, "seed": 3})",
-                  d - 0.025, d + 0.035, d + 0.045, d + 0.022, d + 0.006, d + 0.01, d, d, d, d + 0.1, d + 0.2,
-                  d + 0.15);
-    auto s = parse_scene(json, scratch.path, "stairs.json");
-    EXPECT_TRUE(s.is_ok()) << s.status().message();
-    return *s;
+    const Vec3d at(d), light = at + Vec3d(0.1, 0.2, 0.15);
+    char point[160];
+    std::snprintf(point, sizeof point, R"({"type": "point", "position": [%.17g, %.17g, %.17g], "intensity": 0.05})",
+                  light.x, light.y, light.z);
+    return stairs_scene_file(scratch.path, at + Vec3d(-0.025, 0.035, 0.045), at + Vec3d(0.022, 0.006, 0.01), 40, at,
+                             point);
   };
-  RenderOptions ro;
-  ro.progress = false;
-  auto near = render(scene_at(0), ro);
-  auto far = render(scene_at(1000), ro);
-  ASSERT_TRUE(near.is_ok() && far.is_ok());
-  auto e = compare_images(far->color, near->color);
-  ASSERT_TRUE(e.is_ok());
-  EXPECT_GT(e->psnr, 60.0);
+  EXPECT_GT(render_psnr(scene_at(0), scene_at(1000)), 60.0);
 }
 
 // A telephoto view: the eye 2.3e6 staircase sizes away, the field of view
@@ -227,32 +244,15 @@ TEST(FarFromOrigin, ParsedSceneAtAModerateOffsetRendersAsAtZero) {
 // off by more than a tread, and the far view shattered into speckle.
 TEST(FarFromOrigin, AFarCameraFramesAsANearOneDoes) {
   test::ScratchDir scratch("far-from-origin");
-  const fs::path mesh = write_staircase(scratch.path / "stairs.ply", make_staircase(), Vec3d(0));
+  write_staircase(scratch.path / "stairs.ply", make_staircase(), Vec3d(0));
   const Vec3d look(0.022, 0.006, 0.01), away = glm::normalize(Vec3d(-0.047, 0.029, 0.035));
   auto scene_at = [&](double distance) {
-    const Vec3d eye = look + distance * away;
     const double fov = 2 * glm::degrees(std::atan(std::tan(glm::radians(20.0)) * 0.065 / distance));
-    char json[1024];
-    std::snprintf(json, sizeof json,
-                  R"({"camera": {"eye": [%.17g, %.17g, %.17g], "look_at": [%.17g, %.17g, %.17g],
-                      "fov_y": %.17g, "width": 120, "height": 90},
-                      "materials": {"m": {"type": "diffuse", "color": [0.7, 0.6, 0.5]}},
-                      "objects": [{"mesh": "stairs.ply", "material": "m"}],
-                      "lights": [{"type": "directional", "direction": [-0.3, -1, -0.5], "intensity": 1}],
-                      "spp": 1, "seed": 3})",
-                  eye.x, eye.y, eye.z, look.x, look.y, look.z, fov);
-    auto s = parse_scene(json, scratch.path, "stairs.json");
-    EXPECT_TRUE(s.is_ok()) << s.status().message();
-    return *s;
+    return stairs_scene_file(scratch.path, look + distance * away, look, fov, Vec3d(0),
+                             R"({"type": "directional", "direction": [-0.3, -1, -0.5], "intensity": 1})");
   };
-  RenderOptions ro;
-  ro.progress = false;
-  auto near = render(scene_at(1.5e2), ro);
-  auto far = render(scene_at(1.5e5), ro);
-  ASSERT_TRUE(near.is_ok() && far.is_ok());
-  auto e = compare_images(far->color, near->color);
-  ASSERT_TRUE(e.is_ok());
-  EXPECT_GT(e->psnr, 30.0);  // 39.9 dB; 10.2 dB with rays started at the eye
+  // 39.9 dB; 10.2 dB with rays started at the eye.
+  EXPECT_GT(render_psnr(scene_at(1.5e2), scene_at(1.5e5)), 30.0);
 }
 
 TEST(FarFromOrigin, RunMatchesTheSameStaircaseNearZero) {

@@ -268,6 +268,17 @@ void write_stl(const fs::path& p, const std::vector<std::array<float, 9>>& tris)
   }
 }
 
+// Two triangles, NAME.stl, in a scene of their own, NAME.json (32 x 24).
+fs::path write_pair_scene(const std::string& name) {
+  write_stl(work_dir() / (name + ".stl"), {{0, 0, 0, 1, 0, 0, 0, 1, 0}, {1, 0, 0, 1, 1, 0.5f, 0, 1, 0}});
+  const fs::path scene = work_dir() / (name + ".json");
+  std::ofstream(scene) << R"({"camera": {"eye": [0.5, 0.5, 4], "look_at": [0.5, 0.5, 0], "fov_y": 30, "width": 32, "height": 24},
+    "materials": {"m": {"type": "diffuse", "color": [0.7, 0.7, 0.7]}},
+    "objects": [{"mesh": ")" << name << R"(.stl", "material": "m"}],
+    "lights": [{"type": "point", "position": [2, 5, 3], "intensity": 40}], "spp": 1})";
+  return scene;
+}
+
 TEST(Run, MeshThatCollapsesToNothingIsLeftOutWithTheReason) {
   // Every triangle degenerate, and a mesh far below a pixel (one cell): each
   // simplifies to nothing. The run renders the rest of the scene, names the
@@ -307,12 +318,7 @@ TEST(Run, MeshThatCollapsesToNothingIsLeftOutWithTheReason) {
 // a mesh without normals is run as asked, with a warning naming the mesh;
 // at the default, no warning.
 TEST(Run, ACreaseAngleOtherThanTheDefaultIsRunWithAWarning) {
-  write_stl(work_dir() / "pair.stl", {{0, 0, 0, 1, 0, 0, 0, 1, 0}, {1, 0, 0, 1, 1, 0.5f, 0, 1, 0}});
-  const fs::path scene = work_dir() / "pair.json";
-  std::ofstream(scene) << R"({"camera": {"eye": [0.5, 0.5, 4], "look_at": [0.5, 0.5, 0], "fov_y": 30, "width": 32, "height": 24},
-    "materials": {"m": {"type": "diffuse", "color": [0.7, 0.7, 0.7]}},
-    "objects": [{"mesh": "pair.stl", "material": "m"}],
-    "lights": [{"type": "point", "position": [2, 5, 3], "intensity": 40}], "spp": 1})";
+  const fs::path scene = write_pair_scene("pair");
   for (const char* angle : {"0", "25"}) {
     std::string out;
     ASSERT_EQ(raylod("run '" + scene.string() + "' --no-cache --crease-angle " + angle + " -o '" +
@@ -329,12 +335,7 @@ TEST(Run, ACreaseAngleOtherThanTheDefaultIsRunWithAWarning) {
 // A limit too small for the program and the test rays fails before the
 // store check, so a good store is not rebuilt for it first.
 TEST(Run, AHopelessMemoryLimitLeavesTheStoreAlone) {
-  write_stl(work_dir() / "keep.stl", {{0, 0, 0, 1, 0, 0, 0, 1, 0}, {1, 0, 0, 1, 1, 0.5f, 0, 1, 0}});
-  const fs::path scene = work_dir() / "keep.json";
-  std::ofstream(scene) << R"({"camera": {"eye": [0.5, 0.5, 4], "look_at": [0.5, 0.5, 0], "fov_y": 30, "width": 32, "height": 24},
-    "materials": {"m": {"type": "diffuse", "color": [0.7, 0.7, 0.7]}},
-    "objects": [{"mesh": "keep.stl", "material": "m"}],
-    "lights": [{"type": "point", "position": [2, 5, 3], "intensity": 40}], "spp": 1})";
+  const fs::path scene = write_pair_scene("keep");
   const std::string image = (work_dir() / "keep.png").string();
   std::string out;
   ASSERT_EQ(raylod("run '" + scene.string() + "' --no-cache -q -o '" + image + "'", &out), 0) << out;

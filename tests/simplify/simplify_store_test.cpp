@@ -337,13 +337,19 @@ TEST(SimplifyStore, ExactNormalsFollowTheInputAtTheRepresentative) {
 
 // Across a crease the nearest input point lies on one side: only the corners
 // of that side take its normal, and every face of a box keeps its own.
-TEST(SimplifyStore, ExactNormalsKeepCreasesSplit) {
+// A closed box, 12 x 12 quads a side, each corner carrying its face's normal.
+TriangleBatch faceted_box() {
   TriangleBatch box = test::closed_box({-1, -1, -1}, {1, 1, 1}, 12);
   for (size_t t = 0; t < box.size(); ++t) {
     const Vec3 f(face_normal(Vec3d(box.positions[3 * t]), Vec3d(box.positions[3 * t + 1]),
                              Vec3d(box.positions[3 * t + 2])));
     box.normals.insert(box.normals.end(), {f, f, f});
   }
+  return box;
+}
+
+TEST(SimplifyStore, ExactNormalsKeepCreasesSplit) {
+  const TriangleBatch box = faceted_box();
   BuiltStore b = build(box, "exact-box");
   ASSERT_TRUE(b.store);
   const Cut cut = uniform_cut(*b.store, 4);
@@ -367,12 +373,7 @@ TEST(SimplifyStore, ExactNormalsKeepCreasesSplit) {
 // angle (the full render ignores it), so the simplified mesh does too: a
 // faceted box at 180 degrees keeps its faces' normals as at the default.
 TEST(SimplifyStore, TheCreaseAngleLeavesMeshesWithNormalsAlone) {
-  TriangleBatch box = test::closed_box({-1, -1, -1}, {1, 1, 1}, 12);
-  for (size_t t = 0; t < box.size(); ++t) {
-    const Vec3 f(face_normal(Vec3d(box.positions[3 * t]), Vec3d(box.positions[3 * t + 1]),
-                             Vec3d(box.positions[3 * t + 2])));
-    box.normals.insert(box.normals.end(), {f, f, f});
-  }
+  const TriangleBatch box = faceted_box();
   BuiltStore b = build(box, "crease-box");
   ASSERT_TRUE(b.store);
   const Cut cut = uniform_cut(*b.store, 4);
