@@ -7,6 +7,8 @@
 #include <nlohmann/json.hpp>
 
 #include "cli/cli.h"
+#include "streaming/octree_store.h"
+#include "streaming/source_record.h"
 #include "core/cluster.h"
 #include "core/progress.h"
 #include "core/system.h"
@@ -171,6 +173,14 @@ Status run_run(int argc, char** argv, bool& help) {
     if (args.has("--stats-json")) outputs.push_back({args.get("--stats-json"), "--stats-json"});
     if (!opts.export_mesh.empty()) outputs.push_back({opts.export_mesh, "--export-mesh"});
     std::vector<FileRole> inputs = scene_input_files(args, scene);
+    // The stores run builds beside the meshes, and their check records: an
+    // output there would be written over a store the same run reads.
+    for (size_t i = 0, n = inputs.size(); i < n; ++i) {
+      if (inputs[i].path.empty() || inputs[i].role == "the scene file") continue;
+      const std::filesystem::path store = default_store_path(inputs[i].path);
+      inputs.push_back({store, "the store of " + inputs[i].role});
+      inputs.push_back({source_record_path(store), "the check record of " + inputs[i].role + "'s store"});
+    }
     if (args.has("--views")) inputs.push_back({args.get("--views"), "the --views file"});
     RAYLOD_RETURN_IF_ERROR(check_outputs_apart(outputs, inputs));
   }

@@ -86,6 +86,16 @@ TEST(OutputsApart, CommandsRefuseToWriteOverTheirInputs) {
   // simplify -o naming the mesh its store was built from.
   std::string out;
   ASSERT_EQ(test::run_raylod("build " + m + " -q", out), 0) << out;
+  // run's --stats-json naming the store it reads (or its check record).
+  const std::string store_bytes = read_all(mesh.string() + ".raylod");
+  for (const std::string& over : {mesh.string() + ".raylod", mesh.string() + ".raylod.checked"}) {
+    const test::CommandResult stats = test::run_command("cd '" + dir.string() + "' && '" + std::string(RAYLOD_EXE) +
+                                                        "' run " + s + " -o out.png -q --stats-json '" + over + "'" + cache);
+    EXPECT_NE(stats.status, 0) << stats.out;
+    EXPECT_NE(stats.out.find("--stats-json would replace the "), std::string::npos) << stats.out;
+    EXPECT_NE(stats.out.find("store"), std::string::npos) << stats.out;
+  }
+  EXPECT_EQ(read_all(mesh.string() + ".raylod"), store_bytes);
   ASSERT_EQ(test::run_raylod("probe " + s + " -o '" + (dir / "t.cut").string() + "' -q", out), 0) << out;
   const test::CommandResult r = test::run_command("'" + std::string(RAYLOD_EXE) + "' simplify '" + mesh.string() +
                                                   ".raylod' '" + (dir / "t.cut").string() + "' -o " + m + " -q");
