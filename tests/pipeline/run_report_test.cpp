@@ -328,7 +328,9 @@ TEST(Run, ACreaseAngleOtherThanTheDefaultIsRunWithAWarning) {
         << out;
     const bool warned = out.find("warning: crease angle " + std::string(angle) + " degrees") != std::string::npos;
     EXPECT_EQ(warned, std::string(angle) == "0") << out;
-    if (warned) EXPECT_NE(out.find((work_dir() / "pair.stl").string() + " (no normals of its own)"), std::string::npos) << out;
+    if (warned) {
+      EXPECT_NE(out.find((work_dir() / "pair.stl").string() + " (no normals of its own)"), std::string::npos) << out;
+    }
   }
 }
 
