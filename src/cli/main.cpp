@@ -73,6 +73,11 @@ int main(int argc, char** argv) {
   }
   // Under mpirun, MPI for the whole command (core/cluster.h); otherwise nothing.
   raylod::cluster::Session cluster(argc, argv);
+  // Every rank runs the same command line (cluster::same_command_line).
+  if (const raylod::Status same = raylod::cluster::same_command_line(argc, argv); !same.is_ok()) {
+    if (raylod::cluster::is_root()) std::fprintf(raylod::cluster::error_output(), "raylod: error: %s\n", same.message().c_str());
+    return 1;
+  }
   for (const auto& c : raylod::cli::commands()) {
     if (std::strcmp(c.name, argv[1]) == 0) {
       try {

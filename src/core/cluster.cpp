@@ -182,6 +182,22 @@ Status agree(const Status& mine) {
 #endif
 }
 
+Status same_command_line(int argc, char** argv) {
+  World& w = world();
+  if (w.size == 1) return Status::ok();
+  std::string mine;
+  for (int i = 1; i < argc; ++i) mine.append(argv[i]).push_back('\0');
+  std::string root = mine;
+  broadcast(root);
+  const Status agreed = agree(root == mine ? Status::ok()
+                                           : Status::error("started with other arguments than rank 0's; under "
+                                                           "mpirun every rank must run the same command line"));
+  // Every rank met both collectives here, before any command.
+  w.collectives = 0;
+  w.agreed = false;
+  return agreed;
+}
+
 std::optional<Status> settle_failure(const Status& status, const std::string& prefix) {
   World& w = world();
   if (w.size == 1 || !w.enlisted) return status;

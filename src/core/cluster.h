@@ -58,6 +58,13 @@ bool built_with_mpi();
 void enlist();
 bool enlisted();
 
+// Collective, before any command runs: an error on every rank if some rank
+// was started with other arguments than rank 0's (mpirun's `A : B` form;
+// they would meet in different collectives and hang, or gather parts of
+// different images). It leaves the ranks as if no collective had run, so a
+// command's first failure settles as it otherwise would (settle_failure).
+Status same_command_line(int argc, char** argv);
+
 // Collective: OK on every rank if `mine` is OK on every rank, else the error
 // of the lowest failing rank on every rank (its message), preceded by "rank
 // R of N: " unless every rank failed. Marks the failure as agreed.

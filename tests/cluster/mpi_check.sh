@@ -8,8 +8,8 @@
 # (3 views, one cut) | fail (a bad views file and an unreadable mesh: non-zero
 # exit, the error printed once by rank 0, no image written) | fail-rank (one
 # rank fails: its mesh unreadable, rank 0's image write, one view's image
-# write: non-zero exit, the error with the rank printed once by rank 0, no
-# image and no temporary written) | kill-rank (the last rank killed with
+# write; and ranks started with other arguments: non-zero exit, the error
+# with the rank printed once by rank 0, no image and no temporary written) | kill-rank (the last rank killed with
 # SIGKILL while writing an image: the job ends, no complete image of that
 # view, and the next run removes the dead rank's temporary) | corrupt-store
 # (a page of the store damaged: the job ends with the checksum error, no
@@ -128,14 +128,27 @@ case "$case" in
       [ "$(grep -c -- "$2" <<<"$out")" -eq 1 ] || fail "$1: '$2' is not printed once: $out"
     }
     printf 'ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n\0\0\0\0' > broken.ply
-    # The last rank alone reads a broken mesh (MPMD: its own arguments): it
-    # fails loading, the others wait at the agreement, rank 0 names it.
+    # The last rank alone reads a broken mesh: the same command line in
+    # another folder (-wdir), whose scene.json names it. It fails loading,
+    # the others wait at the agreement, rank 0 names it.
     last=$((np - 1))
+    mkdir -p other/mpi
+    cp broken.ply other/
+    sed 's/"mesh.ply"/"broken.ply"/' scene.json > other/scene.json
     status=0
     out="$("$mpiexec" --allow-run-as-root --oversubscribe -np "$last" "$raylod" render scene.json -o mpi/f.png -q --threads 1 : \
-           -np 1 "$raylod" render scene.json --mesh broken.ply -o mpi/f.png -q --threads 1 2>&1)" || status=$?
-    expect_error "render, a broken mesh on rank $last" "raylod render: error: rank $last of $np: broken.ply: truncated"
+           -np 1 -wdir "$tmp/other" "$raylod" render scene.json -o mpi/f.png -q --threads 1 2>&1)" || status=$?
+    expect_error "render, a broken mesh on rank $last" "raylod render: error: rank $last of $np: .*broken.ply: truncated"
     [ ! -e mpi/f.png ] || fail "render with a broken mesh on rank $last wrote mpi/f.png"
+    [ -z "$(ls -A other/mpi)" ] || fail "rank $last wrote into other/mpi"
+    no_temporaries
+    # Ranks started with other arguments (mpirun's A : B form) would meet in
+    # other collectives: refused before any work, rank 0 saying which.
+    status=0
+    out="$("$mpiexec" --allow-run-as-root --oversubscribe -np "$last" "$raylod" render scene.json -o mpi/f.png -q --threads 1 : \
+           -np 1 "$raylod" run scene.json --orbit 2 -o mpi/o_#.png -q --threads 1 2>&1)" || status=$?
+    expect_error "ranks with other arguments" "raylod: error: rank $last of $np: started with other arguments than rank 0's"
+    [ -z "$(ls -A mpi)" ] || fail "ranks with other arguments wrote $(ls -A mpi)"
     no_temporaries
     # The frame's name is a folder: refused before rendering, once. (A
     # write failing after the render, on whichever rank, is the run --views
