@@ -1096,20 +1096,29 @@ std::string describe_memory_limit(uint64_t memory_limit) {
   return memory_limit ? format_bytes(memory_limit) : "no limit";
 }
 
-std::string grid_merged_warning(uint64_t merged, uint64_t triangles, const Bbox& bounds, double step) {
+std::string describe_position_grid(double step, const Bbox& bounds, const Vec3d& mesh_origin) {
+  const Vec3d lo = bounds.lo + mesh_origin, hi = bounds.hi + mesh_origin;
+  char text[320];
+  std::snprintf(text, sizeof text,
+                "the store's position grid (points %.3g apart, set by the mesh's bounding box from (%.6g, %.6g, %.6g) "
+                "to (%.6g, %.6g, %.6g))",
+                step, lo.x, lo.y, lo.z, hi.x, hi.y, hi.z);
+  return text;
+}
+
+namespace {
+
+std::string grid_merged_warning(uint64_t merged, uint64_t triangles, const Scan& scan, double step) {
   // One in a hundred, or one at all in a small mesh: the grid follows the
   // bounding box, so a few vertices far from the rest (a stray coordinate
   // in a CAD export) make it too coarse for everything else.
   if (merged == 0 || merged * 100 < triangles) return "";
-  char text[512];
-  std::snprintf(text, sizeof text,
-                "%llu of %llu triangles lose a corner to the store's position grid (points %.3g apart, set by the "
-                "mesh's bounding box from (%.6g, %.6g, %.6g) to (%.6g, %.6g, %.6g)): if the part is far smaller than "
-                "that box, a few vertices lie far from the rest",
-                (unsigned long long)merged, (unsigned long long)triangles, step, bounds.lo.x, bounds.lo.y, bounds.lo.z,
-                bounds.hi.x, bounds.hi.y, bounds.hi.z);
-  return text;
+  return std::to_string(merged) + " of " + std::to_string(triangles) + " triangles lose a corner to " +
+         describe_position_grid(step, scan.bounds, scan.mesh_origin) +
+         ": if the part is far smaller than that box, a few vertices lie far from the rest";
 }
+
+}  // namespace
 
 StatusOr<BuildReport> build_store_from_stream(const MeshStreamOpener& open, const SourceFingerprint& source,
                                               const std::filesystem::path& store_path, const StoreOptions& options,
@@ -1261,9 +1270,7 @@ StatusOr<BuildReport> build_store_from_stream(const MeshStreamOpener& open, cons
     report.warning = "--memory-limit " + format_bytes(memory_limit) + " is below what the reader's vertex table (" +
                      format_bytes(scan.reader_bytes) + ") and the minimal buffers need (" +
                      format_bytes(plan.budget_bytes) + "); peak memory may exceed it";
-  report.grid_merged = binned.grid_merged;
-  if (const std::string w = grid_merged_warning(binned.grid_merged, scan.triangles, scan.bounds, plan.grid.step);
-      !w.empty())
+  if (const std::string w = grid_merged_warning(binned.grid_merged, scan.triangles, scan, plan.grid.step); !w.empty())
     report.warning += (report.warning.empty() ? "" : "; ") + w;
   return report;
 }

@@ -202,9 +202,6 @@ struct BuildReport {
   // Wall time of the phases: pass 1 (bounds), pass 2 (binning and quadrics),
   // page assembly and writing, fsync + rename.
   double scan_seconds = 0, bin_seconds = 0, write_seconds = 0, commit_seconds = 0;
-  // Triangles two of whose distinct corners the store's position grid made
-  // one (a grid made coarse by a few far-away vertices warns).
-  uint64_t grid_merged = 0;
   std::string warning;            // e.g. a memory limit too small to honour
   // Reused: the store as the up-to-date check opened it (checksums of the
   // header and tables verified), so that the caller need not open it again,
@@ -264,6 +261,11 @@ StatusOr<BuildReport> build_store_from_stream(const MeshStreamOpener& open, cons
 uint64_t resolved_memory_limit(const StoreOptions& options);
 // For messages: "1.00 GiB", or "no limit" for 0.
 std::string describe_memory_limit(uint64_t memory_limit);
+// "the store's position grid (points STEP apart, set by the mesh's bounding
+// box from (..) to (..))", the box in the mesh's own coordinates (store
+// bounds plus mesh_origin): what the build's warning and an empty
+// simplified mesh say when a few far-away vertices made the grid too coarse.
+std::string describe_position_grid(double step, const Bbox& bounds, const Vec3d& mesh_origin);
 
 // ---- Store file helpers (streaming/octree_store.cpp) ----
 

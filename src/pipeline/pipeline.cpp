@@ -846,14 +846,8 @@ StatusOr<StagedMeshes> simplify_or_reuse(RunSession& session, const Scene& scene
         // stretches).
         if (why.find("degenerate") != std::string::npos) {
           const StoreHeader& h = stores.stores[i]->header();
-          const double step = page_grid(h.root_lo, h.root_size, h.grid_bits).step;
-          const Vec3d lo = h.bounds.lo + h.mesh_origin, hi = h.bounds.hi + h.mesh_origin;
-          char text[400];
-          std::snprintf(text, sizeof text,
-                        " on the store's position grid (points %.3g apart, set by the mesh's bounding box from "
-                        "(%.6g, %.6g, %.6g) to (%.6g, %.6g, %.6g))",
-                        step, lo.x, lo.y, lo.z, hi.x, hi.y, hi.z);
-          why += text;
+          why += " on " + describe_position_grid(page_grid(h.root_lo, h.root_size, h.grid_bits).step, h.bounds,
+                                                 h.mesh_origin);
         }
         session.warnings.push_back(stores.meshes[i].string() + ": " + why + "; it is left out of the image");
         out.meshes.push_back(sm);
