@@ -191,12 +191,18 @@ Status check_stats_json_path(const Args& args) {
   return {};
 }
 
-std::vector<FileRole> scene_input_files(const Args& args, const Scene& scene) {
+std::vector<FileRole> scene_mesh_files(const Args& args, const Scene& scene) {
   std::vector<FileRole> files;
-  if (!args.positionals().empty()) files.push_back({args.positionals()[0], "the scene file"});
   if (args.has("--mesh")) files.push_back({args.get("--mesh"), "the --mesh file"});
   for (size_t i = 0; i < scene.objects.size(); ++i)
     files.push_back({scene.objects[i].mesh, "the mesh of objects[" + std::to_string(i) + "]"});
+  return files;
+}
+
+std::vector<FileRole> scene_input_files(const Args& args, const Scene& scene) {
+  std::vector<FileRole> files;
+  if (!args.positionals().empty()) files.push_back({args.positionals()[0], "the scene file"});
+  for (FileRole& mesh : scene_mesh_files(args, scene)) files.push_back(std::move(mesh));
   return files;
 }
 

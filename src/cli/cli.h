@@ -92,8 +92,10 @@ StatusOr<CutOptions> cut_options_from_args(const Args& args);
 // --stats-json FILE, if given: checked before any work (its folder exists and
 // it is not a folder), so that a bad path does not fail a finished run.
 Status check_stats_json_path(const Args& args);
-// The files a scene-reading command reads: the scene file (if given), every
-// object's mesh file and --mesh, for check_outputs_apart (core/system.h).
+// The mesh files a scene-reading command reads: --mesh and every object's.
+std::vector<FileRole> scene_mesh_files(const Args& args, const Scene& scene);
+// The files a scene-reading command reads: the scene file (if given) and
+// scene_mesh_files, for check_outputs_apart (core/system.h).
 std::vector<FileRole> scene_input_files(const Args& args, const Scene& scene);
 
 // The scene named by the single positional argument, or the embedded default

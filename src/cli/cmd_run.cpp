@@ -175,11 +175,11 @@ Status run_run(int argc, char** argv, bool& help) {
     std::vector<FileRole> inputs = scene_input_files(args, scene);
     // The stores run builds beside the meshes, and their check records: an
     // output there would be written over a store the same run reads.
-    for (size_t i = 0, n = inputs.size(); i < n; ++i) {
-      if (inputs[i].path.empty() || inputs[i].role == "the scene file") continue;
-      const std::filesystem::path store = default_store_path(inputs[i].path);
-      inputs.push_back({store, "the store of " + inputs[i].role});
-      inputs.push_back({source_record_path(store), "the check record of " + inputs[i].role + "'s store"});
+    for (const FileRole& mesh : scene_mesh_files(args, scene)) {
+      if (mesh.path.empty()) continue;
+      const std::filesystem::path store = default_store_path(mesh.path);
+      inputs.push_back({store, "the store of " + mesh.role});
+      inputs.push_back({source_record_path(store), "the check record of " + mesh.role + "'s store"});
     }
     if (args.has("--views")) inputs.push_back({args.get("--views"), "the --views file"});
     RAYLOD_RETURN_IF_ERROR(check_outputs_apart(outputs, inputs));

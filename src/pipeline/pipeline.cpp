@@ -666,9 +666,10 @@ StatusOr<FittedCuts> select_fitting_cuts(RunSession& session, std::span<const Pr
   uint64_t previous_estimate = UINT64_MAX;
   uint64_t input_triangles = 0;
   for (const auto& st : stores.stores) input_triangles += st->header().triangle_count;
-  // A frame that alone outgrows the limit: no cut helps.
-  if (const uint64_t image = estimate_image_memory(scene.camera.width, scene.camera.height, RenderOptions{});
-      budget.limited() && image >= memory_limit)
+  // The render's need counts its frame (renderer.h, estimate_image_memory);
+  // a frame that alone outgrows the limit leaves no cut that helps.
+  const uint64_t image = estimate_image_memory(scene.camera.width, scene.camera.height, RenderOptions{});
+  if (budget.limited() && image >= memory_limit)
     return Status::error("the " + std::to_string(scene.camera.width) + " x " + std::to_string(scene.camera.height) +
                          " image needs about " + format_bytes(image) + ", more than the " + format_bytes(memory_limit) +
                          " the memory limit of " + format_bytes(budget.total) + " leaves after the program's own " +
@@ -690,8 +691,6 @@ StatusOr<FittedCuts> select_fitting_cuts(RunSession& session, std::span<const Pr
     }
     simplify_need += node_tables;
     const uint64_t scene_triangles = estimate + 2;  // and the ground's two
-    // The render's need counts its frame (renderer.h, estimate_image_memory).
-    const uint64_t image = estimate_image_memory(scene.camera.width, scene.camera.height, RenderOptions{});
     const uint64_t need = std::max(
         simplify_need, image + estimate_render_memory(scene_triangles, bvh_for_memory_limit(
                                                                         scene_triangles,
