@@ -239,10 +239,14 @@ class ProbeTracer {
           const Vec3d& d = r.ray.direction;
           auto across = [&](const Vec3d& dp) { return glm::length(x.linv * (dp - glm::dot(dp, d) * d)); };
           h.width = std::max(across(r.dp_dx), across(r.dp_dy));
+          // A surface moved along its normal moves in the image by that
+          // times the sine of the incidence angle (ProbeHit::shift_footprint).
+          const double sine = glm::length(glm::cross(sp.geometric_normal, d));
+          h.shift_footprint = sine * h.footprint > h.width ? h.width / sine : h.footprint;
           if (pr.kind != kPrimary && beam > 0 && path > 0) h.ratio = footprint(r) / (beam * path);
         } else {
           h.estimated = true;
-          h.footprint = h.width = beam * path / x.sigma;
+          h.footprint = h.width = h.shift_footprint = beam * path / x.sigma;
           ++out.counters.v[ProbeRayCounters::dropped];
         }
         h.parent = pr.parent;
@@ -806,8 +810,10 @@ struct StoreNeeds {
   bool specular = false;  // a mirror or glass object uses the store: its cells also bound the normal
   // Per view, the factor c of unreached curved cells' tilt c kappa f (probe.h); 0: none.
   std::vector<double> curvature_factor;
-  // need() and the tilt allowance per level, node by node (probe.h).
-  std::vector<std::vector<double>> need, tilt;
+  // need() and the tilt allowance per level, node by node (probe.h); and
+  // need() from the hits' shift footprints (ProbeHit::shift_footprint),
+  // which the deviation criterion's tests take.
+  std::vector<std::vector<double>> need, tilt, shift_need;
   // The nodes' codes and collapse deviations (SelectionCache): a shared
   // cache's entry, or own.
   SelectionCache::Store* kept = nullptr;
@@ -907,7 +913,7 @@ StatusOr<CutSelection> CutSelection::make(std::span<const ProbeView> views, cons
     const std::vector<std::vector<uint64_t>>& codes_at = n.kept->codes;
     // Measured footprints at the finest level, attached to the hit triangles'
     // corner cells, per view.
-    struct Measured { double f = kInf; double tilt = kInf; uint32_t hits = 0; };
+    struct Measured { double f = kInf; double shift = kInf; double tilt = kInf; uint32_t hits = 0; };
     std::vector<std::unordered_map<uint64_t, Measured>> measured(views.size());
     double min_fp = kInf;
     for (size_t v = 0; v < views.size(); ++v)
@@ -926,6 +932,7 @@ StatusOr<CutSelection> CutSelection::make(std::span<const ProbeView> views, cons
           if ((k > 0 && codes[k] == codes[0]) || (k > 1 && codes[k] == codes[1])) continue;
           Measured& e = measured[v][codes[k]];
           e.f = std::min(e.f, f);
+          e.shift = std::min(e.shift, h.estimated ? f : h.shift_footprint);
           e.tilt = std::min(e.tilt, h.tilt);
           ++e.hits;
         }
@@ -1074,12 +1081,15 @@ StatusOr<CutSelection> CutSelection::make(std::span<const ProbeView> views, cons
     // need() and the tilt allowance bottom-up: at level Q the finest over the
     // views of each view's measured or estimated need, min over children above.
     std::vector<std::vector<double>>& need = n.need;
+    std::vector<std::vector<double>>& shift_need = n.shift_need;
     std::vector<std::vector<double>>& tilt = n.tilt;
     need.resize(size_t(Q) + 1);
+    shift_need.resize(size_t(Q) + 1);
     tilt.resize(size_t(Q) + 1);
     {
       const std::vector<uint64_t>& nodes = codes_at[size_t(Q)];
       need[size_t(Q)].assign(nodes.size(), kInf);
+      shift_need[size_t(Q)].assign(nodes.size(), kInf);
       if (n.specular) tilt[size_t(Q)].assign(nodes.size(), kInf);
       const bool store_specular = n.specular;
       tbb::parallel_for(tbb::blocked_range<size_t>(0, nodes.size(), 1024), [&](const tbb::blocked_range<size_t>& r) {
@@ -1091,7 +1101,7 @@ StatusOr<CutSelection> CutSelection::make(std::span<const ProbeView> views, cons
                          sorted_measured[v].begin());
         for (size_t i = r.begin(); i != r.end(); ++i) {
           const uint64_t code = nodes[i];
-          double f = kInf, a = kInf;
+          double f = kInf, fs = kInf, a = kInf;
           std::optional<Bbox> box;
           const double kappa = store_specular ? normal_spread_angle(nodes_q[i]) / side_q : 0.0;
           for (size_t v = 0; v < views.size(); ++v) {
@@ -1102,6 +1112,10 @@ StatusOr<CutSelection> CutSelection::make(std::span<const ProbeView> views, cons
             const double seen = hit ? hit->f : estimate(facts[v], *box);
             f = std::min(f, seen);
             f = shadow_estimate(facts[v], *box, f);
+            // The estimate bounds the beam's width, so the shift footprint
+            // too; a hit's shift footprint is at most its footprint, so f
+            // adds only the shadows' bound.
+            fs = std::min({fs, hit ? hit->shift : seen, f});
             // Unreached mirror or glass cells: the pixel angle, as magnified
             // as the most magnified measured paths, over a mirror's gain of
             // 2; on a curved surface at least c kappa f (above).
@@ -1115,6 +1129,7 @@ StatusOr<CutSelection> CutSelection::make(std::span<const ProbeView> views, cons
             }
           }
           need[size_t(Q)][i] = f;
+          shift_need[size_t(Q)][i] = fs;
           if (store_specular) tilt[size_t(Q)][i] = a;
         }
       });
@@ -1122,12 +1137,14 @@ StatusOr<CutSelection> CutSelection::make(std::span<const ProbeView> views, cons
     for (int L = Q - 1; L >= 0; --L) {
       const std::vector<uint64_t>&parents = codes_at[size_t(L)], &children = codes_at[size_t(L) + 1];
       need[size_t(L)].assign(parents.size(), kInf);
+      shift_need[size_t(L)].assign(parents.size(), kInf);
       if (n.specular) tilt[size_t(L)].assign(parents.size(), kInf);
       size_t j = 0;
       for (size_t i = 0; i < parents.size(); ++i) {
         while (j < children.size() && (children[j] >> 3) < parents[i]) ++j;
         for (; j < children.size() && (children[j] >> 3) == parents[i]; ++j) {
           need[size_t(L)][i] = std::min(need[size_t(L)][i], need[size_t(L) + 1][j]);
+          shift_need[size_t(L)][i] = std::min(shift_need[size_t(L)][i], shift_need[size_t(L) + 1][j]);
           if (n.specular) tilt[size_t(L)][i] = std::min(tilt[size_t(L)][i], tilt[size_t(L) + 1][j]);
         }
       }
@@ -1221,6 +1238,9 @@ StatusOr<ProbeResult> CutSelection::select(const ProbeConfig& config) {
           const double f = n.need[size_t(L)][i];
           if (!(diag < K * f)) continue;
           if (!deviation) { verdict[i] = 1; continue; }
+          // The deviation tests compare what moves the surface in the image
+          // with the shift footprint (ProbeHit::shift_footprint).
+          const double fs = n.shift_need[size_t(L)][i];
           CollapseDeviation& dev = n.kept->deviation[size_t(L)][i];
           if (dev.position < 0) {  // not computed by an earlier selection
             const Bbox cell = st.cell_bounds(CellKey{uint32_t(L), codes[i]});
@@ -1238,11 +1258,11 @@ StatusOr<ProbeResult> CutSelection::select(const ProbeConfig& config) {
               dev.position = std::max(dev.position, descendant_deviation(sub, dev.representative));
             }
           }
-          if (dev.position > config.tolerance_px * f) { verdict[i] = 2; continue; }
+          if (dev.position > config.tolerance_px * fs) { verdict[i] = 2; continue; }
           // What a quadric cannot bound (rims, folds, creases on mirrors
           // and glass, below) collapses only while the whole cell is within
           // the tolerance.
-          const bool whole_cell_within = diag <= config.tolerance_px * f;
+          const bool whole_cell_within = diag <= config.tolerance_px * fs;
           // The quadric does not see a rim (collapse_deviation.h), which the
           // representative may pull anywhere in the cell: a cell with an
           // open boundary.
@@ -1264,7 +1284,7 @@ StatusOr<ProbeResult> CutSelection::select(const ProbeConfig& config) {
           // flat one's normal is exact).
           if (!whole_cell_within && dev.far_normal > kFarNormalFloor) {
             const double b = n.far_weight(L, Q, codes[i], kFarReach * diag);
-            if (b * diag > config.tolerance_px * f && b * dev.far_normal > kFarNormalFloor) {
+            if (b * diag > config.tolerance_px * fs && b * dev.far_normal > kFarNormalFloor) {
               verdict[i] = 7;
               continue;
             }

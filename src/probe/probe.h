@@ -56,7 +56,17 @@
 //     weighting of the cell's own quadric lets large triangles outweigh) is
 //     at most tolerance_px * need(cell), i.e. the collapsed
 //     surface stays within tolerance_px pixels of the input wherever a ray
-//     sees it, silhouettes included; AND, on mirror and glass objects, the
+//     sees it, silhouettes included. These tests (and the rim, fold and
+//     far-end tests below) take each hit's shift footprint
+//     (ProbeHit::shift_footprint: the beam's width across the ray over the
+//     sine of the incidence angle, at most ||dP||), not ||dP||: near a
+//     silhouette ||dP|| is drawn out along the surface many times over what
+//     the pixel resolves, and collapses it allowed moved the outline of a
+//     close-up of the pump cover's wall by most of a pixel, pixel after
+//     pixel along it (58.55 dB against a 60.88 dB floor; 63.82 dB with the
+//     shift footprint, at 36,928 triangles instead of 36,396). The
+//     unreached cells' estimate below bounds a beam's width already; AND,
+//     on mirror and glass objects, the
 //     normal_deviation is at most angle_tolerance_px times the tilt the
 //     cell's hits tolerate (ProbeHit::tilt): a tilt t turns a reflected ray
 //     by 2t and a transmitted one by Refraction::tilt_gain * t, which shows
@@ -306,6 +316,16 @@ struct ProbeHit {
   // out along the ray, overstates many times (the cut's min_footprint, and
   // so the Draco quantisation of the simplified mesh, take this).
   double width = 0;
+  // What a deviation along the surface's normal is compared with (the
+  // deviation criterion's tests, above): a surface moved by d along its
+  // normal moves in the image by d sin(theta) across the ray (theta: the
+  // incidence angle), at a silhouette by d itself, where the footprint,
+  // stretched by 1 / cos(theta) along the surface, would let it move many
+  // pixels. So width / sin(theta), but at most the footprint (below 45
+  // degrees, where the collapse's normal error, not its shift, is what
+  // shows, and the tolerances were chosen against the footprint). Store
+  // units; if estimated, the footprint.
+  double shift_footprint = 0;
   double ratio = -1;               // f / (a_ray * path length) of a measured secondary hit
   // Mirror/glass hit: the largest normal tilt (radians) that turns no ray
   // leaving it by more than one pixel's spread anywhere along its path:

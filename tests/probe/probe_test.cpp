@@ -9,6 +9,8 @@
 #include <cstring>
 #include <fstream>
 #include <iterator>
+#include <limits>
+#include <map>
 #include <random>
 #include <optional>
 #include <set>
@@ -750,6 +752,41 @@ TEST(Probe, MinFootprintIsTheWidthAcrossTheRay) {
   EXPECT_FLOAT_EQ(cuts->cuts[0].min_footprint, float(narrowest));
 }
 
+// A surface moved by d along its normal moves in the image by d sin(theta)
+// across the ray, at a silhouette by d: the deviation tests take the width
+// across the ray over sin(theta), at most the footprint (ProbeHit::
+// shift_footprint). The plane y = 1 seen at three elevations.
+TEST(Probe, AShiftFootprintIsTheWidthOverTheSineOfIncidence) {
+  const Built& b = plane();
+  const OneObject one(b);
+  ProbeConfig c;
+  c.rays = 1000;
+  c.seed = 7;
+  auto hits_from = [&](const Vec3d& eye) {
+    Scene scene = make_scene(MaterialType::Diffuse, eye, Vec3d(0, 1, 0), false);
+    scene.camera.fov_y_deg = 1.5;
+    auto t = trace_probe(scene, one.stores(), one.objects(), c);
+    EXPECT_TRUE(t) << t.status().message();
+    EXPECT_GT(t->hits.size(), 100u);
+    return t->hits;
+  };
+  // Grazing, 0.05 / 6 rad below the rays: sin(theta) is 1 to 1e-4, the
+  // width binds.
+  for (const ProbeHit& h : hits_from(Vec3d(0, 1.05, 6))) {
+    EXPECT_GE(h.shift_footprint, h.width * (1 - 1e-9));
+    EXPECT_LE(h.shift_footprint, h.width * 1.0001);
+    EXPECT_GT(h.footprint, 50.0 * h.shift_footprint);
+  }
+  // Seen from 30 degrees above (theta = 60 degrees): the footprint is the
+  // beam's width stretched by 1 / cos(theta) = 2, the shift footprint that
+  // width over sin(theta), cot(60 deg) = 0.577 of the footprint.
+  for (const ProbeHit& h : hits_from(Vec3d(0, 1 + 5 * std::sin(M_PI / 6), 5 * std::cos(M_PI / 6)))) {
+    EXPECT_NEAR(h.shift_footprint / h.footprint, 1 / std::sqrt(3.0), 0.02);
+  }
+  // From almost straight above (theta under 45 degrees): the footprint.
+  for (const ProbeHit& h : hits_from(Vec3d(0, 6, 0.5))) EXPECT_EQ(h.shift_footprint, h.footprint);
+}
+
 // The deviation criterion (probe.h): flat regions are bounded by K alone,
 // curved ones also by the deviation their collapse causes.
 StatusOr<ProbeResult> probe_with(const Scene& scene, const Built& b, CutCriterion criterion, double k, double tol) {
@@ -867,18 +904,24 @@ TEST(ProbeDeviation, FoldsCollapseOnlyWithinTheTolerance) {
   const Built& b = knife();
   const OctreeStore& st = *b.store;
   const Vec3d origin = st.header().origin;
-  const double tol = 0.5;
-  auto r = probe_with(scene, b, CutCriterion::Deviation, 64, tol);
-  ASSERT_TRUE(r);
-  const Cut& cut = r->cuts[0];
-  EXPECT_GT(cut.counters.at("cells_kept_for_fold"), 0u);
+  // Against the shift footprint (ProbeHit::shift_footprint), at most the
+  // footprint the cut records; at 0.5 pixels the knife's hit cells stay whole,
+  // coarser tolerances collapse some.
   size_t folded = 0;
-  for (const CollapsedCell& c : cut.cells) {
-    const Bbox cell = st.cell_bounds(c.key);
-    const CollapseDeviation d = collapse_deviation(*st.find(c.key), Bbox{cell.lo - origin, cell.hi - origin}, node_normals_of(st.header()));
-    if (!d.folded || c.hits == 0) continue;
-    ++folded;
-    EXPECT_LE(st.cell_diagonal(int(c.key.level)), tol * c.min_footprint * (1 + 1e-6)) << "level " << c.key.level;
+  for (const double tol : {0.5, 2.0, 8.0}) {
+    auto r = probe_with(scene, b, CutCriterion::Deviation, 64, tol);
+    ASSERT_TRUE(r);
+    const Cut& cut = r->cuts[0];
+    EXPECT_GT(cut.counters.at("cells_kept_for_fold"), 0u) << "tolerance " << tol;
+    for (const CollapsedCell& c : cut.cells) {
+      const Bbox cell = st.cell_bounds(c.key);
+      const CollapseDeviation d =
+          collapse_deviation(*st.find(c.key), Bbox{cell.lo - origin, cell.hi - origin}, node_normals_of(st.header()));
+      if (!d.folded || c.hits == 0) continue;
+      ++folded;
+      EXPECT_LE(st.cell_diagonal(int(c.key.level)), tol * c.min_footprint * (1 + 1e-6))
+          << "level " << c.key.level << ", tolerance " << tol;
+    }
   }
   EXPECT_GT(folded, 0u);
 }
@@ -937,6 +980,53 @@ TEST(ProbeDeviation, CurvedCellsKeepTheirDeviationBelowTheTolerance) {
     }
     previous = corners;
   }
+}
+
+// Every collapsed cell a test ray hit moves the surface by at most the
+// tolerance in pixels across each of those rays: its deviation is within
+// the tolerance times the smallest shift footprint of its hits, which near
+// the teapot's silhouettes is far below the footprint on the surface.
+TEST(ProbeDeviation, CollapsedCellsShiftTheImageByAtMostTheTolerance) {
+  const Built& b = teapot();
+  const OneObject one(b);
+  const OctreeStore& st = *b.store;
+  const Scene scene = make_scene(MaterialType::Diffuse, kEye, kLook);
+  const Vec3d origin = st.header().origin;
+  const int Q = st.header().quadric_depth;
+  ProbeConfig c;
+  c.rays = 4000;
+  c.seed = 7;
+  auto t = trace_probe(scene, one.stores(), one.objects(), c);
+  ASSERT_TRUE(t) << t.status().message();
+  auto r = select_cuts(*t, scene, one.stores(), one.objects(), c);
+  ASSERT_TRUE(r) << r.status().message();
+  const Cut& cut = r->cuts[0];
+  std::map<std::pair<uint32_t, uint64_t>, double> shift;  // cut cell -> its hits' smallest shift footprint
+  for (const CollapsedCell& cell : cut.cells) shift[{cell.key.level, cell.key.code}] = std::numeric_limits<double>::infinity();
+  size_t grazing = 0;
+  for (const ProbeHit& h : t->hits)
+    for (const Vec3d& corner : h.corners) {
+      const uint64_t code = st.cell_of(corner, Q).code;
+      for (int L = Q; L >= 0; --L) {
+        auto it = shift.find({uint32_t(L), code >> (3 * (Q - L))});
+        if (it == shift.end()) continue;
+        it->second = std::min(it->second, h.shift_footprint);
+        grazing += h.shift_footprint < 0.5 * h.footprint;
+        break;
+      }
+    }
+  EXPECT_GT(grazing, 10u);
+  size_t checked = 0;
+  for (const CollapsedCell& cell : cut.cells) {
+    const double s = shift[{cell.key.level, cell.key.code}];
+    if (!std::isfinite(s)) continue;
+    const Bbox box = st.cell_bounds(cell.key);
+    const CollapseDeviation d =
+        collapse_deviation(*st.find(cell.key), Bbox{box.lo - origin, box.hi - origin}, node_normals_of(st.header()));
+    EXPECT_LE(d.position, c.tolerance_px * s * (1 + 1e-6)) << "level " << cell.key.level;
+    ++checked;
+  }
+  EXPECT_GT(checked, 100u);
 }
 
 // --shared-cut: one cut over several views' traces.
