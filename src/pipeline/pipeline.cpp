@@ -153,9 +153,7 @@ int fold_passes_for(const Scene& scene, std::span<const ProbeObject> objects, si
   return 0;
 }
 
-bool exact_normals_for(const OctreeStore& store, int fold_passes) {
-  return fold_passes > 0 && store.header().has_normals;
-}
+bool exact_normals_for(int fold_passes) { return fold_passes > 0; }
 
 StatusOr<SimplifiedMesh> simplify_cut_to_draco(const OctreeStore& store, const Cut& cut, const fs::path& out,
                                                uint64_t memory_limit, double max_normal_error, bool progress,
@@ -164,7 +162,7 @@ StatusOr<SimplifiedMesh> simplify_cut_to_draco(const OctreeStore& store, const C
   SimplifyConfig sc;
   sc.crease_angle_deg = crease_angle_deg;
   sc.fold_passes = fold_passes;
-  sc.exact_normals = exact_normals_for(store, fold_passes);
+  sc.exact_normals = exact_normals_for(fold_passes);
   sc.memory_limit = memory_limit;
   sc.progress = progress;
   RAYLOD_ASSIGN_OR_RETURN(SimplifyResult simplified, simplify(store, cut, sc));
@@ -754,7 +752,7 @@ StatusOr<StagedMeshes> simplify_or_reuse(RunSession& session, const Scene& scene
     }
     // Exact normals change the mesh (simplify_cut_to_draco): the cache keeps it apart.
     const int fold_passes = fold_passes_for(scene, stores.objects, i);
-    const bool exact_normals = exact_normals_for(*stores.stores[i], fold_passes);
+    const bool exact_normals = exact_normals_for(fold_passes);
     // The normals' quantisation follows the materials (shading_normal_tolerance):
     // part of the key, so a glossier scene never takes a coarser entry.
     const int normal_bits = choose_normal_bits(shading_normal_tolerance(scene));

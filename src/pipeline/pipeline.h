@@ -267,9 +267,9 @@ StatusOr<SimplifiedMesh> simplify_cut_to_draco(const OctreeStore& store, const C
 int fold_passes_for(const Scene& scene, std::span<const ProbeObject> objects, size_t store);
 // Whether simplify_cut_to_draco gives the store's representatives exact
 // normals (SimplifyConfig::exact_normals): where it asks for fold passes (a
-// mirror or glass object uses the store) and the store has input normals.
+// mirror or glass object uses the store), with or without input normals.
 // The simplified-mesh cache keys its entries by it.
-bool exact_normals_for(const OctreeStore& store, int fold_passes);
+bool exact_normals_for(int fold_passes);
 
 // Whether a failed simplify_cut_to_draco into `staged` means the disk refused
 // that file (full, read-only, gone): a typed write failure (Status::code) of

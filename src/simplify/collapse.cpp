@@ -192,6 +192,9 @@ constexpr uint32_t kSeveralPositions = 0xffffffffu;
 const double kFlatSideCos = std::cos(10.0 * M_PI / 180.0);
 constexpr double kFlatSideShare = 0.8;
 constexpr uint32_t kFlatSideSlivers = 4;
+// How far a crease-rule sample may turn a representative's normal from its
+// cluster (exact normals without input normals, collapse.h): 1 degree.
+constexpr double kCreaseSampleMaxTurn = M_PI / 180.0;
 
 CollapseBuilder::CollapseBuilder(std::span<const Representative> reps, bool input_has_normals,
                                  double crease_angle_deg)
@@ -330,8 +333,9 @@ Vec3d nearest_on_triangle(const Vec3d& q, const Vec3d& a, const Vec3d& b, const 
 // For each representative among the triangle's corners' cells: the
 // triangle's point nearest it, if nearer than the page's best so far
 // (PreparedBatch::rep_samples).
-void sample_nearest_points(const Vec3* p, const Vec3* normals, const uint32_t* vi, const uint32_t* c,
-                           std::span<const Vec3> rep_pos, PreparedBatch& out) {
+// n3: the normals at the triangle's three corners.
+void sample_nearest_points(const Vec3* p, const Vec3* n3, const uint32_t* c, std::span<const Vec3> rep_pos,
+                           PreparedBatch& out) {
   for (int k = 0; k < 3; ++k) {
     const uint32_t r = c[k];
     if (r == kKeepVertex || (k > 0 && r == c[0]) || (k > 1 && r == c[1])) continue;
@@ -341,7 +345,7 @@ void sample_nearest_points(const Vec3* p, const Vec3* normals, const uint32_t* v
     const float d2 = float(glm::dot(at - q, at - q));
     uint32_t& slot = out.slot_of(r);
     if (slot != kKeepVertex && !(d2 < out.rep_samples[slot].d2)) continue;
-    const Vec3d n = w.x * Vec3d(normals[vi[0]]) + w.y * Vec3d(normals[vi[1]]) + w.z * Vec3d(normals[vi[2]]);
+    const Vec3d n = w.x * Vec3d(n3[0]) + w.y * Vec3d(n3[1]) + w.z * Vec3d(n3[2]);
     const double len = glm::length(n);
     if (!(len > 0) || !std::isfinite(len)) continue;
     if (slot == kKeepVertex) {
@@ -353,10 +357,34 @@ void sample_nearest_points(const Vec3* p, const Vec3* normals, const uint32_t* v
   }
 }
 
+// Per page vertex, 1 if one of its edges has one triangle on the page: the
+// page's border cuts its fan (or the mesh's own rim does), so the crease
+// rule over the page's triangles alone misses some of the triangles the
+// full render averages there (a cylinder's long strips continue on the
+// next page: their corner normals there would be a facet's own).
+std::vector<uint8_t> open_fan_vertices(const PageMesh& page) {
+  std::vector<uint64_t> edges;
+  edges.reserve(page.index.size());
+  for (size_t t = 0; t < page.size(); ++t)
+    for (int k = 0; k < 3; ++k) {
+      const uint64_t a = page.index[3 * t + size_t(k)], b = page.index[3 * t + size_t((k + 1) % 3)];
+      if (a != b) edges.push_back(std::min(a, b) << 32 | std::max(a, b));
+    }
+  std::sort(edges.begin(), edges.end());
+  std::vector<uint8_t> open(page.vertices(), 0);
+  for (size_t i = 0; i < edges.size();) {
+    size_t j = i + 1;
+    while (j < edges.size() && edges[j] == edges[i]) ++j;
+    if (j - i == 1) open[edges[i] >> 32] = open[edges[i] & 0xffffffffu] = 1;
+    i = j;
+  }
+  return open;
+}
+
 }  // namespace
 
 void prepare_collapse(const PageMesh& page, std::span<const uint32_t> vertex_cell, std::span<const Vec3> rep_pos,
-                      bool input_has_normals, PreparedBatch& out, bool exact_normals) {
+                      bool input_has_normals, PreparedBatch& out, bool exact_normals, double crease_angle_deg) {
   assert(vertex_cell.size() == page.vertices());
   const bool page_normals = input_has_normals && page.normals.size() == page.vertices();
   const size_t nt = page.size(), nv = page.vertices();
@@ -370,7 +398,16 @@ void prepare_collapse(const PageMesh& page, std::span<const uint32_t> vertex_cel
   out.rep_corners.clear();
   out.unique.clear();
   out.rep_samples.clear();
-  const bool sample = exact_normals && page_normals;
+  const bool sample = exact_normals && (page_normals || !input_has_normals);
+  // Without input normals, what the full render shades: the crease rule's
+  // corner normals, over the page's triangles, at vertices whose fan the
+  // page holds whole (open_fan_vertices).
+  std::vector<Vec3> corner_normals;
+  std::vector<uint8_t> open_fan;
+  if (sample && !input_has_normals) {
+    corner_normals = crease_corner_normals(page.positions, page.index, crease_angle_deg);
+    open_fan = open_fan_vertices(page);
+  }
   if (sample) {
     size_t size = 16;
     while (size < 2 * nv) size *= 2;
@@ -386,7 +423,14 @@ void prepare_collapse(const PageMesh& page, std::span<const uint32_t> vertex_cel
     const uint32_t* vi = &page.index[3 * t];
     const Vec3 p[3] = {page.positions[vi[0]], page.positions[vi[1]], page.positions[vi[2]]};
     const uint32_t c[3] = {vertex_cell[vi[0]], vertex_cell[vi[1]], vertex_cell[vi[2]]};
-    if (sample) sample_nearest_points(p, normals, vi, c, rep_pos, out);
+    if (sample) {
+      if (normals) {
+        const Vec3 n3[3] = {normals[vi[0]], normals[vi[1]], normals[vi[2]]};
+        sample_nearest_points(p, n3, c, rep_pos, out);
+      } else if (!open_fan[vi[0]] && !open_fan[vi[1]] && !open_fan[vi[2]]) {
+        sample_nearest_points(p, &corner_normals[3 * t], c, rep_pos, out);
+      }
+    }
     if (c[0] != kKeepVertex && c[0] == c[1] && c[1] == c[2]) {
       // Wholly inside one collapsed cell: it disappears unexamined (most
       // triangles of a coarse cut end here); its normal reaches the cell
@@ -672,6 +716,10 @@ IndexedMesh CollapseBuilder::finish(CollapseStats* stats_out) {
   // face's normal alone, so the corners are resolved in parallel, a chunk
   // of triangles at a time, and split into output vertices in order.
   std::atomic<uint64_t> fallbacks{0};
+  // A sample stands in for a corner's cluster within the crease angle of
+  // it; one from the crease rule (no input normals) only within
+  // kCreaseSampleMaxTurn (collapse.h).
+  const double sample_cos = has_normals_ ? cos_crease_ : std::max(cos_crease_, std::cos(kCreaseSampleMaxTurn));
   const auto resolve_corner = [&](uint32_t v, const Vec3d& key) -> Vec3 {
     if (v >= nreps && has_normals_) return kept_normal_[v - nreps];  // input normals are kept exactly
     if (v < one_vertex.size() && one_vertex[v]) {  // as the vertex kept (collapse.h)
@@ -702,7 +750,7 @@ IndexedMesh CollapseBuilder::finish(CollapseStats* stats_out) {
       nd = glm::length(fallback) > 0 ? glm::normalize(fallback) : Vec3d(0, 1, 0);
     }
     // The input's normal at the representative (exact normals, collapse.h).
-    if (v < exact.size() && exact[v] && glm::dot(Vec3d(sample_normal_[v]), nd) >= cos_crease_) {
+    if (v < exact.size() && exact[v] && glm::dot(Vec3d(sample_normal_[v]), nd) >= sample_cos) {
       nd = sample_normal_[v];
       std::atomic_ref<uint8_t>(took[v]).store(1, std::memory_order_relaxed);
     }
@@ -1009,7 +1057,7 @@ Status collapse_pass(const OctreeStore& store, std::span<const CellKey> keys, co
           else w.decode_needed_normals();
         }
         prepare_collapse(w.page, w.vertex_cell, builder.representative_positions(), store.header().has_normals,
-                         w.prepared, config.exact_normals);
+                         w.prepared, config.exact_normals, config.crease_angle_deg);
         mark_page_unique_vertices(w.page, w.vertex_cell, neighbours.others(i), neighbours.inner(i), w.prepared);
         return {};
       },
@@ -1043,7 +1091,7 @@ StatusOr<SimplifyResult> simplify(const OctreeStore& store, const Cut& cut, cons
   result.cut_cells = cut.cells.size();
 
   // Exact normals keep a sample per representative (CollapseBuilder).
-  const uint64_t per_cell = config.exact_normals && h.has_normals ? kExactNormalsBytesPerRepresentative : 0;
+  const uint64_t per_cell = config.exact_normals ? kExactNormalsBytesPerRepresentative : 0;
   SimplifyEstimate estimate = estimate_simplify(store, cut);
   estimate.bytes += per_cell * cut.cells.size();
   if (config.memory_limit && estimate.bytes > config.memory_limit)

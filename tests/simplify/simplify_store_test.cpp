@@ -335,6 +335,127 @@ TEST(SimplifyStore, ExactNormalsFollowTheInputAtTheRepresentative) {
   EXPECT_LT(mean_exact, 0.25 * mean_cluster);
 }
 
+// A ripple as above without input normals, as a CAD STL comes: the full
+// render shades the crease rule's corner normals (crease_normals.h), here
+// the mean of the faces around each vertex, which exact normals interpolate
+// at the representative's nearest input point; the clusters' mean misses as
+// before. Amplitude 0.0006 (slopes up to 0.015 rad): a crease-rule sample
+// turns a representative's normal by at most a degree (collapse.h).
+TEST(SimplifyStore, ExactNormalsWithoutInputNormalsFollowTheCreaseRule) {
+  const double a = 0.0006, k = 2 * M_PI / 0.25, phase = 0.9;
+  auto height = [&](double x) { return a * std::sin(k * x + phase); };
+  auto normal_at = [&](double x) { return glm::normalize(Vec3d(-a * k * std::cos(k * x + phase), 0, 1)); };
+  TriangleBatch sheet;
+  const int nx = 384, ny = 96;
+  auto p = [&](int i, int j) {
+    const double x = -1.0 + 2.0 * i / nx, y = -1.0 + 2.0 * j / ny;
+    return Vec3(Vec3d(x, y, height(x)));
+  };
+  for (int i = 0; i < nx; ++i)
+    for (int j = 0; j < ny; ++j) {
+      test::add_tri(sheet, p(i, j), p(i + 1, j), p(i + 1, j + 1));
+      test::add_tri(sheet, p(i, j), p(i + 1, j + 1), p(i, j + 1));
+    }
+  BuiltStore b = build(sheet, "ripple-stl");
+  ASSERT_TRUE(b.store);
+  ASSERT_FALSE(b.store->header().has_normals);
+  const int level = int(std::round(std::log2(b.store->header().root_size / 0.25)));
+  const Cut cut = uniform_cut(*b.store, level);
+  auto errors = [&](bool exact, double* mean) {
+    SimplifyConfig config;
+    config.exact_normals = exact;
+    auto out = simplify(*b.store, cut, config);
+    EXPECT_TRUE(out.is_ok()) << out.status().message();
+    if (!out.is_ok()) return 10.0;
+    // Not beside the sheet's rim, whose vertices' fans are open (their
+    // corner normals would miss triangles: open_fan_vertices).
+    if (exact) {
+      EXPECT_GT(out->stats.exact_normals, (out->stats.representatives_used - out->stats.one_vertex_cells) / 2);
+    } else {
+      EXPECT_EQ(out->stats.exact_normals, 0u);
+    }
+    const IndexedMesh& m = out->mesh;
+    double most = 0, sum = 0;
+    size_t inner = 0;
+    for (size_t v = 0; v < m.positions.size(); ++v) {
+      // The sheet's rim: a vertex there sees half a fan.
+      const double x = m.origin.x + m.positions[v].x, y = m.origin.y + m.positions[v].y;
+      if (std::abs(x) > 0.98 || std::abs(y) > 0.24) continue;
+      const double e = std::acos(std::min(1.0, glm::dot(Vec3d(m.normals[v]), normal_at(x))));
+      most = std::max(most, e);
+      sum += e;
+      ++inner;
+    }
+    EXPECT_GT(inner, 0u);
+    *mean = sum / double(std::max<size_t>(inner, 1));
+    return most;
+  };
+  double mean_exact = 0, mean_cluster = 0;
+  const double exact = errors(true, &mean_exact), cluster = errors(false, &mean_cluster);
+  // Measured: 0.00037 against 0.0146 rad (means 0.0003 and 0.0074).
+  EXPECT_LT(exact, 0.002);
+  EXPECT_GT(cluster, 0.01);
+  EXPECT_LT(mean_exact, 0.1 * mean_cluster);
+}
+
+// Where the clusters' mean misses by more (slopes up to 0.1 rad, as in the
+// first ripple), a crease-rule sample turns no corner's normal by more than
+// a degree: samples further off came from another surface the cell holds
+// more often than not (collapse.h).
+TEST(SimplifyStore, ACreaseRuleSampleTurnsANormalByAtMostADegree) {
+  const double a = 0.004, k = 2 * M_PI / 0.25;
+  TriangleBatch sheet;
+  const int nx = 384, ny = 96;
+  auto p = [&](int i, int j) {
+    const double x = -1.0 + 2.0 * i / nx, y = -1.0 + 2.0 * j / ny;
+    return Vec3(Vec3d(x, y, a * std::sin(k * x + 0.9)));
+  };
+  for (int i = 0; i < nx; ++i)
+    for (int j = 0; j < ny; ++j) {
+      test::add_tri(sheet, p(i, j), p(i + 1, j), p(i + 1, j + 1));
+      test::add_tri(sheet, p(i, j), p(i + 1, j + 1), p(i, j + 1));
+    }
+  BuiltStore b = build(sheet, "ripple-stl-steep");
+  ASSERT_TRUE(b.store);
+  const Cut cut = uniform_cut(*b.store, int(std::round(std::log2(b.store->header().root_size / 0.25))));
+  SimplifyConfig plain, exact;
+  exact.exact_normals = true;
+  auto without = simplify(*b.store, cut, plain), with = simplify(*b.store, cut, exact);
+  ASSERT_TRUE(without.is_ok() && with.is_ok());
+  EXPECT_GT(with->stats.exact_normals, 0u);
+  ASSERT_EQ(without->mesh.indices.size(), with->mesh.indices.size());
+  double most = 0;
+  for (size_t i = 0; i < with->mesh.indices.size(); ++i) {
+    const Vec3d n0(without->mesh.normals[without->mesh.indices[i]]), n1(with->mesh.normals[with->mesh.indices[i]]);
+    most = std::max(most, std::acos(std::clamp(glm::dot(n0, n1), -1.0, 1.0)));
+  }
+  EXPECT_GT(most, 0.0);
+  EXPECT_LE(most, M_PI / 180.0 + 1e-4);
+}
+
+// A box without normals: its faces meet at 90 degrees, beyond the crease
+// angle, so the crease rule's corner normals are the faces' own and exact
+// normals keep every face flat-shaded.
+TEST(SimplifyStore, ExactNormalsWithoutInputNormalsKeepCreasesSplit) {
+  BuiltStore b = build(test::closed_box({-1, -1, -1}, {1, 1, 1}, 12), "exact-box-stl");
+  ASSERT_TRUE(b.store);
+  ASSERT_FALSE(b.store->header().has_normals);
+  SimplifyConfig config;
+  config.exact_normals = true;
+  auto out = simplify(*b.store, uniform_cut(*b.store, 4), config);
+  ASSERT_TRUE(out.is_ok()) << out.status().message();
+  EXPECT_GT(out->stats.exact_normals, 0u);
+  const IndexedMesh& m = out->mesh;
+  ASSERT_GT(m.triangle_count(), 0u);
+  size_t off_face = 0;
+  for (size_t t = 0; t < m.triangle_count(); ++t) {
+    const Vec3d f = face_normal(Vec3d(m.positions[m.indices[3 * t]]), Vec3d(m.positions[m.indices[3 * t + 1]]),
+                                Vec3d(m.positions[m.indices[3 * t + 2]]));
+    for (int k = 0; k < 3; ++k) off_face += glm::dot(Vec3d(m.normals[m.indices[3 * t + k]]), f) < 1 - 1e-6;
+  }
+  EXPECT_EQ(off_face, 0u);
+}
+
 // Across a crease the nearest input point lies on one side: only the corners
 // of that side take its normal, and every face of a box keeps its own.
 // A closed box, 12 x 12 quads a side, each corner carrying its face's normal.
