@@ -490,6 +490,7 @@ std::string probe_key(const Scene& scene, const OctreeStore& store, std::span<co
                       size_t store_index, const ProbeConfig& config) {
   uint64_t k = store_fingerprint(store);
   auto mix = [&](const auto& v) { k = fnv1a64(&v, sizeof(v), k); };
+  mix(kCutRulesVersion);
   const Camera& c = scene.camera;
   mix(c.eye);
   mix(c.look_at);
