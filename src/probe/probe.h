@@ -424,12 +424,12 @@ StatusOr<ProbeResult> run_probe(const Scene& scene, std::span<const ProbeStore> 
 
 // Fingerprint of a store's content and layout (what a cut is valid for).
 uint64_t store_fingerprint(const OctreeStore& store);
-// What the rules that select a cut and collapse it are: raised whenever they
-// change what cut or simplified mesh the same inputs give, so that a cache
-// filled by an earlier raylod (cut files beside the stores, simplified
-// meshes keyed by the cut's key) is not reused for them. 2: the deviation
-// tests take the shift footprint (ProbeHit::shift_footprint), and meshes
-// without normals on mirrors and glass get exact normals (2026-11-28).
+// What the rules that select a cut are: raised whenever they change what
+// cut the same inputs give, so that cut files an earlier raylod left beside
+// the stores are not reused for them. (Simplified meshes are cached by their
+// cut's cells and their normal rule, SimplifiedCache::key_for: a change to
+// the collapse alone must change that rule.) 2: the deviation tests take the
+// shift footprint (ProbeHit::shift_footprint), 2026-11-28.
 inline constexpr uint32_t kCutRulesVersion = 2;
 
 // The cut's key: a hash of the store fingerprint, the camera, the scene's

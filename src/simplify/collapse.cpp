@@ -365,11 +365,16 @@ void sample_nearest_points(const Vec3* p, const Vec3* n3, const uint32_t* c, std
 std::vector<uint8_t> open_fan_vertices(const PageMesh& page) {
   std::vector<uint64_t> edges;
   edges.reserve(page.index.size());
-  for (size_t t = 0; t < page.size(); ++t)
+  for (size_t t = 0; t < page.size(); ++t) {
+    const uint32_t* f = &page.index[3 * t];
+    // A triangle with a repeated corner has no edges of its own: counting
+    // (a, b) and (b, a) of (a, a, b) would close a border edge.
+    if (f[0] == f[1] || f[1] == f[2] || f[0] == f[2]) continue;
     for (int k = 0; k < 3; ++k) {
-      const uint64_t a = page.index[3 * t + size_t(k)], b = page.index[3 * t + size_t((k + 1) % 3)];
-      if (a != b) edges.push_back(std::min(a, b) << 32 | std::max(a, b));
+      const uint64_t a = f[k], b = f[(k + 1) % 3];
+      edges.push_back(std::min(a, b) << 32 | std::max(a, b));
     }
+  }
   std::sort(edges.begin(), edges.end());
   std::vector<uint8_t> open(page.vertices(), 0);
   for (size_t i = 0; i < edges.size();) {
@@ -427,7 +432,9 @@ void prepare_collapse(const PageMesh& page, std::span<const uint32_t> vertex_cel
       if (normals) {
         const Vec3 n3[3] = {normals[vi[0]], normals[vi[1]], normals[vi[2]]};
         sample_nearest_points(p, n3, c, rep_pos, out);
-      } else if (!open_fan[vi[0]] && !open_fan[vi[1]] && !open_fan[vi[2]]) {
+      } else if (!open_fan[vi[0]] && !open_fan[vi[1]] && !open_fan[vi[2]] && !zero_area(p[0], p[1], p[2])) {
+        // (A triangle without area has no normal of its own: the crease
+        // rule gives its corners a mean across creases.)
         sample_nearest_points(p, &corner_normals[3 * t], c, rep_pos, out);
       }
     }

@@ -4,6 +4,7 @@
 
 #include <cmath>
 #include <map>
+#include <optional>
 #include <random>
 #include <set>
 
@@ -680,6 +681,47 @@ TEST(CollapseDeviationProperty, CollapsedSphereStaysWithinTheDeviationItsCellsPr
       // cell's angular size, sqrt(2 promised_normal) (collapse_deviation.h).
       EXPECT_LE(angle, std::sqrt(2.0 * promised_normal) + 1e-3) << "level " << level << " vertex " << v;
     }
+  }
+}
+
+// Exact normals without input normals sample the crease rule's corner
+// normals over the page's triangles (prepare_collapse), which are right only
+// at vertices whose whole fan the page holds. A flat double cone (a closed
+// mesh) whose top apex has a cell of its own: with the whole mesh on the
+// page the sample is the axis; with half of it (the rest on another page) no
+// sample is taken, even when triangles with a repeated corner lie along the
+// cut edges (counting their two equal edges once each closed the fan).
+TEST(PrepareCollapse, CreaseSamplesComeOnlyFromFansThePageHoldsWhole) {
+  const int n = 12;
+  auto page_of = [&](int wedges, bool degenerate) {
+    PageMesh page;
+    page.positions.push_back(Vec3(0, 0, 0.05f));   // top apex, vertex 0
+    page.positions.push_back(Vec3(0, 0, -0.05f));  // bottom apex, vertex 1
+    for (int i = 0; i < n; ++i)
+      page.positions.push_back(Vec3(float(std::cos(2 * M_PI * i / n)), float(std::sin(2 * M_PI * i / n)), 0.0f));
+    auto ring = [&](int i) { return uint32_t(2 + i % n); };
+    for (int i = 0; i < wedges; ++i) {
+      page.index.insert(page.index.end(), {0u, ring(i), ring(i + 1)});
+      page.index.insert(page.index.end(), {1u, ring(i + 1), ring(i)});
+    }
+    if (degenerate) page.index.insert(page.index.end(), {0u, 0u, ring(0), 0u, ring(wedges), 0u});
+    return page;
+  };
+  auto sample = [&](const PageMesh& page) -> std::optional<Vec3> {
+    std::vector<uint32_t> cell(page.vertices(), kKeepVertex);
+    cell[0] = 0;
+    const std::vector<Vec3> rep_pos = {page.positions[0]};
+    PreparedBatch out;
+    prepare_collapse(page, cell, rep_pos, false, out, true);
+    if (out.rep_samples.empty()) return std::nullopt;
+    EXPECT_EQ(out.rep_samples.size(), 1u);
+    return out.rep_samples[0].normal;
+  };
+  for (const bool degenerate : {false, true}) {
+    const std::optional<Vec3> whole = sample(page_of(n, degenerate));
+    ASSERT_TRUE(whole.has_value()) << degenerate;
+    EXPECT_NEAR(whole->z, 1.0f, 1e-6f);
+    EXPECT_FALSE(sample(page_of(n / 2, degenerate)).has_value()) << degenerate;
   }
 }
 
