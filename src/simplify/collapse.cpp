@@ -409,7 +409,11 @@ void prepare_collapse(const PageMesh& page, std::span<const uint32_t> vertex_cel
   // page holds whole (open_fan_vertices).
   std::vector<Vec3> corner_normals;
   std::vector<uint8_t> open_fan;
-  if (sample && !input_has_normals) {
+  // (Only on pages with a collapsed vertex: samples are taken for
+  // representatives alone.)
+  const bool page_collapses =
+      std::any_of(vertex_cell.begin(), vertex_cell.end(), [](uint32_t c) { return c != kKeepVertex; });
+  if (sample && !input_has_normals && page_collapses) {
     corner_normals = crease_corner_normals(page.positions, page.index, crease_angle_deg);
     open_fan = open_fan_vertices(page);
   }
@@ -432,7 +436,8 @@ void prepare_collapse(const PageMesh& page, std::span<const uint32_t> vertex_cel
       if (normals) {
         const Vec3 n3[3] = {normals[vi[0]], normals[vi[1]], normals[vi[2]]};
         sample_nearest_points(p, n3, c, rep_pos, out);
-      } else if (!open_fan[vi[0]] && !open_fan[vi[1]] && !open_fan[vi[2]] && !zero_area(p[0], p[1], p[2])) {
+      } else if (!open_fan.empty() && !open_fan[vi[0]] && !open_fan[vi[1]] && !open_fan[vi[2]] &&
+                 !zero_area(p[0], p[1], p[2])) {
         // (A triangle without area has no normal of its own: the crease
         // rule gives its corners a mean across creases.)
         sample_nearest_points(p, &corner_normals[3 * t], c, rep_pos, out);
