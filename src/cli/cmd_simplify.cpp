@@ -72,8 +72,10 @@ int run_simplify(int argc, char** argv) {
                                                 "                              normals: one with its own keeps the default)", true, "DEG"},
              {"--fold-passes", "", "passes that refine cells whose collapse turns a triangle over\n"
                                    "                              (default 0; raylod run uses 3 on mirror and glass meshes)", true, "N"},
-             {"--exact-normals", "", "meshes with normals: a representative takes the input normal at the\n"
-                                     "                              input point nearest it (raylod run does on mirror and glass meshes)",
+             {"--exact-normals", "", "a representative takes the normal the full render shades at the input\n"
+                                     "                              point nearest it: the input's, or without normals the crease rule's\n"
+                                     "                              (within a degree of the cell's mean; raylod run does on mirror and\n"
+                                     "                              glass meshes)",
               false, ""},
              {"--quiet", "-q", "no progress bar", false, ""}});
   if (Status st = args.parse(argc, argv); !st) return fail("simplify", st);

@@ -428,8 +428,9 @@ uint64_t store_fingerprint(const OctreeStore& store);
 // cut the same inputs give, so that cut files an earlier raylod left beside
 // the stores are not reused for them. (Simplified meshes are cached by their
 // cut's cells and their normal rule, SimplifiedCache::key_for: a change to
-// the collapse alone must change that rule.) 2: the deviation tests take the
-// shift footprint (ProbeHit::shift_footprint), 2026-11-28.
+// the collapse alone must change that rule.) 1: the rules before the
+// version was kept; 2: the deviation tests take the shift footprint
+// (ProbeHit::shift_footprint), 2026-11-28.
 inline constexpr uint32_t kCutRulesVersion = 2;
 
 // The cut's key: a hash of the store fingerprint, the camera, the scene's
