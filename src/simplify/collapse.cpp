@@ -403,17 +403,16 @@ void prepare_collapse(const PageMesh& page, std::span<const uint32_t> vertex_cel
   out.rep_corners.clear();
   out.unique.clear();
   out.rep_samples.clear();
-  const bool sample = exact_normals && (page_normals || !input_has_normals);
+  // Samples are taken for representatives alone: only on pages with a
+  // collapsed vertex.
+  const bool sample = exact_normals && (page_normals || !input_has_normals) &&
+                      std::any_of(vertex_cell.begin(), vertex_cell.end(), [](uint32_t c) { return c != kKeepVertex; });
   // Without input normals, what the full render shades: the crease rule's
   // corner normals, over the page's triangles, at vertices whose fan the
   // page holds whole (open_fan_vertices).
   std::vector<Vec3> corner_normals;
   std::vector<uint8_t> open_fan;
-  // (Only on pages with a collapsed vertex: samples are taken for
-  // representatives alone.)
-  const bool page_collapses =
-      std::any_of(vertex_cell.begin(), vertex_cell.end(), [](uint32_t c) { return c != kKeepVertex; });
-  if (sample && !input_has_normals && page_collapses) {
+  if (sample && !input_has_normals) {
     corner_normals = crease_corner_normals(page.positions, page.index, crease_angle_deg);
     open_fan = open_fan_vertices(page);
   }
@@ -436,8 +435,7 @@ void prepare_collapse(const PageMesh& page, std::span<const uint32_t> vertex_cel
       if (normals) {
         const Vec3 n3[3] = {normals[vi[0]], normals[vi[1]], normals[vi[2]]};
         sample_nearest_points(p, n3, c, rep_pos, out);
-      } else if (!open_fan.empty() && !open_fan[vi[0]] && !open_fan[vi[1]] && !open_fan[vi[2]] &&
-                 !zero_area(p[0], p[1], p[2])) {
+      } else if (!open_fan[vi[0]] && !open_fan[vi[1]] && !open_fan[vi[2]] && !zero_area(p[0], p[1], p[2])) {
         // (A triangle without area has no normal of its own: the crease
         // rule gives its corners a mean across creases.)
         sample_nearest_points(p, &corner_normals[3 * t], c, rep_pos, out);
