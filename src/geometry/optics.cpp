@@ -8,20 +8,36 @@ namespace raylod {
 
 Vec3d reflect(const Vec3d& d, const Vec3d& n) { return d - 2.0 * glm::dot(d, n) * n; }
 
+namespace {
+// cos^2(theta_t) = 1 - eta^2 sin^2(theta_i), written so that it does not
+// cancel at grazing incidence: for eta = 1 it is cos_i^2 exactly, where
+// 1 - (1 - cos_i^2) would round to 0 (a false total internal reflection)
+// once cos_i^2 drops below the double epsilon.
+double cos2_transmitted(double cos_i, double eta) {
+  const double e2 = eta * eta;
+  return (1.0 - e2) + e2 * std::min(1.0, cos_i * cos_i);
+}
+}  // namespace
+
 bool refract(const Vec3d& d, const Vec3d& n, double eta, Vec3d& out) {
   const double cos_i = -glm::dot(d, n);
-  const double sin2_t = eta * eta * std::max(0.0, 1.0 - cos_i * cos_i);
-  if (sin2_t >= 1.0) return false;
-  const double cos_t = std::sqrt(1.0 - sin2_t);
+  const double cos2_t = cos2_transmitted(cos_i, eta);
+  // Only a ray going into a less dense medium (eta > 1) can be reflected
+  // whole; for eta <= 1, cos2_t >= eta^2 cos_i^2 >= 0.
+  if (eta > 1.0 && cos2_t <= 0.0) return false;
+  const double cos_t = std::sqrt(std::max(0.0, cos2_t));
   out = glm::normalize(eta * d + (eta * cos_i - cos_t) * n);
   return true;
 }
 
 double fresnel_dielectric(double cos_i, double eta) {
+  // Matched indices are no interface: nothing is reflected, even at grazing
+  // incidence (where the formulas below are 0/0).
+  if (eta == 1.0) return 0.0;
   cos_i = std::clamp(cos_i, 0.0, 1.0);
-  const double sin2_t = eta * eta * (1.0 - cos_i * cos_i);
-  if (sin2_t >= 1.0) return 1.0;
-  const double cos_t = std::sqrt(1.0 - sin2_t);
+  const double cos2_t = cos2_transmitted(cos_i, eta);
+  if (cos2_t <= 0.0) return 1.0;
+  const double cos_t = std::sqrt(cos2_t);
   // Fresnel equations divided through by n_t.
   const double rs = (eta * cos_i - cos_t) / (eta * cos_i + cos_t);
   const double rp = (cos_i - eta * cos_t) / (cos_i + eta * cos_t);

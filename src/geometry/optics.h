@@ -29,11 +29,12 @@ inline float max_channel(const Vec3& c) { return std::max({c.x, c.y, c.z}); }
 Vec3d reflect(const Vec3d& d, const Vec3d& n);
 // Refracts unit d at unit normal n facing against d (d . n < 0), with
 // eta = n_incident / n_transmitted (Snell's law). False on total internal
-// reflection, i.e. when sin^2(theta_t) = eta^2 (1 - cos^2(theta_i)) >= 1.
+// reflection, i.e. when eta > 1 and sin^2(theta_t) = eta^2 (1 - cos^2(theta_i))
+// >= 1; never for eta <= 1, even at grazing incidence.
 bool refract(const Vec3d& d, const Vec3d& n, double eta, Vec3d& out);
 // Unpolarised Fresnel reflectance of a dielectric interface (average of the
 // s and p terms), cos_i = cosine of the incidence angle, eta as above;
-// 1 under total internal reflection.
+// 1 under total internal reflection, 0 for eta = 1 (no interface).
 double fresnel_dielectric(double cos_i, double eta);
 
 // The normals of a specular hit, turned to the side the ray arrives from.

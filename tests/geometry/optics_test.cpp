@@ -36,6 +36,33 @@ TEST(Optics, TotalInternalReflectionBeyondTheCriticalAngle) {
   }
 }
 
+TEST(Optics, MatchedIndicesTransmitEveryRayStraightEvenAtGrazingIncidence) {
+  // An ior of 1 in air is no interface. At grazing incidence 1 - cos_i^2
+  // rounds to 1 once cos_i^2 is below the double epsilon, which a naive
+  // sin^2(theta_t) turns into total internal reflection.
+  const Vec3d n(0, 1, 0);
+  for (double cos_i : {1e-3, 1e-8, 1e-9, 1e-12, 1e-200, 0.0}) {
+    const Vec3d d = glm::normalize(Vec3d(std::sqrt(1 - cos_i * cos_i), -cos_i, 0));
+    for (double eta : {1.0, 1.0 - 1e-12}) {
+      Vec3d t;
+      ASSERT_TRUE(refract(d, n, eta, t)) << "cos_i " << cos_i << " eta " << eta;
+      // eta < 1 bends a grazing ray by up to sqrt(1 - eta^2) ~ 1.4e-6 here.
+      EXPECT_LT(glm::length(t - d), eta == 1.0 ? 1e-12 : 2e-6) << "cos_i " << cos_i;
+    }
+    EXPECT_EQ(fresnel_dielectric(cos_i, 1.0), 0.0) << cos_i;
+    // Just above 1, a grazing ray is reflected whole, as it should be.
+    EXPECT_EQ(fresnel_dielectric(cos_i, 1.0 + 1e-3), cos_i < 1e-2 ? 1.0 : fresnel_dielectric(cos_i, 1.0 + 1e-3));
+  }
+  // Straight through at every angle, reflecting nothing.
+  for (double a = 0; a < 1.5707; a += 0.05) {
+    const Vec3d d(std::sin(a), -std::cos(a), 0);
+    Vec3d t;
+    ASSERT_TRUE(refract(d, n, 1.0, t));
+    EXPECT_LT(glm::length(t - d), 1e-12) << a;
+    EXPECT_EQ(fresnel_dielectric(std::cos(a), 1.0), 0.0);
+  }
+}
+
 using test::random_unit;
 
 // Angle between two unit vectors, robust near 0 and pi.
