@@ -233,7 +233,10 @@ std::optional<CacheEntry> SimplifiedCache::find_reusable(const Cut& wanted, doub
     if (e.normal_bits < normal_bits) continue;  // normals quantised more coarsely than asked (or unknown)
     if (candidates && !candidates->count(e.key)) continue;
     auto cut = read_cut(e.cut);
-    if (!cut.is_ok()) {  // corrupt or missing: the entry can never be reused
+    // Corrupt, missing, or not the cut the mesh was made from (the key hashes
+    // that cut's cells: a .cut swapped in from another entry or view would
+    // let a coarser mesh pass the reuse rule): the entry can never be reused.
+    if (!cut.is_ok() || key_for(*cut, e.crease_angle_deg, e.exact_normals, e.normal_bits) != e.key) {
       remove_entry_files(dir_ / "simplified", e.key);
       continue;
     }

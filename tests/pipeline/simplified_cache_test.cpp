@@ -117,6 +117,29 @@ TEST(SimplifiedCache, CorruptEntryIsRemovedNotReturned) {
   EXPECT_FALSE(cache->find_reusable(cut, 1.0).has_value());
 }
 
+TEST(SimplifiedCache, AnEntryWhoseCutIsNotTheOneItWasMadeFromIsRemovedNotReused) {
+  // A coarse mesh whose .cut was replaced by a fine cut's (copied over by
+  // hand, or another entry's): the reuse rule would read the fine cut and
+  // hand out the coarse mesh. The key hashes the cut the mesh was made from.
+  fs::path dir = fresh_dir("swapped");
+  auto cache = SimplifiedCache::open(dir, 1 << 20);
+  ASSERT_TRUE(cache.is_ok());
+  Cut fine = make_cut(9, {{4, 40}});
+  Cut coarse = make_cut(9, {{2, 0}});
+  auto f = cache->insert(fine, write_file(dir / "a.drc", 100, 'a'), 500, 0.001);
+  auto c = cache->insert(coarse, write_file(dir / "c.drc", 100, 'c'), 100, 0.001);
+  ASSERT_TRUE(f.is_ok() && c.is_ok());
+  Cut wanted = make_cut(9, {{3, 5}});
+  ASSERT_EQ(cache->find_reusable(wanted, 1.0)->key, f->key);  // the coarse one is too coarse
+  fs::copy_file(f->cut, c->cut, fs::copy_options::overwrite_existing);
+  auto got = cache->find_reusable(wanted, 1.0);
+  ASSERT_TRUE(got.has_value());
+  EXPECT_EQ(got->key, f->key);
+  EXPECT_EQ(got->triangles, 500u);
+  EXPECT_FALSE(fs::exists(c->mesh));
+  EXPECT_FALSE(fs::exists(c->cut));
+}
+
 TEST(SimplifiedCache, ReusesTheCoarsestFineEnoughEntry) {
   fs::path dir = fresh_dir("reuse");
   auto cache = SimplifiedCache::open(dir, 1 << 20);
