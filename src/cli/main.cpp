@@ -55,6 +55,16 @@ int main(int argc, char** argv) {
                  feature);
     return 1;
   }
+  // Under mpirun, MPI for the whole command (core/cluster.h); otherwise nothing.
+  raylod::cluster::Session cluster(argc, argv);
+  // Every rank runs the same command line (cluster::same_command_line),
+  // checked before anything can end a rank early: a rank started with
+  // --help or --version beside ranks rendering is this error, not a job
+  // that mpirun ends for a rank that left without MPI.
+  if (const raylod::Status same = raylod::cluster::same_command_line(argc, argv); !same.is_ok()) {
+    if (raylod::cluster::is_root()) std::fprintf(raylod::cluster::error_output(), "raylod: error: %s\n", same.message().c_str());
+    return 1;
+  }
   // `raylod help COMMAND` is `raylod COMMAND --help`.
   if (argc == 3 && !std::strcmp(argv[1], "help"))
     for (const auto& c : raylod::cli::commands())
@@ -70,13 +80,6 @@ int main(int argc, char** argv) {
   if (!std::strcmp(argv[1], "--version")) {
     std::printf("raylod %s\n", RAYLOD_VERSION);
     return 0;
-  }
-  // Under mpirun, MPI for the whole command (core/cluster.h); otherwise nothing.
-  raylod::cluster::Session cluster(argc, argv);
-  // Every rank runs the same command line (cluster::same_command_line).
-  if (const raylod::Status same = raylod::cluster::same_command_line(argc, argv); !same.is_ok()) {
-    if (raylod::cluster::is_root()) std::fprintf(raylod::cluster::error_output(), "raylod: error: %s\n", same.message().c_str());
-    return 1;
   }
   for (const auto& c : raylod::cli::commands()) {
     if (std::strcmp(c.name, argv[1]) == 0) {

@@ -150,6 +150,15 @@ case "$case" in
     expect_error "ranks with other arguments" "raylod: error: rank $last of $np: started with other arguments than rank 0's"
     [ -z "$(ls -A mpi)" ] || fail "ranks with other arguments wrote $(ls -A mpi)"
     no_temporaries
+    # The same when the odd rank would end at once (--help, --version):
+    # raylod's own error, not mpirun's for a rank that left without MPI.
+    for early in --version --help; do
+      status=0
+      out="$("$mpiexec" --allow-run-as-root --oversubscribe -np "$last" "$raylod" render scene.json -o mpi/f.png -q --threads 1 : \
+             -np 1 "$raylod" "$early" 2>&1)" || status=$?
+      expect_error "a rank started with $early" "raylod: error: rank $last of $np: started with other arguments than rank 0's"
+      [ -z "$(ls -A mpi)" ] || fail "a rank started with $early: the others wrote $(ls -A mpi)"
+    done
     # The frame's name is a folder: refused before rendering, once. (A
     # write failing after the render, on whichever rank, is the run --views
     # case below: only view 0's name is checked before.)
