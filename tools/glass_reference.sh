@@ -78,7 +78,7 @@ reference bottle "$bottle"
 gen_bottle() {  # triangles [around] -> $mesh, $count
   local name=bottle-$1${2:+-a$2}
   mesh=$work/$name.ply
-  "$raylod" gen bottle --triangles "$1" ${2:+--around $2} -q -o "$mesh" > "$work/$name.log"
+  "$raylod" gen bottle --triangles "$1" ${2:+--around $2} -o "$mesh" > "$work/$name.log"
   count=$(sed -n 's/^  triangles  \([0-9]*\).*/\1/p' "$work/$name.log")
 }
 for n in 44574 105000 250000; do
@@ -100,7 +100,7 @@ grep -q '"triangles": 20000}' "$work/glass10.json" || { echo "glass_reference.sh
 RAYLOD_CACHE_DIR=$work/cache render "$work/glass10.json" -o "$work/glass10.png"
 row "glass teapot and mirror bottle, both 10x" "220,000" "$work/glass10.png" "$work/glass.full.png"
 for n in 440000 200000; do
-  "$raylod" gen teapot --triangles $n -q -o "$work/teapot-$n.ply" > "$work/teapot-$n.log"
+  "$raylod" gen teapot --triangles $n -o "$work/teapot-$n.ply" > "$work/teapot-$n.log"
   count=$(sed -n 's/^  triangles  \([0-9]*\).*/\1/p' "$work/teapot-$n.log")
   render "$glass" --mesh "$work/teapot-$n.ply" -o "$work/glass-teapot-$n.png"
   row "glass teapot alone, mirror bottle full" "$count + 200,000" "$work/glass-teapot-$n.png" "$work/glass.full.png"

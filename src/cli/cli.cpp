@@ -2,11 +2,13 @@
 
 #include <cctype>
 #include <cmath>
+#include <cstdarg>
 #include <cstdio>
 #include <optional>
 #include <sstream>
 
 #include "core/cluster.h"
+#include "core/progress.h"
 #include "core/system.h"
 
 namespace raylod::cli {
@@ -248,6 +250,28 @@ StatusOr<int> threads_from_argv(int argc, char** argv) {
   RAYLOD_RETURN_IF_ERROR(parsed.parse(3, values));
   RAYLOD_ASSIGN_OR_RETURN(int64_t threads, parsed.get_int("--threads", 0, 0, 4096));
   return int(threads);
+}
+
+namespace {
+bool g_quiet = false;
+}  // namespace
+
+Args::Option quiet_option() {
+  return {"--quiet", "-q", "no progress bars, log lines or summary: errors and warnings only", false, ""};
+}
+
+bool apply_quiet(const Args& args) {
+  g_quiet = args.has("--quiet");
+  if (g_quiet) Progress::set_enabled(false);
+  return g_quiet;
+}
+
+void summary(const char* format, ...) {
+  if (g_quiet) return;
+  va_list values;
+  va_start(values, format);
+  std::vprintf(format, values);
+  va_end(values);
 }
 
 int fail(const char* command, const Status& status) {

@@ -120,6 +120,17 @@ StatusOr<int> threads_from_argv(int argc, char** argv);
 // means no limit (memory_budget.h). `raylod render` alone defaults to no limit.
 StatusOr<MemoryBudget> memory_budget_from_args(const Args& args);
 
+// --quiet / -q means the same on every command that takes it: no progress
+// bars, no log lines and no summary, only errors and warnings (on stderr).
+// Files the command writes (images, --stats-json) are written as without it.
+Args::Option quiet_option();
+// Reads --quiet from args: turns the progress bars off and the summary()
+// lines with them. Returns whether it was given.
+bool apply_quiet(const Args& args);
+// A line of the summary a command prints on stdout when it is done
+// (printf-style); nothing under --quiet.
+void summary(const char* format, ...) __attribute__((format(printf, 1, 2)));
+
 // Prints "raylod <cmd>: <message>" to stderr and returns the exit code 1.
 int fail(const char* command, const Status& status);
 

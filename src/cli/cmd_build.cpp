@@ -34,7 +34,7 @@ int run_build(int argc, char** argv) {
              {"--page-triangles", "", "target triangles per page (default 4096)", true, "N"},
              {"--force", "", "rebuild even if the store is up to date", false, ""},
              {"--verify", "", "hash the mesh and check every page's checksum of an up-to-date store; rebuild it on a mismatch", false, ""},
-             {"--quiet", "-q", "no progress bar", false, ""}});
+             quiet_option()});
   if (Status st = args.parse(argc, argv); !st) return fail("build", st);
   if (args.help_requested()) {
     std::printf("%s", args.help_text().c_str());
@@ -52,42 +52,42 @@ int run_build(int argc, char** argv) {
   auto page = args.get_int("--page-triangles", options.page_triangles, 1, 1 << 24);
   if (!page) return fail("build", page.status());
   options.page_triangles = uint32_t(*page);
-  if (args.has("--quiet")) Progress::set_enabled(false);
+  const bool quiet = apply_quiet(args);
   // Beside the mesh, or in the cache for a mesh in a read-only folder (as run finds it).
   std::string where;
   const std::filesystem::path store = args.has("--output") ? std::filesystem::path(args.get("--output"))
                                                            : store_path_for(mesh, default_cache_dir(), options, &where);
   if (Status st = check_outputs_apart({{store, "the store (-o)"}}, {{mesh, "the mesh"}}); !st) return fail("build", st);
-  if (!where.empty()) std::fprintf(stderr, "raylod build: %s\n", where.c_str());
+  if (!where.empty() && !quiet) std::fprintf(stderr, "raylod build: %s\n", where.c_str());
   // --force replaces the old store atomically; it stays in place if the build fails.
   auto built = build_store(mesh, store, options, args.has("--force"), args.has("--verify"));
   if (!built) return fail("build", built.status());
   const BuildReport& r = *built;
   if (r.reused) {
-    std::printf("%s: %s; nothing to do (use --force to rebuild)\n", store.string().c_str(), r.reason.c_str());
+    summary("%s: %s; nothing to do (use --force to rebuild)\n", store.string().c_str(), r.reason.c_str());
     return 0;
   }
   if (!r.warning.empty()) std::fprintf(stderr, "raylod build: warning: %s\n", r.warning.c_str());
-  std::printf("built %s (%s)\n", store.string().c_str(), r.reason.c_str());
-  std::printf("  triangles      %llu\n", (unsigned long long)r.triangles);
-  std::printf("  levels         0..%d with quadrics%s, pages at level %d\n", r.quadric_depth,
+  summary("built %s (%s)\n", store.string().c_str(), r.reason.c_str());
+  summary("  triangles      %llu\n", (unsigned long long)r.triangles);
+  summary("  levels         0..%d with quadrics%s, pages at level %d\n", r.quadric_depth,
               r.coarsened ? " (lowered during the build to fit --memory-limit)" : "", r.page_level);
-  std::printf("  nodes          %llu (quadric memory %s)\n", (unsigned long long)r.nodes,
+  summary("  nodes          %llu (quadric memory %s)\n", (unsigned long long)r.nodes,
               format_bytes(r.node_table_bytes).c_str());
-  std::printf("  pages          %llu (%.0f triangles per page on average)\n", (unsigned long long)r.pages,
+  summary("  pages          %llu (%.0f triangles per page on average)\n", (unsigned long long)r.pages,
               r.pages ? double(r.triangles) / double(r.pages) : 0.0);
-  std::printf("  open edges     %llu (edges of one triangle: holes' and open surfaces' rims)%s\n",
+  summary("  open edges     %llu (edges of one triangle: holes' and open surfaces' rims)%s\n",
               (unsigned long long)r.open_edges,
               r.open_edges_capped ? "; too many to match across pages within the memory limit, so some interior "
                                     "edges between pages were flagged too (more cells kept near them)"
                                   : "");
-  std::printf("  store          %s (%.2fx the mesh's %s)\n", format_bytes(r.store_bytes).c_str(),
+  summary("  store          %s (%.2fx the mesh's %s)\n", format_bytes(r.store_bytes).c_str(),
               r.source_bytes ? double(r.store_bytes) / double(r.source_bytes) : 0.0,
               format_bytes(r.source_bytes).c_str());
-  std::printf("  time           %.2f s (%.2f M triangles/s): bounds %.2f, binning %.2f, pages %.2f, fsync %.2f\n",
+  summary("  time           %.2f s (%.2f M triangles/s): bounds %.2f, binning %.2f, pages %.2f, fsync %.2f\n",
               r.seconds, double(r.triangles) / r.seconds / 1e6, r.scan_seconds, r.bin_seconds, r.write_seconds,
               r.commit_seconds);
-  std::printf("  peak RSS       %s (limit %s)\n", format_bytes(peak_rss_bytes()).c_str(),
+  summary("  peak RSS       %s (limit %s)\n", format_bytes(peak_rss_bytes()).c_str(),
               describe_memory_limit(options.memory_limit).c_str());
   return 0;
 }

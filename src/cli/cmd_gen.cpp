@@ -51,7 +51,7 @@ int run_gen(int argc, char** argv) {
              {"--no-normals", "", "omit vertex normals from the PLY", false, ""},
              {"--around", "", "bottle: columns around the axis (default: triangles close to square on the body)",
               true, "N"},
-             {"--quiet", "-q", "no progress bar", false, ""}});
+             quiet_option()});
   if (Status st = args.parse(argc, argv); !st) return fail("gen", st);
   if (args.help_requested()) {
     std::printf("%s", args.help_text().c_str());
@@ -71,25 +71,25 @@ int run_gen(int argc, char** argv) {
   if (!around) return fail("gen", around.status());
   options.around = uint32_t(*around);
   // A progress bar only where there is time to watch one.
-  options.progress = !args.has("--quiet") && options.triangles >= 5000000;
+  options.progress = !apply_quiet(args) && options.triangles >= 5000000;
   const std::string out = args.get("--output", options.shape + "-" + human_count(options.triangles) + ".ply");
   auto report = generate_mesh(options, out);
   if (!report) return fail("gen", report.status());
   const GenReport& r = *report;
-  std::printf("wrote %s\n", r.path.string().c_str());
-  std::printf("  shape      %s (%s)\n", r.shape.c_str(), r.grid.c_str());
-  std::printf("  triangles  %llu (requested %llu, %+.3f%%)\n", (unsigned long long)r.triangles,
+  summary("wrote %s\n", r.path.string().c_str());
+  summary("  shape      %s (%s)\n", r.shape.c_str(), r.grid.c_str());
+  summary("  triangles  %llu (requested %llu, %+.3f%%)\n", (unsigned long long)r.triangles,
               (unsigned long long)r.requested_triangles,
               100.0 * (double(r.triangles) - double(r.requested_triangles)) / double(r.requested_triangles));
-  std::printf("  vertices   %llu%s\n", (unsigned long long)r.vertices,
+  summary("  vertices   %llu%s\n", (unsigned long long)r.vertices,
               r.format == "stl" ? " (STL stores 3 per triangle)" : "");
-  std::printf("  bytes      %llu (%s, %s)\n", (unsigned long long)r.bytes, format_bytes(r.bytes).c_str(),
+  summary("  bytes      %llu (%s, %s)\n", (unsigned long long)r.bytes, format_bytes(r.bytes).c_str(),
               r.format == "ply" ? (options.normals ? "binary PLY with vertex normals" : "binary PLY")
                                 : "binary STL with face normals");
-  std::printf("  bounds     [%.4f %.4f %.4f] .. [%.4f %.4f %.4f]\n", r.bounds.lo.x, r.bounds.lo.y, r.bounds.lo.z,
+  summary("  bounds     [%.4f %.4f %.4f] .. [%.4f %.4f %.4f]\n", r.bounds.lo.x, r.bounds.lo.y, r.bounds.lo.z,
               r.bounds.hi.x, r.bounds.hi.y, r.bounds.hi.z);
-  std::printf("  seconds    %.2f (%.1f M triangles/s)\n", r.seconds, double(r.triangles) / r.seconds / 1e6);
-  std::printf("  peak RSS   %s\n", format_bytes(peak_rss_bytes()).c_str());
+  summary("  seconds    %.2f (%.1f M triangles/s)\n", r.seconds, double(r.triangles) / r.seconds / 1e6);
+  summary("  peak RSS   %s\n", format_bytes(peak_rss_bytes()).c_str());
   return 0;
 }
 

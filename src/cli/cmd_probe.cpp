@@ -34,7 +34,7 @@ int cmd_probe(int argc, char** argv) {
                   cli::threads_option(),
                   {"--memory-limit", "", "memory limit (default: a quarter of physical memory)", true, "SIZE"},
                   {"--output", "-o", "cut file to write (single-mesh scenes)", true, "CUT"},
-                  {"--quiet", "-q", "no progress bar or summary lines (errors only)", false, ""}}));
+                  cli::quiet_option()}));
   // Under mpirun the test rays are split across the ranks; rank 0 writes the cut.
   cluster::enlist();
   if (Status s = args.parse(argc, argv); !s) return cli::fail("probe", s);
@@ -55,8 +55,7 @@ int cmd_probe(int argc, char** argv) {
   for (const Status& s : {rays.status(), seed.status(), limit.status()})
     if (!s) return cli::fail("probe", s);
 
-  const bool quiet = args.has("--quiet");
-  if (quiet) Progress::set_enabled(false);
+  const bool quiet = cli::apply_quiet(args);
   // One store per distinct mesh, built first if missing or stale (saying so).
   const MemoryBudget budget = *limit;
   StoreOptions store_options;
@@ -100,10 +99,6 @@ int cmd_probe(int argc, char** argv) {
   if (!traced) return cli::fail("probe", traced.status());
   auto result = select_cuts(*traced, scene, stores, objects, config);
   if (Status s = cluster::agree(result.status()); !s) return cli::fail("probe", s);
-  // The summary lines, unless --quiet.
-  auto say = [&](const char* format, auto... values) {
-    if (!quiet) std::printf(format, values...);
-  };
   // Every rank has the same cuts; rank 0 writes them, the others wait to
   // learn whether it could.
   auto write_cuts = [&]() -> Status {
@@ -112,15 +107,15 @@ int cmd_probe(int argc, char** argv) {
       auto it = r.counters.find(name);
       return static_cast<unsigned long long>(it == r.counters.end() ? 0 : it->second);
     };
-    say("probe: %llu test rays in %.2f s (+ %.2f s for the cut): %llu primary, %llu reflection, %llu refraction "
+    cli::summary("probe: %llu test rays in %.2f s (+ %.2f s for the cut): %llu primary, %llu reflection, %llu refraction "
         "(%llu total internal reflections; %llu not followed, as the renderer traces no ray of throughput "
         "below %g)\n",
         static_cast<unsigned long long>(config.rays), r.trace_seconds, r.cut_seconds, c("rays_primary"),
         c("rays_reflection"), c("rays_refraction"), c("total_internal_reflections"), c("rays_pruned"),
         double(kMinThroughput));
-    say("probe: %llu hits on meshes, %llu on the ground, %llu misses, %llu with dropped differentials\n",
+    cli::summary("probe: %llu hits on meshes, %llu on the ground, %llu misses, %llu with dropped differentials\n",
         c("hits"), c("hits_ground"), c("misses"), c("differentials_dropped"));
-    say("probe: %llu pages read (%s), cache peak %s of %s, magnification m = %.3f, peak memory %s\n",
+    cli::summary("probe: %llu pages read (%s), cache peak %s of %s, magnification m = %.3f, peak memory %s\n",
         c("pages_read"), format_bytes(c("bytes_read")).c_str(), format_bytes(c("cache_peak_bytes")).c_str(),
         format_bytes(config.cache_bytes).c_str(), r.magnification, format_bytes(peak_rss_bytes()).c_str());
     for (size_t s = 0; s < stores.size(); ++s) {
@@ -140,19 +135,19 @@ int cmd_probe(int argc, char** argv) {
       const std::string graded = cut.counters.count("cells_split_to_balance")
                                      ? "; graded, " + std::to_string(count("cells_split_to_balance")) + " cells split"
                                      : "";
-      say("probe: %s: %zu cells marked (%llu with hits;%s)%s, smallest footprint %g\n", out.string().c_str(),
+      cli::summary("probe: %s: %zu cells marked (%llu with hits;%s)%s, smallest footprint %g\n", out.string().c_str(),
           cut.cells.size(), static_cast<unsigned long long>(cut.counters.at("cells_marked_with_hits")),
           levels.c_str(), graded.c_str(), double(cut.min_footprint));
       // Why finest cells stay whole: their input triangles are kept as they are.
       if (count("finest_cells_kept") > 0)
-        say("probe: %llu finest cells kept whole (for K %llu, deviation %llu, normals %llu, open boundary %llu, "
+        cli::summary("probe: %llu finest cells kept whole (for K %llu, deviation %llu, normals %llu, open boundary %llu, "
             "fold %llu, crease %llu, far-end normal %llu)\n",
             count("finest_cells_kept"), count("finest_cells_kept_for_k"), count("finest_cells_kept_for_deviation"),
             count("finest_cells_kept_for_normals"), count("finest_cells_kept_for_boundary"),
             count("finest_cells_kept_for_fold"), count("finest_cells_kept_for_crease"),
             count("finest_cells_kept_for_far_normal"));
       if (cut.counters.count("curvature_factor_ppm"))
-        say("probe: unreached curved cells take a tilt of c kappa f, c = %g (the least over the views; 0: the flat "
+        cli::summary("probe: unreached curved cells take a tilt of c kappa f, c = %g (the least over the views; 0: the flat "
             "mirror's bound alone)\n",
             1e-6 * double(count("curvature_factor_ppm")));
     }

@@ -32,7 +32,7 @@ Status run_render(int argc, char** argv, bool& help) {
              {"--height", "", "image height (default: the scene camera's)", true, "H"},
              {"--stats-json", "", "write ray counters, timings and memory as JSON", true, "FILE"},
              {"--crease-angle", "", crease_angle_help(), true, "DEG"},
-             {"--quiet", "-q", "no progress bars or log lines", false, ""}});
+             quiet_option()});
   RAYLOD_RETURN_IF_ERROR(args.parse(argc, argv));
   if (args.help_requested()) {
     std::fputs(args.help_text().c_str(), stdout);
@@ -50,10 +50,9 @@ Status run_render(int argc, char** argv, bool& help) {
   opts.spp = int(spp);
   opts.memory_limit = limit;
   opts.wireframe = args.has("--wireframe");
-  const bool quiet = args.has("--quiet");
+  const bool quiet = apply_quiet(args);
   opts.progress = !quiet;
-  if (quiet) Progress::set_enabled(false);
-  else opts.log = [](const std::string& m) { std::fprintf(stderr, "raylod render: %s\n", m.c_str()); };
+  if (!quiet) opts.log = [](const std::string& m) { std::fprintf(stderr, "raylod render: %s\n", m.c_str()); };
   if (args.has("--aov")) {
     std::stringstream list(args.get("--aov"));
     std::string aov;

@@ -72,7 +72,7 @@ Status run_report_cmd(int argc, char** argv) {
              {"--memory-limit", "", "memory cap (default: a quarter of physical memory)", true, "SIZE"},
              {"--quick", "", "a small, fast report (50k-triangle teapot, 160x120, two K, two ray counts)", false, ""},
              {"--crease-angle", "", crease_angle_help(), true, "DEG"},
-             {"--quiet", "-q", "no log lines", false, ""}});
+             quiet_option()});
   RAYLOD_RETURN_IF_ERROR(args.parse(argc, argv));
   if (args.help_requested()) {
     std::fputs(args.help_text().c_str(), stdout);
@@ -115,13 +115,12 @@ Status run_report_cmd(int argc, char** argv) {
     cfg.footprint_scales.push_back(cfg.default_scale);
   std::optional<std::filesystem::path> mesh;
   if (args.has("--mesh")) mesh = std::filesystem::path(args.get("--mesh"));
-  const bool quiet = args.has("--quiet");
-  Progress::set_enabled(!quiet);
+  const bool quiet = apply_quiet(args);
   LogFn log;
   if (!quiet) log = [](const std::string& m) { std::fprintf(stderr, "raylod report: %s\n", m.c_str()); };
 
   RAYLOD_ASSIGN_OR_RETURN(ReportResult r, run_report(scene, mesh, cfg, log));
-  std::printf("raylod report: wrote %s (%zu rows) and %s\n", r.markdown.string().c_str(), r.rows.size(),
+  summary("raylod report: wrote %s (%zu rows) and %s\n", r.markdown.string().c_str(), r.rows.size(),
               r.plot.string().c_str());
   return {};
 }

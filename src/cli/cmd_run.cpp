@@ -27,36 +27,36 @@ namespace {
 // than one mesh each line names its mesh.
 void print_cache_note(const SimplifiedMesh& m, size_t meshes) {
   if (meshes > 1)
-    std::printf("             %s: %llu triangles, %s\n", m.name.c_str(), (unsigned long long)m.triangles,
+    summary("             %s: %llu triangles, %s\n", m.name.c_str(), (unsigned long long)m.triangles,
                 m.cache_note.c_str());
   else
-    std::printf("             %s\n", m.cache_note.c_str());
+    summary("             %s\n", m.cache_note.c_str());
 }
 
 // The terminal summary of a view sequence, and its --stats-json.
 Status report_views(const Args& args, const ViewsResult& r, const RunOptions& opts, const std::filesystem::path& output) {
   const bool shared = r.shared_cut;
   for (const std::string& w : r.warnings) std::fprintf(stderr, "raylod run: warning: %s\n", w.c_str());
-  std::printf("raylod run: %s, %zu views (%s)\n", args.positionals().empty() ? "embedded default scene" : args.positionals()[0].c_str(),
+  summary("raylod run: %s, %zu views (%s)\n", args.positionals().empty() ? "embedded default scene" : args.positionals()[0].c_str(),
               r.views.size(), shared ? "one shared cut" : "a cut per view, cached meshes reused");
-  std::printf("  build      %7.2f s  (%llu triangles)\n", r.build_seconds, (unsigned long long)r.triangles_in);
+  summary("  build      %7.2f s  (%llu triangles)\n", r.build_seconds, (unsigned long long)r.triangles_in);
   if (r.ranks > 1)
-    std::printf("  ranks      %d (views handed out %s; images written by the rank that rendered them)\n", r.ranks,
+    summary("  ranks      %d (views handed out %s; images written by the rank that rendered them)\n", r.ranks,
                 r.dynamic_handout ? "one at a time" : "round robin");
   if (shared) {
     uint64_t triangles = 0;
     for (const SimplifiedMesh& m : r.shared_meshes) triangles += m.triangles;
-    std::printf("  shared cut %7.2f s  (select over all views' test rays), simplify %.2f s: %llu triangles\n",
+    summary("  shared cut %7.2f s  (select over all views' test rays), simplify %.2f s: %llu triangles\n",
                 r.shared_select_seconds, r.shared_simplify_seconds, (unsigned long long)triangles);
     for (const SimplifiedMesh& m : r.shared_meshes) print_cache_note(m, r.shared_meshes.size());
   }
-  std::printf("  view  triangles  mesh    probe s  simplify s  render s  image\n");
+  summary("  view  triangles  mesh    probe s  simplify s  render s  image\n");
   for (size_t i = 0; i < r.views.size(); ++i) {
     const ViewStats& v = r.views[i];
-    std::printf("  %4zu  %9llu  %-6s  %7.2f  %10.2f  %8.2f  %s\n", i, (unsigned long long)v.triangles,
+    summary("  %4zu  %9llu  %-6s  %7.2f  %10.2f  %8.2f  %s\n", i, (unsigned long long)v.triangles,
                 shared ? "shared" : v.cache_hit ? "hit" : "miss", v.probe, v.simplify, v.render, numbered_image_path(output, i).string().c_str());
   }
-  std::printf("  total      %7.2f s, %.2f s per view; %zu of %zu views reused a simplified mesh (%s); peak memory %s\n",
+  summary("  total      %7.2f s, %.2f s per view; %zu of %zu views reused a simplified mesh (%s); peak memory %s\n",
               r.total_seconds, r.seconds_per_view(), r.cache_reuse(), r.views.size(),
               shared ? "the shared one, or the cache's" : "from the cache", format_bytes(r.peak_rss).c_str());
   if (args.has("--stats-json")) RAYLOD_RETURN_IF_ERROR(write_file_atomic(args.get("--stats-json"), views_stats_json(r, opts)));
@@ -110,7 +110,7 @@ Status run_run(int argc, char** argv, bool& help) {
                              "                              through its eye, evenly spaced (numbered images as --views)", true, "N"},
              {"--shared-cut", "", "with --views or --orbit: one cut with the finest need over all views,\n"
                                   "                              simplified once, every view rendered from it", false, ""},
-             {"--quiet", "-q", "no progress bars or log lines", false, ""}}));
+             quiet_option()}));
   RAYLOD_RETURN_IF_ERROR(args.parse(argc, argv));
   if (args.help_requested()) {
     std::fputs(args.help_text().c_str(), stdout);
@@ -156,9 +156,8 @@ Status run_run(int argc, char** argv, bool& help) {
     if (ext != ".glb")
       return Status::error(opts.export_mesh.string() + ": --export-mesh writes glTF binary; the name must end in .glb");
   }
-  const bool quiet = args.has("--quiet");
+  const bool quiet = apply_quiet(args);
   opts.progress = !quiet;
-  if (quiet) Progress::set_enabled(false);
   LogFn log;
   if (!quiet) log = [](const std::string& m) { std::fprintf(stderr, "raylod run: %s\n", m.c_str()); };
 
@@ -204,13 +203,13 @@ Status run_run(int argc, char** argv, bool& help) {
     RAYLOD_RETURN_IF_ERROR(write_image(output, r.render.color));
     for (const std::string& w : r.warnings) std::fprintf(stderr, "raylod run: warning: %s\n", w.c_str());
 
-    std::printf("raylod run: %s\n", args.positionals().empty() ? "embedded default scene" : args.positionals()[0].c_str());
+    summary("raylod run: %s\n", args.positionals().empty() ? "embedded default scene" : args.positionals()[0].c_str());
     if (r.triangles_out == 0) {
-      std::printf("  triangles  %llu -> 0 (every one collapsed or left out)\n", (unsigned long long)r.triangles_in);
+      summary("  triangles  %llu -> 0 (every one collapsed or left out)\n", (unsigned long long)r.triangles_in);
     } else {
       // Two decimals below 10x, so that 9956 -> 9871 does not read as no change.
       const double ratio = double(r.triangles_in) / double(r.triangles_out);
-      std::printf("  triangles  %llu -> %llu (%.*fx fewer)\n", (unsigned long long)r.triangles_in,
+      summary("  triangles  %llu -> %llu (%.*fx fewer)\n", (unsigned long long)r.triangles_in,
                   (unsigned long long)r.triangles_out, ratio < 10 ? 2 : 1, ratio);
     }
     // The counts above are per distinct mesh; a mesh the scene places more
@@ -218,13 +217,13 @@ Status run_run(int argc, char** argv, bool& help) {
     if (scene.objects.size() > r.meshes.size()) {
       const unsigned long long rendered = r.render.stats.triangles;
       if (r.meshes.size() == 1)
-        std::printf("             the scene places this mesh %zu times: %llu triangles rendered\n", scene.objects.size(),
+        summary("             the scene places this mesh %zu times: %llu triangles rendered\n", scene.objects.size(),
                     rendered);
       else
-        std::printf("             %zu objects place these %zu meshes: %llu triangles rendered\n", scene.objects.size(),
+        summary("             %zu objects place these %zu meshes: %llu triangles rendered\n", scene.objects.size(),
                     r.meshes.size(), rendered);
     }
-    std::printf("  build      %7.2f s\n", r.seconds.build);
+    summary("  build      %7.2f s\n", r.seconds.build);
     char tolerance[96] = "";
     if (opts.criterion == CutCriterion::Deviation && opts.tolerance_px != kDefaultTolerancePx) {
       if (cut.tolerance_given)
@@ -233,13 +232,13 @@ Status run_run(int argc, char** argv, bool& help) {
         std::snprintf(tolerance, sizeof tolerance, ", tolerance %.3g px (%g fitted to %d spp)", opts.tolerance_px,
                       kDefaultTolerancePx, render_spp);
     }
-    std::printf("  probe      %7.2f s  (%llu test rays, K = %g%s%s)\n", r.seconds.probe, (unsigned long long)opts.rays,
+    summary("  probe      %7.2f s  (%llu test rays, K = %g%s%s)\n", r.seconds.probe, (unsigned long long)opts.rays,
                 r.footprint_scale, tolerance, r.coarsening_steps ? ", coarsened to fit the memory limit" : "");
-    std::printf("  simplify   %7.2f s  (%s)\n", r.seconds.simplify, r.cache_hit ? "from cache" : "simplified");
+    summary("  simplify   %7.2f s  (%s)\n", r.seconds.simplify, r.cache_hit ? "from cache" : "simplified");
     for (const SimplifiedMesh& m : r.meshes) print_cache_note(m, r.meshes.size());
-    std::printf("  render     %7.2f s  (load %.2f s, BVH %.2f s, trace %.2f s)\n", r.seconds.render,
+    summary("  render     %7.2f s  (load %.2f s, BVH %.2f s, trace %.2f s)\n", r.seconds.render,
                 r.render.stats.load_seconds, r.render.stats.bvh_seconds, r.render.stats.render_seconds);
-    std::printf("  total      %7.2f s, peak memory %s\n", r.seconds.total(), format_bytes(r.peak_rss).c_str());
+    summary("  total      %7.2f s, peak memory %s\n", r.seconds.total(), format_bytes(r.peak_rss).c_str());
 
     std::string stats = run_stats_json(r, opts);
     if (args.has("--compare")) {
@@ -264,7 +263,7 @@ Status run_run(int argc, char** argv, bool& help) {
                                 format_bytes(full_need) + " to render, over the memory limit of " +
                                 format_bytes(ro.memory_limit) + "; raise --memory-limit to compare";
         std::fprintf(stderr, "raylod run: warning: --compare skipped: %s\n", why.c_str());
-        std::printf("  error      not measured (--compare skipped: %s)\n", why.c_str());
+        summary("  error      not measured (--compare skipped: %s)\n", why.c_str());
         auto j = nlohmann::json::parse(stats);
         j["comparison_skipped"] = why;
         stats = j.dump(2) + "\n";
@@ -275,13 +274,13 @@ Status run_run(int argc, char** argv, bool& help) {
         RAYLOD_ASSIGN_OR_RETURN(ImageError e, compare_images(r.render.color, full.color));
         const RenderStats& fs = full.stats;
         double full_seconds = fs.load_seconds + fs.bvh_seconds + fs.render_seconds;
-        std::printf("  full mesh  %7.2f s  (load %.2f s, BVH %.2f s, trace %.2f s; seed %llu, and %.2f s more at seed %llu "
+        summary("  full mesh  %7.2f s  (load %.2f s, BVH %.2f s, trace %.2f s; seed %llu, and %.2f s more at seed %llu "
                     "for the noise floor)\n",
                     full_seconds, fs.load_seconds, fs.bvh_seconds, fs.render_seconds, (unsigned long long)floor.seed,
                     floor.render_seconds, (unsigned long long)noise_floor_seed(floor.seed));
-        std::printf("  error      PSNR %.2f dB, SSIM %.4f (%s), largest pixel difference %.3f\n", e.psnr, e.ssim,
+        summary("  error      PSNR %.2f dB, SSIM %.4f (%s), largest pixel difference %.3f\n", e.psnr, e.ssim,
                     describe_against_noise_floor(e, floor).c_str(), e.max_diff);
-        std::printf("  floor      PSNR %.2f dB, SSIM %.4f, largest pixel difference %.3f (full mesh, seed %llu against "
+        summary("  floor      PSNR %.2f dB, SSIM %.4f, largest pixel difference %.3f (full mesh, seed %llu against "
                     "seed %llu, %d spp)\n",
                     floor.psnr(), floor.error.ssim, floor.error.max_diff, (unsigned long long)noise_floor_seed(floor.seed),
                     (unsigned long long)floor.seed, floor.spp);
@@ -291,7 +290,7 @@ Status run_run(int argc, char** argv, bool& help) {
         std::filesystem::path diff = output;
         diff.replace_extension(".diff" + output.extension().string());
         RAYLOD_RETURN_IF_ERROR(write_image(diff, difference_image(r.render.color, full.color)));
-        std::printf("  wrote      %s (full mesh), %s (difference x4)\n", ref.string().c_str(), diff.string().c_str());
+        summary("  wrote      %s (full mesh), %s (difference x4)\n", ref.string().c_str(), diff.string().c_str());
         // run_stats_json() (pipeline.cpp) knows nothing of the comparison: extend its object.
         auto j = nlohmann::json::parse(stats);
         // Identical images have infinite PSNR, which JSON cannot hold: null.
@@ -311,9 +310,9 @@ Status run_run(int argc, char** argv, bool& help) {
         stats = j.dump(2) + "\n";
       }
     }
-    std::printf("  wrote      %s\n", output.string().c_str());
+    summary("  wrote      %s\n", output.string().c_str());
     if (!opts.export_mesh.empty())
-      std::printf("  exported   %s (%s)\n", opts.export_mesh.string().c_str(), format_bytes(r.exported_bytes).c_str());
+      summary("  exported   %s (%s)\n", opts.export_mesh.string().c_str(), format_bytes(r.exported_bytes).c_str());
     if (args.has("--stats-json")) RAYLOD_RETURN_IF_ERROR(write_file_atomic(args.get("--stats-json"), stats));
     return {};
   };

@@ -99,16 +99,16 @@ Status write_scene_for_mesh(const Args& args) {
                                      check.status().message());
     RAYLOD_RETURN_IF_ERROR(file.commit());
   }
-  std::printf("wrote %s\n", out.string().c_str());
-  std::printf("  mesh       %s (%llu triangles, up %s)\n", mesh.string().c_str(),
+  cli::summary("wrote %s\n", out.string().c_str());
+  cli::summary("  mesh       %s (%llu triangles, up %s)\n", mesh.string().c_str(),
               (unsigned long long)summary.triangles, to_string(options.up));
   const Vec3d e = f.bounds.extent();
-  std::printf("  bounds     %.6g x %.6g x %.6g (rotated to y up), centre (%.6g, %.6g, %.6g)\n", e.x, e.y, e.z,
+  cli::summary("  bounds     %.6g x %.6g x %.6g (rotated to y up), centre (%.6g, %.6g, %.6g)\n", e.x, e.y, e.z,
               f.camera.look_at.x, f.camera.look_at.y, f.camera.look_at.z);
-  std::printf("  camera     eye (%.6g, %.6g, %.6g), fov_y %g, %d x %d, %d spp\n", f.camera.eye.x, f.camera.eye.y,
+  cli::summary("  camera     eye (%.6g, %.6g, %.6g), fov_y %g, %d x %d, %d spp\n", f.camera.eye.x, f.camera.eye.y,
               f.camera.eye.z, f.camera.fov_y_deg, f.camera.width, f.camera.height, int(spp));
-  std::printf("  ground     y = %.9g\n", f.ground_height);
-  std::printf("next: raylod run %s --compare\n", out.string().c_str());
+  cli::summary("  ground     y = %.9g\n", f.ground_height);
+  cli::summary("next: raylod run %s --compare\n", out.string().c_str());
   return Status::ok();
 }
 
@@ -128,12 +128,14 @@ int run_scene(int argc, char** argv) {
              {"--material", "", "glossy (steel; default), diffuse, mirror or glass", true, "NAME"},
              {"--width", "", "image width (default 1280)", true, "W"},
              {"--height", "", "image height (default 960)", true, "H"},
-             {"--spp", "", "samples per pixel (default 4)", true, "N"}});
+             {"--spp", "", "samples per pixel (default 4)", true, "N"},
+             quiet_option()});
   if (Status st = args.parse(argc, argv); !st) return fail("scene", st);
   if (args.help_requested()) {
     std::printf("%s", args.help_text().c_str());
     return 0;
   }
+  apply_quiet(args);
   if (Status st = write_scene_for_mesh(args); !st) return fail("scene", st);
   return 0;
 }

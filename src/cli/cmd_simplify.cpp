@@ -77,7 +77,7 @@ int run_simplify(int argc, char** argv) {
                                      "                              (within a degree of the cell's mean; raylod run does on mirror and\n"
                                      "                              glass meshes)",
               false, ""},
-             {"--quiet", "-q", "no progress bar", false, ""}});
+             quiet_option()});
   if (Status st = args.parse(argc, argv); !st) return fail("simplify", st);
   if (args.help_requested()) {
     std::printf("%s", args.help_text().c_str());
@@ -150,7 +150,7 @@ int run_simplify(int argc, char** argv) {
   config.memory_limit = limit->total;
   config.fold_passes = *fold_passes;
   config.exact_normals = args.has("--exact-normals");
-  config.progress = !args.has("--quiet");
+  config.progress = !apply_quiet(args);
   auto result = simplify(**store, *cut, config);
   if (!result) return fail("simplify", result.status().with_context(store_path.string()));
   SimplifyResult& r = *result;  // its mesh is handed to the writer
@@ -202,35 +202,35 @@ int run_simplify(int argc, char** argv) {
 
   const double write_seconds = since(t_write);
   const CollapseStats& s = r.stats;
-  std::printf("wrote %s\n", out_path.string().c_str());
-  std::printf("  triangles  %llu of %llu (%.2f%%)\n", ull(s.output_triangles), ull(s.input_triangles),
+  summary("wrote %s\n", out_path.string().c_str());
+  summary("  triangles  %llu of %llu (%.2f%%)\n", ull(s.output_triangles), ull(s.input_triangles),
               s.input_triangles ? 100.0 * double(s.output_triangles) / double(s.input_triangles) : 0.0);
-  std::printf("  vertices   %llu (%llu representatives, %llu of them cells of one vertex output as kept; %llu kept, %llu "
+  summary("  vertices   %llu (%llu representatives, %llu of them cells of one vertex output as kept; %llu kept, %llu "
               "more where corners meet at a crease)\n",
               ull(s.output_vertices), ull(s.representatives_used), ull(s.one_vertex_cells), ull(s.kept_vertices),
               ull(s.split_vertices));
-  std::printf("  cut        %llu cells (%llu not in the store), %llu representatives clamped to their cell\n",
+  summary("  cut        %llu cells (%llu not in the store), %llu representatives clamped to their cell\n",
               ull(r.cut_cells), ull(r.cut_cells_missing), ull(r.clamped_representatives));
-  std::printf("  dropped    %llu collapsed (%llu inside one cell), %llu zero-area, %llu duplicate; %llu reverse-wound "
+  summary("  dropped    %llu collapsed (%llu inside one cell), %llu zero-area, %llu duplicate; %llu reverse-wound "
               "twins kept\n",
               ull(s.dropped_collapsed), ull(s.inside_cell), ull(s.dropped_zero_area), ull(s.dropped_duplicate),
               ull(s.reverse_twins));
   if (r.fold_passes || s.folded)
-    std::printf("  folds      %llu cells refined in %llu more passes for triangles turned over; %llu turned over left\n",
+    summary("  folds      %llu cells refined in %llu more passes for triangles turned over; %llu turned over left\n",
                 ull(r.fold_cells_refined), ull(r.fold_passes), ull(s.folded));
   if (r.folds_stopped_by_memory)
-    std::printf("  folds      refining stopped: the next pass's cells would not fit the memory limit (raise --memory-limit)\n");
+    summary("  folds      refining stopped: the next pass's cells would not fit the memory limit (raise --memory-limit)\n");
   if (s.exact_normals)
-    std::printf("  normals    %llu representatives took the input's normal at their nearest input point\n",
+    summary("  normals    %llu representatives took the input's normal at their nearest input point\n",
                 ull(s.exact_normals));
-  if (s.normal_fallbacks) std::printf("  normals    %llu fell back (merged normals cancelled; the quadric's normal used)\n", ull(s.normal_fallbacks));
-  std::printf("%s", quantisation.c_str());
-  std::printf("  bytes      %llu (%s)\n", ull(bytes), format_bytes(bytes).c_str());
-  std::printf("  time       open %.2f s, collapse %.2f s (%llu pages read, %llu inside one cell not; fold checks %.2f s, "
+  if (s.normal_fallbacks) summary("  normals    %llu fell back (merged normals cancelled; the quadric's normal used)\n", ull(s.normal_fallbacks));
+  summary("%s", quantisation.c_str());
+  summary("  bytes      %llu (%s)\n", ull(bytes), format_bytes(bytes).c_str());
+  summary("  time       open %.2f s, collapse %.2f s (%llu pages read, %llu inside one cell not; fold checks %.2f s, "
               "finish %.2f s), write %.2f s\n",
               open_seconds, r.seconds, ull(r.pages_read), ull(r.pages_skipped), r.fold_seconds, r.finish_seconds,
               write_seconds);
-  std::printf("  memory     peak %s (mesh build %s, estimate %s)\n", format_bytes(peak_rss_bytes()).c_str(),
+  summary("  memory     peak %s (mesh build %s, estimate %s)\n", format_bytes(peak_rss_bytes()).c_str(),
               format_bytes(s.peak_bytes).c_str(), format_bytes(estimate.bytes).c_str());
   return 0;
 }

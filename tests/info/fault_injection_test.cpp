@@ -204,7 +204,7 @@ TEST_P(FaultInjection, NextRunUsesNothingPartialAndLeavesNoOrphans) {
       << "after the kill and rerun:\n" << join(files) << "clean run:\n" << join(files_under(ref.dir));
 
   // The store is whole: every page's checksum matches, and it is not rebuilt.
-  const Outcome verify = raylod("build --verify -q " + quote(ws.dir / kMesh));
+  const Outcome verify = raylod("build --verify " + quote(ws.dir / kMesh));
   ASSERT_TRUE(exited_ok(verify)) << describe(verify);
   EXPECT_NE(verify.out.find("nothing to do"), std::string::npos) << verify.out;
 }

@@ -51,7 +51,7 @@ fs::path write_scene(const fs::path& dir, const std::string& camera = R"({"eye":
 
 test::CommandResult raylod(const Folder& f, const std::string& args, int threads = 2) {
   return test::run_command("RAYLOD_CACHE_DIR='" + (f.dir / "cache").string() + "' '" RAYLOD_EXE "' " + args +
-                           " --threads " + std::to_string(threads) + " -q");
+                           " --threads " + std::to_string(threads));
 }
 
 TEST(NumberedImagePath, ReplacesTheLastRunOfHashesOrInsertsOne) {
