@@ -8,16 +8,11 @@ namespace raylod {
 
 Vec3d reflect(const Vec3d& d, const Vec3d& n) { return d - 2.0 * glm::dot(d, n) * n; }
 
-namespace {
-// cos^2(theta_t) = 1 - eta^2 sin^2(theta_i), written so that it does not
-// cancel at grazing incidence: for eta = 1 it is cos_i^2 exactly, where
-// 1 - (1 - cos_i^2) would round to 0 (a false total internal reflection)
-// once cos_i^2 drops below the double epsilon.
 double cos2_transmitted(double cos_i, double eta) {
+  // (1 - eta^2) + eta^2 cos_i^2: no cancellation at grazing incidence.
   const double e2 = eta * eta;
   return (1.0 - e2) + e2 * std::min(1.0, cos_i * cos_i);
 }
-}  // namespace
 
 bool refract(const Vec3d& d, const Vec3d& n, double eta, Vec3d& out) {
   const double cos_i = -glm::dot(d, n);

@@ -32,6 +32,12 @@ Vec3d reflect(const Vec3d& d, const Vec3d& n);
 // reflection, i.e. when eta > 1 and sin^2(theta_t) = eta^2 (1 - cos^2(theta_i))
 // >= 1; never for eta <= 1, even at grazing incidence.
 bool refract(const Vec3d& d, const Vec3d& n, double eta, Vec3d& out);
+// cos^2(theta_t) = 1 - eta^2 sin^2(theta_i) for cos_i = cos(theta_i),
+// written so that it does not cancel at grazing incidence: for eta = 1 it
+// is cos_i^2 exactly, where 1 - (1 - cos_i^2) rounds to 0 (a false total
+// internal reflection) once cos_i^2 drops below the double epsilon. What
+// refract(), fresnel_dielectric() and the refracted ray differential use.
+double cos2_transmitted(double cos_i, double eta);
 // Unpolarised Fresnel reflectance of a dielectric interface (average of the
 // s and p terms), cos_i = cosine of the incidence angle, eta as above;
 // 1 under total internal reflection, 0 for eta = 1 (no interface).

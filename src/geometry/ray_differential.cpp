@@ -140,7 +140,7 @@ Refraction refract(const RayDifferential& in, const HitSurface& s, double ior, c
   const Vec3d n = t.normal;
   const Mat3d jac = used_normal_jacobian(s, f, t.geometric_fallback);
   const double c = glm::dot(d, n);  // <= 0
-  const double tn = -std::sqrt(1.0 - eta * eta * std::max(0.0, 1.0 - c * c));  // T.N, as refract() computes it
+  const double tn = -std::sqrt(std::max(0.0, cos2_transmitted(-c, eta)));  // T.N, as refract() computes it
   const double mu = eta * c - tn;   // Igehy eq. 16
   result.fresnel = fresnel_dielectric(-c, eta);
   result.tilt_gain = -tn > 0 ? std::abs(mu) / -tn : std::numeric_limits<double>::infinity();
