@@ -182,15 +182,19 @@ StatusOr<CutOptions> cut_options_from_args(const Args& args) {
   return o;
 }
 
+Status check_output_file(const std::filesystem::path& path, const std::string& role) {
+  std::error_code ec;
+  if (path.empty()) return Status::error(role + ": no file name given");
+  if (std::filesystem::is_directory(path, ec)) return Status::error(path.string() + ": " + role + " names a directory");
+  const std::filesystem::path dir = path.has_parent_path() ? path.parent_path() : std::filesystem::path(".");
+  if (!std::filesystem::is_directory(dir, ec))
+    return Status::error(path.string() + ": " + role + ": directory " + dir.string() + " does not exist");
+  return {};
+}
+
 Status check_stats_json_path(const Args& args) {
   if (!args.has("--stats-json")) return {};
-  const std::filesystem::path path = args.get("--stats-json");
-  std::error_code ec;
-  if (path.empty()) return Status::error("--stats-json: no file name given");
-  if (std::filesystem::is_directory(path, ec)) return Status::error(path.string() + ": --stats-json names a directory");
-  const std::filesystem::path dir = path.has_parent_path() ? path.parent_path() : std::filesystem::path(".");
-  if (!std::filesystem::is_directory(dir, ec)) return Status::error(path.string() + ": directory does not exist");
-  return {};
+  return check_output_file(args.get("--stats-json"), "--stats-json");
 }
 
 std::vector<FileRole> scene_mesh_files(const Args& args, const Scene& scene) {
@@ -204,7 +208,8 @@ std::vector<FileRole> scene_mesh_files(const Args& args, const Scene& scene) {
 std::vector<FileRole> scene_input_files(const Args& args, const Scene& scene) {
   std::vector<FileRole> files;
   if (!args.positionals().empty()) files.push_back({args.positionals()[0], "the scene file"});
-  for (FileRole& mesh : scene_mesh_files(args, scene)) files.push_back(std::move(mesh));
+  // A mesh of a glTF file is named "FILE.glb#meshes[N]": the file is the input.
+  for (FileRole& mesh : scene_mesh_files(args, scene)) files.push_back({parse_mesh_ref(mesh.path).file, mesh.role});
   return files;
 }
 

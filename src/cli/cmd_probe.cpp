@@ -56,6 +56,10 @@ int cmd_probe(int argc, char** argv) {
     if (!s) return cli::fail("probe", s);
 
   const bool quiet = cli::apply_quiet(args);
+  // The cut's name is checked before the stores are built.
+  if (args.has("--output"))
+    if (Status s = cluster::agree(cli::check_output_file(args.get("--output"), "the cut (-o)")); !s)
+      return cli::fail("probe", s);
   // One store per distinct mesh, built first if missing or stale (saying so).
   const MemoryBudget budget = *limit;
   StoreOptions store_options;

@@ -23,6 +23,14 @@
 namespace raylod::cli {
 namespace {
 
+// The images --compare writes beside the image (-o): OUT.full.EXT (the full
+// mesh) and OUT.diff.EXT (the difference).
+std::filesystem::path compare_image_path(const std::filesystem::path& output, const char* what) {
+  std::filesystem::path p = output;
+  p.replace_extension("." + std::string(what) + output.extension().string());
+  return p;
+}
+
 // One line per simplified mesh under the summary's simplify line; with more
 // than one mesh each line names its mesh.
 void print_cache_note(const SimplifiedMesh& m, size_t meshes) {
@@ -129,6 +137,13 @@ Status run_run(int argc, char** argv, bool& help) {
     return Status::error("--compare runs in one process: run it without mpirun");
   RAYLOD_RETURN_IF_ERROR(check_output_image(sequence ? numbered_image_path(output, 0) : output));
   RAYLOD_RETURN_IF_ERROR(check_stats_json_path(args));
+  if (args.has("--export-mesh")) RAYLOD_RETURN_IF_ERROR(check_output_file(args.get("--export-mesh"), "--export-mesh"));
+  if (args.has("--compare")) {
+    std::error_code ec;
+    if (std::filesystem::exists(output, ec) && !std::filesystem::is_regular_file(output, ec))
+      return Status::error(output.string() + ": --compare writes its images beside the image (-o), which must then "
+                           "be a file, not a device or FIFO");
+  }
 
   RunOptions opts;
   RAYLOD_ASSIGN_OR_RETURN(const MemoryBudget budget, memory_budget_from_args(args));
@@ -169,6 +184,10 @@ Status run_run(int argc, char** argv, bool& help) {
   opts.balance = cut.balance;
   {
     std::vector<FileRole> outputs = {{sequence ? numbered_image_path(output, 0) : output, "the image (-o)"}};
+    if (args.has("--compare")) {
+      outputs.push_back({compare_image_path(output, "full"), "--compare's full-mesh image"});
+      outputs.push_back({compare_image_path(output, "diff"), "--compare's difference image"});
+    }
     if (args.has("--stats-json")) outputs.push_back({args.get("--stats-json"), "--stats-json"});
     if (!opts.export_mesh.empty()) outputs.push_back({opts.export_mesh, "--export-mesh"});
     std::vector<FileRole> inputs = scene_input_files(args, scene);
@@ -192,6 +211,12 @@ Status run_run(int argc, char** argv, bool& help) {
       RAYLOD_ASSIGN_OR_RETURN(int64_t n, args.get_int("--orbit", 0, 1, 100000));
       RAYLOD_ASSIGN_OR_RETURN(cameras, orbit_cameras(scene.camera, int(n)));
     }
+    // Each view's image, now that their number is known, against the
+    // statistics file (view 0's was checked with the others above).
+    if (args.has("--stats-json"))
+      for (size_t i = 1; i < cameras.size(); ++i)
+        RAYLOD_RETURN_IF_ERROR(check_outputs_apart({{numbered_image_path(output, i), "the image of view " + std::to_string(i)}},
+                                                   {{args.get("--stats-json"), "--stats-json"}}));
     return run_view_sequence(args, std::move(scene), cameras, opts, output, log);
   }
 
@@ -284,11 +309,9 @@ Status run_run(int argc, char** argv, bool& help) {
                     "seed %llu, %d spp)\n",
                     floor.psnr(), floor.error.ssim, floor.error.max_diff, (unsigned long long)noise_floor_seed(floor.seed),
                     (unsigned long long)floor.seed, floor.spp);
-        std::filesystem::path ref = output;
-        ref.replace_extension(".full" + output.extension().string());
+        const std::filesystem::path ref = compare_image_path(output, "full");
         RAYLOD_RETURN_IF_ERROR(write_image(ref, full.color));
-        std::filesystem::path diff = output;
-        diff.replace_extension(".diff" + output.extension().string());
+        const std::filesystem::path diff = compare_image_path(output, "diff");
         RAYLOD_RETURN_IF_ERROR(write_image(diff, difference_image(r.render.color, full.color)));
         summary("  wrote      %s (full mesh), %s (difference x4)\n", ref.string().c_str(), diff.string().c_str());
         // run_stats_json() (pipeline.cpp) knows nothing of the comparison: extend its object.

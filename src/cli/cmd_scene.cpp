@@ -21,6 +21,11 @@ namespace fs = std::filesystem;
 std::string mesh_path_in_scene(const fs::path& mesh, const fs::path& scene) {
   const fs::path m = fs::absolute(mesh).lexically_normal();
   const fs::path dir = fs::absolute(scene).lexically_normal().parent_path();
+  // A scene written through a symlink lives in the folder of the file the
+  // link names, and is read through either: a path relative to one of the
+  // two folders is wrong from the other, so it is absolute.
+  std::error_code ec;
+  if (fs::is_symlink(scene, ec)) return m.generic_string();
   const fs::path rel = m.lexically_relative(dir);
   if (!rel.empty() && *rel.begin() != "..") return rel.generic_string();
   return m.generic_string();

@@ -59,6 +59,20 @@ bool is_float_format(const std::filesystem::path& path) {
   return ext == ".exr" || ext == ".hdr" || ext == ".tif" || ext == ".tiff" || ext == ".pfm";
 }
 
+// A device or FIFO without an extension (`-o /dev/null`, a pipe) takes a
+// PNG: the name has no format to give, and the bytes only pass through.
+bool is_extensionless_device(const std::filesystem::path& path) {
+  std::error_code ec;
+  return !path.has_extension() && std::filesystem::exists(path, ec) && !std::filesystem::is_regular_file(path, ec) &&
+         !std::filesystem::is_directory(path, ec);
+}
+
+// What OIIO::ImageOutput::create chooses the writer from: the file name, or
+// the format for an extensionless device.
+std::string image_writer_for(const std::filesystem::path& path) {
+  return is_extensionless_device(path) ? std::string("png") : path.string();
+}
+
 // Writes raw pixel data of the given type through OIIO to a temporary name,
 // reads it back, then renames it into place. Some writers (libpng's, on a
 // full disk) report success for a truncated file, so a file is kept only if
@@ -73,7 +87,7 @@ Status write_pixels(const std::filesystem::path& path, const OIIO::ImageSpec& sp
   {
     // The writer is chosen from the destination's name; the temporary name
     // ("out.png.tmp-...") is then only the file it writes to.
-    auto out = OIIO::ImageOutput::create(path.string());
+    auto out = OIIO::ImageOutput::create(image_writer_for(path));
     if (!out) return Status::error(path.string() + ": cannot write images of this type (" + OIIO::geterror() + ")");
     // No timestamp in the file (an empty DateTime stops the EXR writer from
     // adding one): the same render gives the same bytes.
@@ -584,8 +598,9 @@ Status write_image(const std::filesystem::path& path, const Image& image) {
 
 Status check_output_image(const std::filesystem::path& path) {
   if (path.empty()) return Status::error("no output image given");
-  if (!path.has_extension()) return Status::error(path.string() + ": no file extension to choose the image format from");
-  auto out = OIIO::ImageOutput::create(path.string());
+  if (!path.has_extension() && !is_extensionless_device(path))
+    return Status::error(path.string() + ": no file extension to choose the image format from");
+  auto out = OIIO::ImageOutput::create(image_writer_for(path));
   if (!out) return Status::error(path.string() + ": no image writer for '" + path.extension().string() + "' files");
   const auto dir = path.has_parent_path() ? path.parent_path() : std::filesystem::path(".");
   std::error_code ec;

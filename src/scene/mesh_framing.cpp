@@ -235,13 +235,22 @@ std::string placement_problem(const Scene& scene, const Bbox& bounds) {
   const Vec3d up = glm::cross(right, forward);
   const double ty = std::tan(glm::radians(0.5 * cam.fov_y_deg)), tx = ty * cam.width / cam.height;
   Bbox frame;  // in pixels
-  for (const Vec3d& p : world_corners(glm::dmat4(1.0), bounds)) {
+  int behind = 0;
+  const std::array<Vec3d, 8> corners = world_corners(glm::dmat4(1.0), bounds);
+  for (const Vec3d& p : corners) {
     const Vec3d d = p - cam.eye;
     const double depth = glm::dot(d, forward);
-    if (!(depth > 0)) return "";  // around or behind the eye: no size to judge
+    if (!(depth > 0)) {
+      ++behind;
+      continue;
+    }
     frame.expand(Vec3d((1 + glm::dot(d, right) / depth / tx) * 0.5 * cam.width,
                        (1 - glm::dot(d, up) / depth / ty) * 0.5 * cam.height, 0));
   }
+  // Wholly behind the eye's plane: nothing of it is in view. Partly behind
+  // (around the eye): no size to judge.
+  if (behind == int(corners.size())) return "is behind the camera";
+  if (behind > 0) return "";
   if (frame.hi.x < 0 || frame.lo.x > cam.width || frame.hi.y < 0 || frame.lo.y > cam.height)
     return "is outside the camera's view";
   const double w = frame.hi.x - frame.lo.x, h = frame.hi.y - frame.lo.y;

@@ -73,6 +73,14 @@ TEST(OutputsApart, CommandsRefuseToWriteOverTheirInputs) {
       {"render " + s + " -o out.png --stats-json " + s + " -q", "--stats-json would replace the scene file"},
       {"render " + s + " -o out.png --stats-json out.png -q", "given as both the image (-o) and --stats-json"},
       {"run " + s + " -o out.png --stats-json " + m + " -q" + cache, "--stats-json would replace the mesh"},
+      // The names an output implies: --compare's images beside it, and a
+      // sequence's numbered images (only view 0's was checked).
+      {"run " + s + " -o out.png --compare --stats-json out.full.png -q" + cache,
+       "given as both --compare's full-mesh image and --stats-json"},
+      {"run " + s + " -o out.png --compare --stats-json out.diff.png -q" + cache,
+       "given as both --compare's difference image and --stats-json"},
+      {"run " + s + " -o 'v_#.png' --orbit 3 --stats-json v_2.png -q" + cache,
+       "v_2.png: the image of view 2 would replace --stats-json"},
   };
   for (const Case& c : cases) {
     const test::CommandResult r =
@@ -82,6 +90,7 @@ TEST(OutputsApart, CommandsRefuseToWriteOverTheirInputs) {
     EXPECT_EQ(read_all(mesh), mesh_bytes) << c.args;
     EXPECT_EQ(read_all(scene), scene_bytes) << c.args;
     EXPECT_FALSE(std::filesystem::exists(dir / "out.png")) << c.args;
+    EXPECT_FALSE(std::filesystem::exists(dir / "v_0.png")) << c.args;
   }
   // simplify -o naming the mesh its store was built from.
   std::string out;
@@ -105,6 +114,30 @@ TEST(OutputsApart, CommandsRefuseToWriteOverTheirInputs) {
   std::filesystem::remove_all(dir);
 }
 
+// A glTF file's meshes are objects named "FILE.glb#meshes[N]": the file is
+// what an output must not replace (run --export-mesh wrote its simplified
+// copy over the scene's own mesh).
+TEST(OutputsApart, AGltfSceneMeshIsAnInputByItsFileName) {
+  test::ScratchDir dir("outputs-apart-gltf");
+  const std::string d = "'" + dir.path.string() + "'";
+  std::string out;
+  ASSERT_EQ(test::run_raylod("gen teapot --triangles 2000 -q -o " + d + "/t.ply", out), 0) << out;
+  ASSERT_EQ(test::run_raylod("scene " + d + "/t.ply -o " + d + "/t.json --width 48 --height 36 -q", out), 0) << out;
+  ASSERT_EQ(test::run_raylod("run " + d + "/t.json --no-cache --rays 200 -o " + d + "/t.png --export-mesh " + d +
+                                 "/in.glb -q",
+                             out),
+            0)
+      << out;
+  ASSERT_EQ(test::run_raylod("scene " + d + "/in.glb -o " + d + "/in.json --width 48 --height 36 -q", out), 0) << out;
+  const std::string glb = read_all(dir.path / "in.glb");
+  const test::CommandResult r = test::run_command("'" + std::string(RAYLOD_EXE) + "' run " + d + "/in.json --no-cache " +
+                                                  "--rays 200 -o " + d + "/in.png --export-mesh " + d + "/in.glb -q");
+  EXPECT_NE(r.status, 0) << r.out;
+  EXPECT_NE(r.out.find("in.glb: --export-mesh would replace the mesh of objects[0]"), std::string::npos) << r.out;
+  EXPECT_EQ(read_all(dir.path / "in.glb"), glb);
+  EXPECT_FALSE(std::filesystem::exists(dir.path / "in.png"));
+}
+
 // Output paths that cannot be written are refused before rendering, and a
 // render whose AOV cannot be written leaves neither the image nor the AOVs
 // written before it.
@@ -126,6 +159,11 @@ TEST(OutputsApart, UnwritableOutputsFailBeforeRendering) {
       {"render scene.json -o o.png --aov depth,normal -q", "o.normal.exr: is a directory"},
       {"render scene.json -o tetra.ply/x.png -q", "tetra.ply is not a directory"},
       {"render scene.json -o missing/x.png -q", "directory missing does not exist"},
+      // Checked before the pipeline runs, not when the file is written.
+      {"run scene.json --no-cache -o o.png --export-mesh missing/s.glb -q", "--export-mesh: directory missing does not exist"},
+      {"build tetra.ply -o missing/a/x.raylod -q", "the store (-o): directory missing/a does not exist"},
+      {"probe scene.json -o missing/b/x.cut -q", "the cut (-o): directory missing/b does not exist"},
+      {"run scene.json --no-cache -o /dev/null --compare -q", "must then be a file, not a device or FIFO"},
   };
   for (const Case& c : cases) {
     const test::CommandResult r =
@@ -136,6 +174,18 @@ TEST(OutputsApart, UnwritableOutputsFailBeforeRendering) {
   }
   EXPECT_FALSE(std::filesystem::exists(dir / "o.png"));
   EXPECT_FALSE(std::filesystem::exists(dir / "o.depth.exr"));
+  EXPECT_FALSE(std::filesystem::exists(dir / "missing"));  // probe made it before
+  EXPECT_FALSE(std::filesystem::exists(dir / "tetra.ply.raylod"));  // nothing built for the refused probe
+  // A device without an extension takes a PNG (the bytes pass through);
+  // a plain name without one is still refused.
+  for (const char* command : {"render scene.json -o /dev/null -q", "run scene.json --no-cache -o /dev/null -q"}) {
+    const test::CommandResult r =
+        test::run_command("cd '" + dir.string() + "' && '" + std::string(RAYLOD_EXE) + "' " + command);
+    EXPECT_EQ(r.status, 0) << command << "\n" << r.out;
+  }
+  const test::CommandResult r = test::run_command("cd '" + dir.string() + "' && '" + std::string(RAYLOD_EXE) +
+                                                  "' render scene.json -o noext -q");
+  EXPECT_NE(r.out.find("noext: no file extension to choose the image format from"), std::string::npos) << r.out;
   std::filesystem::remove_all(dir);
 }
 

@@ -169,6 +169,10 @@ TEST(MeshFraming, APlacementProblemIsNamedAndAFramedMeshHasNone) {
             std::string::npos);
   EXPECT_EQ(placement_problem(scene, Bbox{Vec3d(50, 1, 0), Vec3d(52, 3, 2)}), "is outside the camera's view");
   EXPECT_EQ(placement_problem(scene, Bbox{Vec3d(-1, 0, 9), Vec3d(1, 3, 11)}), "");  // around the eye: not judged
+  // Wholly behind the eye (it looks down -z from z = 10): every corner's
+  // depth is negative, which was taken for "around the eye".
+  EXPECT_EQ(placement_problem(scene, Bbox{Vec3d(-1, 0, 12), Vec3d(1, 3, 14)}), "is behind the camera");
+  EXPECT_EQ(placement_problem(scene, Bbox{Vec3d(1e5, 0, 1e5), Vec3d(1e5 + 1, 1, 1e5 + 1)}), "is behind the camera");
   // Whatever frame_mesh makes of a box, the box is shown.
   auto f = frame_mesh(Bbox{Vec3d(3, 4, 5), Vec3d(3.5, 4.1, 5.02)}, {});
   ASSERT_TRUE(f.is_ok());
@@ -237,6 +241,28 @@ TEST(SceneCommand, WritesASceneThatFramesTheMeshAndRenders) {
   EXPECT_TRUE(fs::exists(dir / "plate.png"));
 }
 
+TEST(SceneCommand, ASceneWrittenThroughASymlinkLoadsThroughTheLinkAndItsTarget) {
+  // -o a link into another folder: the file lands there (the link stays), and
+  // is read through both names, so the mesh is named absolutely. Naming it
+  // relative to the link's folder made the write's own load check fail.
+  const fs::path dir = temp_dir() / "scene-link";
+  fs::create_directories(dir / "sub");
+  write_box_stl(dir / "box.stl", Vec3d(0, 0, 0), Vec3d(1, 1, 1));
+  fs::create_symlink("sub/scene.json", dir / "link.json");
+  std::string out;
+  ASSERT_EQ(test::run_raylod("scene '" + (dir / "box.stl").string() + "' --width 32 --height 24 --spp 1 -q -o '" +
+                                 (dir / "link.json").string() + "'",
+                             out),
+            0)
+      << out;
+  EXPECT_TRUE(fs::is_symlink(dir / "link.json"));
+  for (const fs::path& name : {dir / "link.json", dir / "sub" / "scene.json"}) {
+    auto scene = load_scene(name);
+    ASSERT_TRUE(scene.is_ok()) << name << ": " << scene.status().message();
+    EXPECT_TRUE(fs::equivalent(scene->objects[0].mesh, dir / "box.stl")) << name;
+  }
+}
+
 TEST(SceneCommand, RunWithAMeshItsSceneDoesNotShowSaysSoAndPointsHere) {
   const fs::path dir = temp_dir() / "placement";
   fs::create_directories(dir);
@@ -262,6 +288,10 @@ TEST(SceneCommand, RunWithAMeshItsSceneDoesNotShowSaysSoAndPointsHere) {
   EXPECT_NE(tiny.find("covers at most"), std::string::npos) << tiny;
   const std::string fits = run("fits.stl");
   EXPECT_EQ(fits.find("raylod scene"), std::string::npos) << fits;
+  // Behind the default camera (eye at +x +z, looking towards the origin).
+  write_box_stl(dir / "behind.stl", Vec3d(40, 1, 40), Vec3d(41, 2, 41));
+  const std::string behind = run("behind.stl");
+  EXPECT_NE(behind.find("is behind the camera"), std::string::npos) << behind;
 }
 
 TEST(SceneCommand, AGltfFileIsFramedAsItsNodesPlaceItsMeshes) {
