@@ -218,6 +218,8 @@ int run_simplify(int argc, char** argv) {
   if (r.fold_passes || s.folded)
     summary("  folds      %llu cells refined in %llu more passes for triangles turned over; %llu turned over left\n",
                 ull(r.fold_cells_refined), ull(r.fold_passes), ull(s.folded));
+  if (r.fold_passes_undone)
+    summary("  folds      a refinement taken back: it left no fewer triangles turned over\n");
   if (r.folds_stopped_by_memory)
     summary("  folds      refining stopped: the next pass's cells would not fit the memory limit (raise --memory-limit)\n");
   if (s.exact_normals)

@@ -379,6 +379,7 @@ struct SimplifyResult {
   uint64_t clamped_representatives = 0;
   uint64_t fold_passes = 0;           // extra passes over the pages to undo folds
   uint64_t fold_cells_refined = 0;    // cut cells replaced by their children (or kept) for a fold
+  uint64_t fold_passes_undone = 0;    // refinements taken back: they left no fewer triangles turned over
   bool folds_stopped_by_memory = false;  // a fold pass's refinement was left out: it would not fit memory_limit
   uint64_t pages_read = 0;
   uint64_t pages_skipped = 0;  // page visits spared: the page lay inside one collapsed cell
@@ -395,7 +396,10 @@ struct SimplifyResult {
 // its children in the store (a finest cell is not collapsed), at most
 // config.fold_passes times: the first check scans every page, later checks
 // only the pages near the cells refined last, and none builds the mesh; one
-// pass over the pages then builds it. Fails before reading any page if the
+// pass over the pages then builds it. A refinement after which the check
+// finds no fewer triangles turned over in all is taken back, and the passes
+// stop (SimplifyResult::fold_passes_undone): refining can fold the children
+// against their new neighbours, and a folding finest cell is kept whole. Fails before reading any page if the
 // estimate exceeds config.memory_limit, and during the building pass if the
 // mesh under construction does.
 StatusOr<SimplifyResult> simplify(const OctreeStore& store, const Cut& cut, const SimplifyConfig& config = {});
