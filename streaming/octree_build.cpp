@@ -844,7 +844,7 @@ void bin_batch(BinToken& t, const Plan& plan, int depth, bool has_normals) {
       const Vec3d sum = Vec3d(t.batch.normals[3 * i]) + Vec3d(t.batch.normals[3 * i + 1]) +
                         Vec3d(t.batch.normals[3 * i + 2]);
       const double len = glm::length(sum);
-      if (len > 1e-12) normal = sum / len;  // opposing normals: keep the face normal
+      if (len > kCancelledNormalSum) normal = sum / len;  // opposing normals: keep the face normal
     }
     const double weight = twice_area / 6.0;  // area / 3 per corner
     // quadric_from_plane(normal, x, weight) for the three corners, sharing A.

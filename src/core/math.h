@@ -22,6 +22,14 @@ using Mat4 = glm::mat4;
 
 inline bool is_finite(const Vec3& v) { return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z); }
 inline bool is_finite(const Vec3d& v) { return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z); }
+// The largest absolute coordinate.
+inline double max_abs(const Vec3d& v) { return std::max({std::abs(v.x), std::abs(v.y), std::abs(v.z)}); }
+
+// A triangle's three unit vertex normals whose sum is shorter than this
+// cancel: what is left is rounding (floats, and the store's normal codes,
+// leave up to about 1e-4), whose direction means nothing, and the face
+// normal stands for them (the plane of the triangle's quadric).
+inline constexpr double kCancelledNormalSum = 1e-3;
 
 // Axis-aligned box in double; empty() until the first point is added.
 struct Bbox {

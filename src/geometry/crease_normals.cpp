@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 #include <tbb/parallel_for.h>
 
@@ -24,7 +25,25 @@ double crease_cosine(double crease_angle_deg) {
   return std::cos(deg * M_PI / 180.0);
 }
 
+namespace {
+// Whether float rounding of the corners can turn the triangle's face normal
+// by more than about a hundredth of a radian: a rounding of eps times the
+// corners' size against the triangle's height over its longest edge. Such a
+// triangle (a zero-area cap filling a T-junction, whose corner angle is pi)
+// weighs nothing in its vertices' normals: its face normal is noise.
+bool face_normal_is_noise(const Vec3& a, const Vec3& b, const Vec3& c) {
+  const Vec3d p[3] = {Vec3d(a), Vec3d(b), Vec3d(c)};
+  const double longest =
+      std::max({glm::length(p[1] - p[0]), glm::length(p[2] - p[1]), glm::length(p[0] - p[2])});
+  const double height = longest > 0 ? glm::length(glm::cross(p[1] - p[0], p[2] - p[0])) / longest : 0.0;
+  const double size = std::max({max_abs(p[0]), max_abs(p[1]), max_abs(p[2]), longest});
+  return !(height > 100.0 * double(std::numeric_limits<float>::epsilon()) * size);
+}
+
+}  // namespace
+
 double corner_angle(const Vec3& a, const Vec3& b, const Vec3& c, int k) {
+  if (face_normal_is_noise(a, b, c)) return 0;
   const Vec3d p[3] = {Vec3d(a), Vec3d(b), Vec3d(c)};
   const Vec3d e1 = p[(k + 1) % 3] - p[k], e2 = p[(k + 2) % 3] - p[k];
   const double s = glm::length(glm::cross(e1, e2)), d = glm::dot(e1, e2);

@@ -127,7 +127,12 @@ class NormalClusterPool {
 // cos of a crease angle given in degrees, clamped to [0, 180].
 double crease_cosine(double crease_angle_deg);
 
-// The triangle's interior angle at corner k (0 for a degenerate triangle).
+// The corner's weight in its vertex's normal: the triangle's interior angle
+// at corner k, or 0 for a degenerate triangle and for one whose face normal
+// float rounding of its corners can turn by more than about 0.01 rad (its
+// height under 100 float epsilons of its corners' size: a zero-area cap
+// filling a T-junction has a corner angle of pi and a face normal that is
+// noise, which tilted a flat face's shading normal by up to 12 degrees).
 double corner_angle(const Vec3& a, const Vec3& b, const Vec3& c, int k);
 
 // Per-corner normals of an indexed mesh by the rule above (3 per triangle).

@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <utility>
 
 namespace raylod {
@@ -62,6 +63,14 @@ SymmetricEigen3 symmetric_eigen(const Quadric& q) {
   M3 v = {{1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
   SymmetricEigen3 out;
   if (!quadric_is_finite(q)) return out;  // zero values, identity frame
+  // Scaled to a largest entry of 1, so that the squares below neither
+  // underflow (areas of 1e-170) nor overflow (1e160): either ended the sweeps
+  // before the first and returned the diagonal as the eigenvalues. The
+  // eigenvalues are scaled back; the vectors do not depend on the scale.
+  double scale = 0;
+  for (auto& row : a) for (double x : row) scale = std::max(scale, std::abs(x));
+  if (!(scale > 0)) return out;
+  for (auto& row : a) for (double& x : row) x /= scale;
   double norm2 = 0;
   for (auto& row : a) for (double x : row) norm2 += x * x;
   for (int sweep = 0; sweep < 64 && norm2 > 0; ++sweep) {
@@ -73,7 +82,7 @@ SymmetricEigen3 symmetric_eigen(const Quadric& q) {
   int order[3] = {0, 1, 2};
   std::sort(order, order + 3, [&](int i, int j) { return a[i][i] > a[j][j]; });
   for (int i = 0; i < 3; ++i) {
-    out.values[i] = a[order[i]][order[i]];
+    out.values[i] = a[order[i]][order[i]] * scale;
     out.vectors[i] = glm::normalize(Vec3d(v[0][order[i]], v[1][order[i]], v[2][order[i]]));
   }
   out.vectors[2] = glm::cross(out.vectors[0], out.vectors[1]);  // right-handed
@@ -111,8 +120,17 @@ QemSolution solve_representative_vertex(const Quadric& q, const Vec3d& mean, con
   // The best point of the highest rank that stays in the cell (a small
   // tolerance keeps solutions that round onto the cell's faces); dropping the
   // weakest direction first keeps the strongest planes satisfied.
-  const double tol = cell.empty() ? 0.0 : 1e-9 * std::max({cell.extent().x, cell.extent().y, cell.extent().z});
+  // The residual r carries the rounding of b and of A mean, about eps times
+  // the coordinates' size times lmax, and the step along direction k divides
+  // it by values[k - 1]: a corner that lies exactly on a cell's face (CAD
+  // dimensions on the octree's grid) can come out outside by that much at
+  // deep levels, and was then solved at a lower rank, a good part of a cell
+  // away. The tolerance grows with it.
+  const double extent = cell.empty() ? 0.0 : std::max({cell.extent().x, cell.extent().y, cell.extent().z});
+  const double size = std::max({max_abs(mean), cell.empty() ? 0.0 : max_abs(cell.lo), cell.empty() ? 0.0 : max_abs(cell.hi)});
   for (int k = rank; k >= 1; --k) {
+    const double tol =
+        cell.empty() ? 0.0 : 1e-9 * extent + 64 * std::numeric_limits<double>::epsilon() * size * lmax / e.values[k - 1];
     Vec3d v = mean;
     for (int i = 0; i < k; ++i) v += step[i];
     if (!is_finite(v)) continue;

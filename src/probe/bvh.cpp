@@ -108,6 +108,7 @@ RayBoxPrecomp ray_box_precomp(const Vec3d& origin, const Vec3d& direction) {
   r.origin = origin;
   for (int k = 0; k < 3; ++k) {
     // A zero component becomes a huge finite inverse, so 0 * inv stays 0 (no NaN).
+    r.parallel[k] = direction[k] == 0;
     const double d = direction[k] != 0 ? direction[k] : 1e-300;
     r.inv_dir[k] = 1.0 / d;
     if (!std::isfinite(r.inv_dir[k])) r.inv_dir[k] = std::copysign(1e300, d);
@@ -118,6 +119,12 @@ RayBoxPrecomp ray_box_precomp(const Vec3d& origin, const Vec3d& direction) {
 bool intersect_box(const Bbox& box, const RayBoxPrecomp& r, double tmin, double tmax, double& tnear) {
   double t0 = tmin, t1 = tmax;
   for (int k = 0; k < 3; ++k) {
+    // Parallel to the slab: as the huge inverse would have it, except in the
+    // plane of the hi face, where (hi - o) * inv = 0 read as leaving at t = 0.
+    if (r.parallel[k]) {
+      if (r.origin[k] < box.lo[k] || r.origin[k] > box.hi[k]) return false;
+      continue;
+    }
     double a = (box.lo[k] - r.origin[k]) * r.inv_dir[k];
     double b = (box.hi[k] - r.origin[k]) * r.inv_dir[k];
     if (a > b) std::swap(a, b);

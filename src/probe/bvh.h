@@ -44,6 +44,10 @@ void build_bvh(std::span<const Bbox> boxes, uint32_t leaf_size, Bvh& out, BvhScr
 struct RayBoxPrecomp {
   Vec3d origin{0};
   Vec3d inv_dir{0};
+  // Axes the ray runs parallel to (a zero direction component): the slab
+  // holds the whole ray or none of it, whichever side of it the origin is,
+  // a face's plane included.
+  bool parallel[3] = {false, false, false};
 };
 RayBoxPrecomp ray_box_precomp(const Vec3d& origin, const Vec3d& direction);
 

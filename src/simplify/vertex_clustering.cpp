@@ -29,7 +29,7 @@ Vec3d quadric_plane_normal(const Vec3d& a, const Vec3d& b, const Vec3d& c, const
   if (normals) {
     const Vec3d m = Vec3d(normals[0]) + Vec3d(normals[1]) + Vec3d(normals[2]);
     const double len = glm::length(m);
-    if (len > 1e-12) return m / len;
+    if (len > kCancelledNormalSum) return m / len;
   }
   return face_normal(a, b, c);
 }

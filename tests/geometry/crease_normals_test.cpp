@@ -89,6 +89,27 @@ TEST(CreaseNormals, DegenerateTrianglesGetFiniteNormals) {
   }
 }
 
+// A zero-area cap filling a T-junction (A, B and V, the float midpoint of
+// AB, on one plane): its face normal is rounding noise, 16.5 degrees off the
+// plane here, inside the crease angle, and its corner angle at V is pi, half
+// of V's weight: it tilted V's normal 8.3 degrees off a flat face (found by a
+// review). It now weighs nothing.
+TEST(CreaseNormals, AZeroAreaCapDoesNotTiltAFlatFacesNormal) {
+  const std::vector<Vec3> pos = {Vec3(-0.113094211f, -0.540845573f, 0.142097369f),
+                                 Vec3(-0.0221331995f, 0.14353925f, -0.0220678896f),
+                                 Vec3(0.0688278154f, 0.827924073f, -0.186233148f),
+                                 Vec3(-0.49750796f, 0.23647137f, 0.101958118f)};
+  const std::vector<uint32_t> idx = {1, 2, 3, 1, 3, 0, 0, 2, 1};
+  const Vec3d plane = glm::normalize(Vec3d(0.3, 0.2, 1));
+  const std::vector<Vec3> n = crease_corner_normals(pos, idx, kDefaultCreaseAngleDeg);
+  for (int corner : {0, 5}) {  // V in the two fan triangles
+    const double off = std::acos(std::min(1.0, std::abs(glm::dot(glm::normalize(Vec3d(n[size_t(corner)])), plane))));
+    EXPECT_LT(off, 1e-4) << "corner " << corner;
+  }
+  EXPECT_EQ(corner_angle(pos[0], pos[2], pos[1], 2), 0.0);  // the cap weighs nothing
+  EXPECT_GT(corner_angle(pos[1], pos[2], pos[3], 0), 0.1);   // a fan triangle does
+}
+
 TEST(CreaseNormals, ClusterPoolResolvesByKeyAndCapsClusters) {
   NormalClusterPool pool(1);
   pool.add(0, Vec3d(0, 0, 1), 1, 2);

@@ -167,6 +167,33 @@ TEST(StoreTracer, MatchesBruteForce) {
   EXPECT_GT(hits, 100);
 }
 
+// A box is closed: a ray parallel to one axis that runs in the plane of the
+// box's hi face enters it, as one in the plane of its lo face does. The huge
+// inverse that stands in for a zero direction read (hi - o) * inv = 0 as
+// leaving the slab at t = 0, so the ray grazing a vertical triangle's top
+// edge missed its tight box while it hit the triangle (found by a review).
+TEST(Bvh, ARayInThePlaneOfABoxFaceEntersIt) {
+  const Vec3d a(0, 0, -1), b(0, 1, -1), c(0, 1, 1);
+  Bbox box;
+  box.expand(a);
+  box.expand(b);
+  box.expand(c);
+  for (double y : {1.0, 0.0}) {  // the hi face's plane, then the lo face's
+    const Vec3d o(-1, y, 0), d(1, 0, 0);
+    for (double tmin : {0.0, 1e-9}) {
+      double t, b1, b2, tn;
+      if (y == 1.0) {  // on the edge b c
+        EXPECT_TRUE(intersect_triangle(o, d, a, b, c, tmin, 1e30, t, b1, b2));
+      }
+      EXPECT_TRUE(intersect_box(box, ray_box_precomp(o, d), tmin, 1e30, tn)) << "y " << y << ", tmin " << tmin;
+      EXPECT_NEAR(tn, 1.0, 1e-12);
+    }
+    // Just outside the slab: missed.
+    double tn;
+    EXPECT_FALSE(intersect_box(box, ray_box_precomp(Vec3d(-1, y + (y > 0 ? 1e-12 : -1e-12), 0), d), 0, 1e30, tn));
+  }
+}
+
 TEST(Bvh, ReusedArraysGiveTheFreshBuild) {
   // build_bvh into a Bvh and scratch that held a larger and then a smaller
   // tree gives exactly the tree a fresh build gives.

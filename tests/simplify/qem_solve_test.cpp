@@ -7,6 +7,7 @@
 #include <random>
 
 #include "geometry/qem_solve.h"
+#include "simplify/vertex_clustering.h"
 #include "test_meshes.h"
 
 namespace raylod {
@@ -336,6 +337,76 @@ TEST(QemSolve, PropertyNeverNonFiniteOrOutsideTheCell) {
         << "iteration " << it;
     }
   }
+}
+
+// A CAD corner exactly on a cell's corner at a deep level (--max-depth
+// allows 21): the rounding of b - A mean, divided by the weakest kept
+// eigenvalue (a face of a hundredth of the others' area), put the rank-3
+// point a few 1e-9 cells outside, past a tolerance of 1e-9 of the cell, and
+// the solve fell back to rank 2, 0.3 cells away (found by a review: 7 to 21%
+// of random corners at levels 17 and 18).
+TEST(QemSolve, ACornerOnACellCornerAtADeepLevelKeepsFullRank) {
+  std::mt19937_64 rng(11);
+  std::uniform_real_distribution<double> u(-0.3, 0.3);
+  for (int level : {16, 18, 21}) {
+    const double s = std::ldexp(1.0, -level), c0 = std::floor(0.45 / s) * s;
+    const Vec3d c(c0);
+    const Bbox cell{c, c + Vec3d(s)};
+    for (int it = 0; it < 200; ++it) {
+      Vec3d e[3];
+      for (int f = 0; f < 3; ++f) {
+        Vec3d axis(0);
+        axis[f] = 1;
+        e[f] = glm::normalize(axis + Vec3d(u(rng), u(rng), u(rng)));
+      }
+      Quadric q;
+      Vec3d sum(0);
+      for (int f = 0; f < 3; ++f) {
+        const Vec3d n = glm::normalize(glm::cross(e[f], e[(f + 1) % 3]));
+        for (int k = 0; k < 3; ++k) {
+          const Vec3d x = c + s * ((0.1 + 0.1 * k) * e[f] + (0.3 - 0.05 * k) * e[(f + 1) % 3]);
+          quadric_add(q, quadric_from_plane(n, x, (f == 2 ? 0.01 : 1.0) * s * s));
+          sum += x;
+        }
+      }
+      const QemSolution r = solve_representative_vertex(q, sum / 9.0, cell);
+      ASSERT_EQ(r.rank, 3) << "level " << level << ", iteration " << it;
+      ASSERT_LT(glm::length(r.position - c), 1e-6 * s) << "level " << level << ", iteration " << it;
+    }
+  }
+}
+
+// The eigen-decomposition does not depend on the quadric's scale: squares of
+// entries of 1e-170 underflowed and of 1e160 overflowed, and the sweeps then
+// stopped before the first, leaving the diagonal (found by a review).
+TEST(SymmetricEigen, AnyScaleGivesTheSameSolve) {
+  const Vec3d n = glm::normalize(Vec3d(1, 1, 0));
+  for (double w : {1.0, 1e-170, 1e-300, 1e160, 1e300}) {
+    const Quadric q = quadric_from_plane(n, Vec3d(0.5), w);
+    const QemSolution s = solve_representative_vertex(q, Vec3d(0.7, 0.5, 0.5), Bbox{Vec3d(0), Vec3d(1)});
+    EXPECT_EQ(s.rank, 1) << w;
+    EXPECT_NEAR(s.position.x, 0.6, 1e-12) << w;
+    EXPECT_NEAR(s.position.y, 0.4, 1e-12) << w;
+    EXPECT_NEAR(s.position.z, 0.5, 1e-12) << w;
+    const Vec3d d = dominant_normal(q);
+    EXPECT_NEAR(std::abs(glm::dot(d, n)), 1.0, 1e-12) << w;
+    const SymmetricEigen3 e = symmetric_eigen(q);
+    EXPECT_NEAR(e.values[0] / w, 1.0, 1e-12) << w;
+  }
+}
+
+// Three unit vertex normals that cancel (radial, 120 degrees apart) leave a
+// rounding residue of about 1e-7, which passed a 1e-12 test and became the
+// triangle's quadric plane, perpendicular to it (found by a review).
+TEST(QemSolve, VertexNormalsThatCancelGiveTheFacePlane) {
+  const Vec3d p[3] = {{0.995004165, 0.0998334166, 0}, {-0.583960185, 0.811724615, 0}, {-0.411043980, -0.911557931, 0}};
+  const Vec3 n[3] = {Vec3(0.995004165f, 0.0998334166f, 0.f), Vec3(-0.583960185f, 0.811724615f, 0.f),
+                     Vec3(-0.411043980f, -0.911557931f, 0.f)};
+  const Vec3d q = quadric_plane_normal(p[0], p[1], p[2], n);
+  EXPECT_NEAR(q.z, 1.0, 1e-12);
+  // Normals that agree stay what they say.
+  const Vec3 tilted[3] = {Vec3(0.f, 0.6f, 0.8f), Vec3(0.f, 0.6f, 0.8f), Vec3(0.f, 0.6f, 0.8f)};
+  EXPECT_NEAR(quadric_plane_normal(p[0], p[1], p[2], tilted).y, 0.6, 1e-6);
 }
 
 }  // namespace
