@@ -59,10 +59,13 @@ inline int draco_parts_for(uint64_t triangles) {
   return int(std::min<uint64_t>(256, (triangles + kDracoPartTriangles - 1) / kDracoPartTriangles));
 }
 
+// Octahedral normal bits when nothing asks for more (0.275 degrees at most).
+inline constexpr int kDefaultNormalBits = 10;
+
 struct DracoOptions {
   int parts = 1;          // > 1: a part file of this many parts (at most one per triangle)
   int position_bits = 0;  // 0 = choose from the data and max_position_error
-  int normal_bits = 10;   // 0 = choose from max_normal_error
+  int normal_bits = kDefaultNormalBits;  // 0 = choose from max_normal_error
   double max_position_error = 0;  // world units; used when position_bits == 0
   double max_normal_error = 0;    // radians; used when normal_bits == 0
   int speed = 5;                   // Draco encoder speed 0 (best) .. 10 (fastest)

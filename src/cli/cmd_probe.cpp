@@ -123,7 +123,9 @@ int cmd_probe(int argc, char** argv) {
         c("pages_read"), format_bytes(c("bytes_read")).c_str(), format_bytes(c("cache_peak_bytes")).c_str(),
         format_bytes(config.cache_bytes).c_str(), r.magnification, format_bytes(peak_rss_bytes()).c_str());
     for (size_t s = 0; s < stores.size(); ++s) {
-      const Cut& cut = r.cuts[s];
+      // With what `raylod run` would simplify it, for `raylod simplify` by hand.
+      Cut cut = r.cuts[s];
+      record_simplify_settings(cut, scene, objects, s);
       std::filesystem::path out = args.has("--output")
                                       ? std::filesystem::path(args.get("--output"))
                                       : std::filesystem::path(meshes[s].string() + "." + cut.key + ".cut");

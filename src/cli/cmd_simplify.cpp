@@ -55,27 +55,31 @@ int run_simplify(int argc, char** argv) {
             "drops triangles that become degenerate or duplicated, and writes the simplified mesh\n"
             "with vertex normals. Draco positions are quantised so that the error stays below 1/8\n"
             "of the smallest footprint the probe measured and below what tilts a face of the\n"
-            "input's mean size by 1/510 rad (override with --position-error).",
+            "input's mean size by 1/510 rad (override with --position-error). A cut from\n"
+            "`raylod probe` records what `raylod run` would simplify it with (fold passes, exact\n"
+            "normals, normal bits, crease angle), and those are the defaults: by hand, the same mesh.",
             {{"--output", "-o", "output mesh: .drc (Draco), .glb (glTF with a Draco primitive), .ply (binary)\n"
                                   "                              or .obj (required)", true, "FILE"},
              {"--memory-limit", "", "memory the simplified mesh may use (default: a quarter of RAM)", true, "SIZE"},
              {"--position-error", "", "Draco: largest position error in world units (default: as the pipeline's)",
               true, "E"},
-             {"--normal-bits", "", "Draco: octahedral normal quantisation bits, 2..30 (default 10)", true, "N"},
+             {"--normal-bits", "", "Draco: octahedral normal quantisation bits, 2..30 (default: as raylod run,\n"
+                                   "                              from the scene's materials, recorded in the cut; else 10)", true, "N"},
              {"--speed", "", "Draco: encoder speed 0 (smallest) .. 10 (fastest) (default 5)", true, "S"},
              {"--parts", "", "Draco: split the mesh into N bitstreams encoded and decoded in parallel (.drc:\n"
                              "a raylod part file, which other Draco tools do not read; .glb: N primitives)\n"
                              "(default 1; raylod run uses one per million triangles from 2M)", true, "N"},
              {"--crease-angle", "", std::string("normals: facets meeting at more than DEG degrees keep separate\n"
                                                 "                              normals (default ") +
-                                        format_degrees(kDefaultCreaseAngleDeg) + ", as the scene's crease_angle; meshes without\n"
+                                        format_degrees(kDefaultCreaseAngleDeg) + ", or the scene's crease_angle the cut records; meshes without\n"
                                                 "                              normals: one with its own keeps the default)", true, "DEG"},
              {"--fold-passes", "", "passes that refine cells whose collapse turns a triangle over\n"
-                                   "                              (default 0; raylod run uses 3 on mirror and glass meshes)", true, "N"},
+                                   "                              (default: as raylod run, 3 on mirror and glass meshes, 0 on others,\n"
+                                   "                              recorded in the cut; else 0)", true, "N"},
              {"--exact-normals", "", "a representative takes the normal the full render shades at the input\n"
                                      "                              point nearest it: the input's, or without normals the crease rule's\n"
-                                     "                              (within a degree of the cell's mean; raylod run does on mirror and\n"
-                                     "                              glass meshes)",
+                                     "                              (within a degree of the cell's mean; by default where there are\n"
+                                     "                              fold passes and the cut records raylod run's settings, as run does)",
               false, ""},
              quiet_option()});
   if (Status st = args.parse(argc, argv); !st) return fail("simplify", st);
@@ -94,13 +98,13 @@ int run_simplify(int argc, char** argv) {
                                           "' (use .drc, .glb, .ply or .obj)"));
   auto limit = memory_budget_from_args(args);
   if (!limit) return fail("simplify", limit.status());
-  auto normal_bits = args.get_int("--normal-bits", 10, 2, 30);
+  auto normal_bits = args.get_int("--normal-bits", 0, 2, 30);
   if (!normal_bits) return fail("simplify", normal_bits.status());
   auto speed = args.get_int("--speed", 5, 0, 10);
   if (!speed) return fail("simplify", speed.status());
   auto parts = args.get_int("--parts", 1, 1, 256);
   if (!parts) return fail("simplify", parts.status());
-  auto fold_passes = args.get_int("--fold-passes", 0, 0, 64);
+  auto fold_passes = args.get_int("--fold-passes", -1, 0, 64);
   if (!fold_passes) return fail("simplify", fold_passes.status());
   auto position_error = args.get_double("--position-error", 0);
   if (!position_error) return fail("simplify", position_error.status());
@@ -143,13 +147,17 @@ int run_simplify(int argc, char** argv) {
                                           "--footprint-scale"));
 
   const double open_seconds = since(t_open);
-  auto crease = crease_angle_from_args(args, kDefaultCreaseAngleDeg);
+  // Unless given, what raylod run uses for this store, as the probe recorded
+  // it in the cut (simplify_settings_of; a cut from before: the defaults).
+  const SimplifySettings pipeline = simplify_settings_of(*cut);
+  auto crease = crease_angle_from_args(args, pipeline.crease_angle_deg);
   if (!crease) return fail("simplify", crease.status());
   SimplifyConfig config;
   config.crease_angle_deg = *crease;
   config.memory_limit = limit->total;
-  config.fold_passes = *fold_passes;
-  config.exact_normals = args.has("--exact-normals");
+  config.fold_passes = args.has("--fold-passes") ? int(*fold_passes) : pipeline.fold_passes;
+  config.exact_normals =
+      args.has("--exact-normals") || (pipeline.recorded && exact_normals_for(config.fold_passes));
   config.progress = !apply_quiet(args);
   auto result = simplify(**store, *cut, config);
   if (!result) return fail("simplify", result.status().with_context(store_path.string()));
@@ -163,7 +171,7 @@ int run_simplify(int argc, char** argv) {
   std::string quantisation;
   if (ext == ".drc" || ext == ".glb") {
     DracoOptions opt;
-    opt.normal_bits = int(*normal_bits);
+    opt.normal_bits = args.has("--normal-bits") ? int(*normal_bits) : pipeline.normal_bits;
     opt.speed = int(*speed);
     opt.parts = int(*parts);
     // The smallest footprint the probe measured, with a safety factor of 8,

@@ -155,6 +155,24 @@ int fold_passes_for(const Scene& scene, std::span<const ProbeObject> objects, si
 
 bool exact_normals_for(int fold_passes) { return fold_passes > 0; }
 
+void record_simplify_settings(Cut& cut, const Scene& scene, std::span<const ProbeObject> objects, size_t store) {
+  cut.counters["simplify_fold_passes"] = uint64_t(fold_passes_for(scene, objects, store));
+  cut.counters["simplify_normal_bits"] = uint64_t(choose_normal_bits(shading_normal_tolerance(scene)));
+  cut.counters["simplify_crease_angle_udeg"] = uint64_t(std::llround(scene.crease_angle_deg * 1e6));
+}
+
+SimplifySettings simplify_settings_of(const Cut& cut) {
+  SimplifySettings s;
+  const auto f = cut.counters.find("simplify_fold_passes"), b = cut.counters.find("simplify_normal_bits"),
+             a = cut.counters.find("simplify_crease_angle_udeg");
+  if (f == cut.counters.end() || b == cut.counters.end() || a == cut.counters.end()) return s;
+  s.recorded = true;
+  s.fold_passes = int(std::min<uint64_t>(f->second, 64));
+  s.normal_bits = int(std::clamp<uint64_t>(b->second, 2, 30));
+  s.crease_angle_deg = std::min(180.0, double(a->second) * 1e-6);
+  return s;
+}
+
 StatusOr<SimplifiedMesh> simplify_cut_to_draco(const OctreeStore& store, const Cut& cut, const fs::path& out,
                                                uint64_t memory_limit, double max_normal_error, bool progress,
                                                double* seconds, double crease_angle_deg, int fold_passes) {

@@ -23,6 +23,7 @@
 #include "render/renderer.h"
 #include "scene/scene.h"
 #include "simplify/collapse.h"
+#include "streaming/draco_io.h"
 #include "streaming/octree_store.h"
 
 namespace raylod {
@@ -270,6 +271,22 @@ int fold_passes_for(const Scene& scene, std::span<const ProbeObject> objects, si
 // mirror or glass object uses the store), with or without input normals.
 // The simplified-mesh cache keys its entries by it.
 bool exact_normals_for(int fold_passes);
+
+// What `raylod run` gives simplify for a store, so that `raylod simplify
+// STORE CUT` run by hand on a cut from `raylod probe` makes the mesh run
+// makes: fold passes (and with them exact normals), the normals'
+// quantisation (shading_normal_tolerance) and the crease angle. probe
+// records them in the cut's counters (simplify_fold_passes,
+// simplify_normal_bits, simplify_crease_angle_udeg); a cut from before
+// gives simplify's own defaults (recorded = false).
+struct SimplifySettings {
+  bool recorded = false;
+  int fold_passes = 0;
+  int normal_bits = kDefaultNormalBits;
+  double crease_angle_deg = kDefaultCreaseAngleDeg;
+};
+void record_simplify_settings(Cut& cut, const Scene& scene, std::span<const ProbeObject> objects, size_t store);
+SimplifySettings simplify_settings_of(const Cut& cut);
 
 // Whether a failed simplify_cut_to_draco into `staged` means the disk refused
 // that file (full, read-only, gone): a typed write failure (Status::code) of
