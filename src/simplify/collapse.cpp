@@ -1127,65 +1127,80 @@ StatusOr<SimplifyResult> simplify(const OctreeStore& store, const Cut& cut, cons
     if (!node) { ++result.cut_cells_missing; continue; }
     add_cell(c.key, *node);
   }
-  // Fold passes: which cells turn a triangle over is decided by a scan that
-  // builds nothing, and only the pages near the cells the last pass changed
-  // are scanned again (a triangle with no corner there decides as before,
-  // and it did not fold then, or its cells would have changed). Then one
-  // pass builds the mesh.
+  // The cut as given is built first, in one pass over every page, which
+  // also finds the cells that turn a triangle over. Fold passes then refine
+  // those: which cells turn a triangle over under a refined cut is decided
+  // by a scan that builds nothing, of only the pages near the cells the last
+  // pass changed (a triangle with no corner there decides as before, and it
+  // did not fold then, or its cells would have changed). A refinement is
+  // kept only if the scan after it finds fewer triangles turned over in all
+  // (on those pages: elsewhere nothing changed). If any is kept, one more
+  // pass builds the mesh of the refined cut; if none, the first build is the
+  // mesh (the 100M glass teapot: its first refinement is taken back, and
+  // this saves a scan of every page).
   const auto seconds_since = [](std::chrono::steady_clock::time_point t) {
     return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
   };
+  // A mesh with normals of its own is shaded by them in the full render,
+  // whatever --crease-angle says (crease_normals.h): its representatives
+  // group them by the default angle, so the option does not change the
+  // simplified mesh alone (a faceted PLY at 180 degrees got one smooth
+  // normal per representative: radial streaks, 14 dB below the floor).
+  const double crease_angle = h.has_normals ? kDefaultCreaseAngleDeg : config.crease_angle_deg;
+  // The builder holds a span of the representatives: the cut as given keeps
+  // its own while the passes swap `reps` for refined ones.
+  const std::vector<Representative> first_reps = reps;
+  std::optional<CollapseBuilder> first(std::in_place, first_reps, h.has_normals, crease_angle);
+  RAYLOD_RETURN_IF_ERROR(collapse_pass(store, keys, config, estimate, *first, result.pages_read, result.pages_skipped));
+
   const auto fold_start = std::chrono::steady_clock::now();
-  std::vector<uint32_t> page_list(store.pages().size());
-  std::iota(page_list.begin(), page_list.end(), 0u);
-  // Turned-over triangles per page under the cut as it stands, and in all.
-  // A refinement is kept only if the scan after it finds fewer in all: a
-  // large folding cell's children can fold against their new neighbours in
-  // turn, and a folding finest cell kept whole brings every triangle it
-  // holds (the 100M teapot, whose finest cells hold about a hundred
-  // triangles each: 5,671 turned over before any pass, 11,636 after the
-  // first refinement, 5,931 after three, for 1.6M -> 4.85M triangles).
+  std::vector<uint32_t> page_list;
+  // Turned-over triangles per page under the cut as it stands, for the pages
+  // scanned: a large folding cell's children can fold against their new
+  // neighbours in turn, and a folding finest cell kept whole brings every
+  // triangle it holds (the 100M teapot, whose finest cells hold about a
+  // hundred triangles each: 5,671 turned over before any pass, 11,636 after
+  // the first refinement, 5,931 after three, for 1.6M -> 4.85M triangles).
   std::vector<uint32_t> page_folds(config.fold_passes > 0 ? store.pages().size() : 0, 0);
-  uint64_t folds_total = 0;
   std::vector<CellKey> kept_keys;  // the cut before the last refinement, until a scan judges it
   std::vector<Representative> kept_reps;
   uint64_t kept_refined = 0;
   SimplifyEstimate kept_estimate;
-  // Scans page_list under the current cut: the total turned over after it,
-  // and the cells to refine.
-  auto scan = [&](std::vector<uint8_t>& folding, uint64_t& total) -> Status {
+  // Whether the scan of page_list under the current cut finds fewer
+  // triangles turned over than under the cut before the last refinement
+  // (page_folds holds those counts), and the cells to refine.
+  auto scan_fewer = [&](std::vector<uint8_t>& folding, bool& fewer) -> Status {
     uint64_t before = 0, after = 0;
     for (const uint32_t p : page_list) before += page_folds[p];
     RAYLOD_RETURN_IF_ERROR(mark_folding_cells(store, keys, reps, page_list, folding, page_folds, result.pages_read,
                                               result.pages_skipped));
     for (const uint32_t p : page_list) after += page_folds[p];
-    total = folds_total - before + after;
+    fewer = after < before;
     return {};
   };
-  // Undoes the last refinement if the scan after it found no fewer folds.
-  auto judge_last_refinement = [&](uint64_t total) {
-    if (kept_keys.empty()) return true;  // nothing to judge: the first scan
-    if (total < folds_total) {
-      std::vector<CellKey>().swap(kept_keys);
-      std::vector<Representative>().swap(kept_reps);
-      return true;
+  // Keeps the last refinement, or takes it back.
+  auto judge_last_refinement = [&](bool fewer) {
+    if (!fewer) {
+      keys.swap(kept_keys);
+      reps.swap(kept_reps);
+      estimate = kept_estimate;
+      result.fold_cells_refined -= kept_refined;
+      --result.fold_passes;
+      ++result.fold_passes_undone;
     }
-    keys.swap(kept_keys);
-    reps.swap(kept_reps);
     std::vector<CellKey>().swap(kept_keys);
     std::vector<Representative>().swap(kept_reps);
-    estimate = kept_estimate;
-    result.fold_cells_refined -= kept_refined;
-    --result.fold_passes;
-    ++result.fold_passes_undone;
-    return false;
   };
-  for (int pass = 0; pass < config.fold_passes && !page_list.empty(); ++pass) {
+  for (int pass = 0; pass < config.fold_passes; ++pass) {
     std::vector<uint8_t> folding;
-    uint64_t total = 0;
-    RAYLOD_RETURN_IF_ERROR(scan(folding, total));
-    if (!judge_last_refinement(total)) break;
-    folds_total = total;
+    if (pass == 0) {
+      folding = first->folding();
+    } else {
+      bool fewer = false;
+      RAYLOD_RETURN_IF_ERROR(scan_fewer(folding, fewer));
+      judge_last_refinement(fewer);
+      if (!fewer) break;
+    }
     if (std::find(folding.begin(), folding.end(), uint8_t(1)) == folding.end()) break;
     // Each folding cell gives way to its children (the cut stays an
     // antichain: children of a cut cell are in no other cut cell).
@@ -1218,6 +1233,14 @@ StatusOr<SimplifyResult> simplify(const OctreeStore& store, const Cut& cut, cons
       result.folds_stopped_by_memory = true;
       break;
     }
+    page_list = pages_touching(store, changed);
+    if (pass == 0) {
+      // The first build counted turned-over triangles in all, not per page:
+      // count them on the pages the refinement touches, under the cut as given.
+      std::vector<uint8_t> unused;
+      RAYLOD_RETURN_IF_ERROR(mark_folding_cells(store, keys, reps, page_list, unused, page_folds, result.pages_read,
+                                                result.pages_skipped));
+    }
     kept_estimate = estimate;
     estimate = refined;  // the building pass reserves for what comes
     kept_refined = changed.size();
@@ -1227,28 +1250,23 @@ StatusOr<SimplifyResult> simplify(const OctreeStore& store, const Cut& cut, cons
     keys.swap(next_keys);
     reps.swap(next_reps);
     ++result.fold_passes;
-    page_list = pages_touching(store, changed);
   }
   // The last refinement, judged by one more scan of the pages it touched.
   if (!kept_keys.empty()) {
     std::vector<uint8_t> folding;
-    uint64_t total = 0;
-    RAYLOD_RETURN_IF_ERROR(scan(folding, total));
-    judge_last_refinement(total);
+    bool fewer = false;
+    RAYLOD_RETURN_IF_ERROR(scan_fewer(folding, fewer));
+    judge_last_refinement(fewer);
   }
   result.fold_seconds = seconds_since(fold_start);
-  {
-    // A mesh with normals of its own is shaded by them in the full render,
-    // whatever --crease-angle says (crease_normals.h): its representatives
-    // group them by the default angle, so the option does not change the
-    // simplified mesh alone (a faceted PLY at 180 degrees got one smooth
-    // normal per representative: radial streaks, 14 dB below the floor).
-    CollapseBuilder builder(reps, h.has_normals, h.has_normals ? kDefaultCreaseAngleDeg : config.crease_angle_deg);
-    RAYLOD_RETURN_IF_ERROR(collapse_pass(store, keys, config, estimate, builder, result.pages_read, result.pages_skipped));
-    const auto finish_start = std::chrono::steady_clock::now();
-    result.mesh = builder.finish(&result.stats);
-    result.finish_seconds = seconds_since(finish_start);
+  if (result.fold_passes > 0) {
+    first.reset();  // its memory, before the refined cut's build
+    first.emplace(reps, h.has_normals, crease_angle);
+    RAYLOD_RETURN_IF_ERROR(collapse_pass(store, keys, config, estimate, *first, result.pages_read, result.pages_skipped));
   }
+  const auto finish_start = std::chrono::steady_clock::now();
+  result.mesh = first->finish(&result.stats);
+  result.finish_seconds = seconds_since(finish_start);
   for (const Representative& r : reps) result.clamped_representatives += r.clamped;
   result.mesh.origin = h.mesh_origin;  // the store's coordinates are the mesh's, relative to it
   result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();

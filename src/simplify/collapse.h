@@ -384,7 +384,7 @@ struct SimplifyResult {
   uint64_t pages_read = 0;
   uint64_t pages_skipped = 0;  // page visits spared: the page lay inside one collapsed cell
   double seconds = 0;          // all of simplify(), of which:
-  double fold_seconds = 0;     //   the fold passes' scans
+  double fold_seconds = 0;     //   the fold passes' scans (not the builds)
   double finish_seconds = 0;   //   CollapseBuilder::finish (duplicates, normals, output order)
 };
 
@@ -394,12 +394,14 @@ struct SimplifyResult {
 // A turned-over triangle faces against its input and shows as a sparkle
 // through glass or a dark seam on a mirror, so each such cell is replaced by
 // its children in the store (a finest cell is not collapsed), at most
-// config.fold_passes times: the first check scans every page, later checks
-// only the pages near the cells refined last, and none builds the mesh; one
-// pass over the pages then builds it. A refinement after which the check
-// finds no fewer triangles turned over in all is taken back, and the passes
-// stop (SimplifyResult::fold_passes_undone): refining can fold the children
-// against their new neighbours, and a folding finest cell is kept whole. Fails before reading any page if the
+// config.fold_passes times. The cut as given is built first, which finds the
+// cells that fold; each refinement is then checked by scans, which build
+// nothing, of the pages near the cells it changed. A refinement after which
+// the check finds no fewer triangles turned over is taken back, and the
+// passes stop (SimplifyResult::fold_passes_undone): refining can fold the
+// children against their new neighbours, and a folding finest cell is kept
+// whole. If a refinement is kept, one more pass over the pages builds the
+// refined cut's mesh; if none is, the first build is the mesh. Fails before reading any page if the
 // estimate exceeds config.memory_limit, and during the building pass if the
 // mesh under construction does.
 StatusOr<SimplifyResult> simplify(const OctreeStore& store, const Cut& cut, const SimplifyConfig& config = {});
