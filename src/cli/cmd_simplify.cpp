@@ -66,9 +66,10 @@ int run_simplify(int argc, char** argv) {
              {"--normal-bits", "", "Draco: octahedral normal quantisation bits, 2..30 (default: as raylod run,\n"
                                    "                              from the scene's materials, recorded in the cut; else 10)", true, "N"},
              {"--speed", "", "Draco: encoder speed 0 (smallest) .. 10 (fastest) (default 5)", true, "S"},
-             {"--parts", "", "Draco: split the mesh into N bitstreams encoded and decoded in parallel (.drc:\n"
-                             "a raylod part file, which other Draco tools do not read; .glb: N primitives)\n"
-                             "(default 1; raylod run uses one per million triangles from 2M)", true, "N"},
+             {"--parts", "", "Draco: split the mesh into N bitstreams encoded and decoded in parallel\n"
+                             "                              (.drc: a raylod part file, which other Draco tools do not read;\n"
+                             "                              .glb: N primitives) (default 1; raylod run uses one per million\n"
+                             "                              triangles from 2M)", true, "N"},
              {"--crease-angle", "", std::string("normals: facets meeting at more than DEG degrees keep separate\n"
                                                 "                              normals (default ") +
                                         format_degrees(kDefaultCreaseAngleDeg) + ", or the scene's crease_angle the cut records; meshes without\n"
