@@ -2,7 +2,6 @@
 #include <cstdio>
 
 #include "cli/cli.h"
-#include "core/progress.h"
 #include "core/system.h"
 #include "pipeline/pipeline.h"
 #include "streaming/octree_store.h"

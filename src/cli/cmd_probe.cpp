@@ -8,7 +8,6 @@
 
 #include "cli/cli.h"
 #include "core/cluster.h"
-#include "core/progress.h"
 #include "core/system.h"
 #include "pipeline/pipeline.h"
 #include "geometry/optics.h"

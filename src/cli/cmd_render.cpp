@@ -4,7 +4,6 @@
 
 #include "cli/cli.h"
 #include "core/cluster.h"
-#include "core/progress.h"
 #include "core/system.h"
 #include "gen/generate.h"
 #include "render/renderer.h"

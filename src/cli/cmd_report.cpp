@@ -5,7 +5,6 @@
 #include <sstream>
 
 #include "cli/cli.h"
-#include "core/progress.h"
 #include "core/system.h"
 #include "pipeline/report.h"
 

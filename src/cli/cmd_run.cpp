@@ -10,7 +10,6 @@
 #include "streaming/octree_store.h"
 #include "streaming/source_record.h"
 #include "core/cluster.h"
-#include "core/progress.h"
 #include "core/system.h"
 #include "gen/generate.h"
 #include "pipeline/image_compare.h"
@@ -139,8 +138,7 @@ Status run_run(int argc, char** argv, bool& help) {
   RAYLOD_RETURN_IF_ERROR(check_stats_json_path(args));
   if (args.has("--export-mesh")) RAYLOD_RETURN_IF_ERROR(check_output_file(args.get("--export-mesh"), "--export-mesh"));
   if (args.has("--compare")) {
-    std::error_code ec;
-    if (std::filesystem::exists(output, ec) && !std::filesystem::is_regular_file(output, ec))
+    if (is_pass_through_output(output))
       return Status::error(output.string() + ": --compare writes its images beside the image (-o), which must then "
                            "be a file, not a device or FIFO");
   }

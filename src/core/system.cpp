@@ -374,11 +374,17 @@ std::filesystem::path follow_symlinks(std::filesystem::path p) {
 
 }  // namespace
 
+bool is_pass_through_output(const std::filesystem::path& path) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  const fs::file_status st = fs::status(path, ec);  // through symlinks
+  return !ec && fs::exists(st) && !fs::is_regular_file(st) && !fs::is_directory(st);
+}
+
 AtomicOutput::AtomicOutput(std::filesystem::path destination) : dest_(std::move(destination)) {
   namespace fs = std::filesystem;
   std::error_code ec;
-  const fs::file_status st = fs::status(dest_, ec);  // through symlinks
-  pass_through_ = !ec && fs::exists(st) && !fs::is_regular_file(st) && !fs::is_directory(st);
+  pass_through_ = is_pass_through_output(dest_);
   target_ = pass_through_ ? dest_ : follow_symlinks(dest_);
   // A device's directory (/dev) is no place for a temporary.
   const fs::path beside = pass_through_ ? fs::temp_directory_path(ec) / ("raylod-" + dest_.filename().string()) : target_;

@@ -117,6 +117,12 @@ size_t remove_stale_temporaries(const std::filesystem::path& destination);
 // of this machine, no longer exists.
 bool is_dead_process_temporary(const std::string& filename);
 
+// Whether `path` (through symlinks) exists and is neither a regular file nor
+// a directory: a device such as /dev/null, a FIFO, a socket, /dev/stdout's
+// terminal or pipe. Such an output is written into, never replaced
+// (AtomicOutput).
+bool is_pass_through_output(const std::filesystem::path& path);
+
 // An output written whole or not at all: to a temporary, then renamed over
 // the destination. A symlink is followed to the file it names, which is
 // replaced in its own directory (the link stays). A destination that exists

@@ -62,9 +62,7 @@ bool is_float_format(const std::filesystem::path& path) {
 // A device or FIFO without an extension (`-o /dev/null`, a pipe) takes a
 // PNG: the name has no format to give, and the bytes only pass through.
 bool is_extensionless_device(const std::filesystem::path& path) {
-  std::error_code ec;
-  return !path.has_extension() && std::filesystem::exists(path, ec) && !std::filesystem::is_regular_file(path, ec) &&
-         !std::filesystem::is_directory(path, ec);
+  return !path.has_extension() && is_pass_through_output(path);
 }
 
 // What OIIO::ImageOutput::create chooses the writer from: the file name, or
