@@ -40,15 +40,25 @@ bool face_normal_is_noise(const Vec3& a, const Vec3& b, const Vec3& c) {
   return !(height > 100.0 * double(std::numeric_limits<float>::epsilon()) * size);
 }
 
-}  // namespace
-
-double corner_angle(const Vec3& a, const Vec3& b, const Vec3& c, int k) {
-  if (face_normal_is_noise(a, b, c)) return 0;
+// The interior angle at corner k (0 for a degenerate triangle), whatever
+// the triangle's conditioning.
+double interior_angle(const Vec3& a, const Vec3& b, const Vec3& c, int k) {
   const Vec3d p[3] = {Vec3d(a), Vec3d(b), Vec3d(c)};
   const Vec3d e1 = p[(k + 1) % 3] - p[k], e2 = p[(k + 2) % 3] - p[k];
   const double s = glm::length(glm::cross(e1, e2)), d = glm::dot(e1, e2);
   if (!(s > 0)) return 0;
   return std::atan2(s, d);  // robust for slivers, unlike acos of a ratio
+}
+
+}  // namespace
+
+double corner_angle(const Vec3& a, const Vec3& b, const Vec3& c, int k) {
+  return face_normal_is_noise(a, b, c) ? 0.0 : interior_angle(a, b, c, k);
+}
+
+std::array<double, 3> corner_angles(const Vec3& a, const Vec3& b, const Vec3& c) {
+  if (face_normal_is_noise(a, b, c)) return {0.0, 0.0, 0.0};
+  return {interior_angle(a, b, c, 0), interior_angle(a, b, c, 1), interior_angle(a, b, c, 2)};
 }
 
 void NormalClusterPool::add_to_nearest(uint32_t v, const Vec3d& n, double w) {
@@ -180,12 +190,16 @@ std::vector<Vec3> crease_corner_normals(std::span<const Vec3> positions, std::sp
                                         double crease_angle_deg) {
   const size_t nv = positions.size(), nt = indices.size() / 3;
   const double cos_crease = crease_cosine(crease_angle_deg);
-  // Face normals, then vertex -> incident corners (CSR, in triangle order).
+  // Face normals (and whether each is rounding noise, which gives its
+  // corners no weight: corner_angle), then vertex -> incident corners (CSR,
+  // in triangle order).
   std::vector<Vec3> face(nt);
+  std::vector<uint8_t> noise(nt);
   tbb::parallel_for(tbb::blocked_range<size_t>(0, nt, 1 << 14), [&](const auto& r) {
     for (size_t t = r.begin(); t != r.end(); ++t) {
       const uint32_t* f = &indices[3 * t];
       face[t] = Vec3(face_normal(Vec3d(positions[f[0]]), Vec3d(positions[f[1]]), Vec3d(positions[f[2]])));
+      noise[t] = face_normal_is_noise(positions[f[0]], positions[f[1]], positions[f[2]]);
     }
   });
   std::vector<uint32_t> start(nv + 1, 0);
@@ -206,7 +220,7 @@ std::vector<Vec3> crease_corner_normals(std::span<const Vec3> positions, std::sp
       for (uint32_t j = start[v]; j < start[v + 1]; ++j) {
         const uint32_t corner = corners[j], t = corner / 3;
         const uint32_t* f = &indices[3 * size_t(t)];
-        const double w = corner_angle(positions[f[0]], positions[f[1]], positions[f[2]], int(corner % 3));
+        const double w = noise[t] ? 0.0 : interior_angle(positions[f[0]], positions[f[1]], positions[f[2]], int(corner % 3));
         local.add(0, Vec3d(face[t]), w, kNoCluster);
       }
       const Vec3d fallback = local.mean(0);

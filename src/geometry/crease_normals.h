@@ -25,6 +25,7 @@
 #pragma once
 
 #include <algorithm>
+#include <array>
 #include <cstdint>
 #include <span>
 #include <vector>
@@ -134,6 +135,9 @@ double crease_cosine(double crease_angle_deg);
 // filling a T-junction has a corner angle of pi and a face normal that is
 // noise, which tilted a flat face's shading normal by up to 12 degrees).
 double corner_angle(const Vec3& a, const Vec3& b, const Vec3& c, int k);
+// The three corners' weights of one triangle (corner_angle for k = 0, 1, 2),
+// the triangle's conditioning judged once.
+std::array<double, 3> corner_angles(const Vec3& a, const Vec3& b, const Vec3& c);
 
 // Per-corner normals of an indexed mesh by the rule above (3 per triangle).
 // Vertices must be welded (equal positions share an index) for smoothing to

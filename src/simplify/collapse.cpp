@@ -453,6 +453,8 @@ void prepare_collapse(const PageMesh& page, std::span<const uint32_t> vertex_cel
     const InputFace input = input_face(p);
     out.face[t] = input.unit;
     out.area2[t] = input.area2;
+    // The crease rule's corner weights, without input normals.
+    const std::array<double, 3> angle = input_has_normals ? std::array<double, 3>{} : corner_angles(p[0], p[1], p[2]);
     Vec3 pos[3];
     bool collapsed = false;
     for (int k = 0; k < 3; ++k) {
@@ -461,7 +463,7 @@ void prepare_collapse(const PageMesh& page, std::span<const uint32_t> vertex_cel
         collapsed = true;
         out.rep_corners.push_back(
             {c[k], canonical(p[k]),
-             !input_has_normals && input.area2 > 0 ? float(corner_angle(p[0], p[1], p[2], k)) : 0.0f, Vec3(input.unit)});
+             !input_has_normals && input.area2 > 0 ? float(angle[size_t(k)]) : 0.0f, Vec3(input.unit)});
         if (!(input.area2 > 0)) continue;  // no weight
         if (normals) {
           uint32_t& entry = out.vertex_normal[vi[k]];
@@ -483,7 +485,7 @@ void prepare_collapse(const PageMesh& page, std::span<const uint32_t> vertex_cel
         continue;
       }
       pos[k] = canonical(p[k]);
-      if (!input_has_normals) out.angle[3 * t + k] = corner_angle(p[0], p[1], p[2], k);
+      if (!input_has_normals) out.angle[3 * t + k] = angle[size_t(k)];
     }
     // Two corners are one output vertex when they are in one cell, or both
     // kept with bit-identical positions (and normals, with input normals).
@@ -1235,8 +1237,11 @@ StatusOr<SimplifyResult> simplify(const OctreeStore& store, const Cut& cut, cons
     }
     page_list = pages_touching(store, changed);
     if (pass == 0) {
-      // The first build counted turned-over triangles in all, not per page:
-      // count them on the pages the refinement touches, under the cut as given.
+      // The counts the refinement is judged against, on the pages it
+      // touches, under the cut as given: by the scan's rule, as every later
+      // count is (the build's own count is not per page, and it tells two
+      // kept corners at one position apart by their normals, which the scan
+      // does not).
       std::vector<uint8_t> unused;
       RAYLOD_RETURN_IF_ERROR(mark_folding_cells(store, keys, reps, page_list, unused, page_folds, result.pages_read,
                                                 result.pages_skipped));
@@ -1245,10 +1250,10 @@ StatusOr<SimplifyResult> simplify(const OctreeStore& store, const Cut& cut, cons
     estimate = refined;  // the building pass reserves for what comes
     kept_refined = changed.size();
     result.fold_cells_refined += changed.size();  // one box per folding cell
-    kept_keys = keys;
-    kept_reps = reps;
-    keys.swap(next_keys);
-    reps.swap(next_reps);
+    kept_keys = std::move(keys);
+    kept_reps = std::move(reps);
+    keys = std::move(next_keys);
+    reps = std::move(next_reps);
     ++result.fold_passes;
   }
   // The last refinement, judged by one more scan of the pages it touched.
