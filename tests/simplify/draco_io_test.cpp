@@ -509,4 +509,19 @@ TEST(KeptFreeMemory, LargeBlocksStayInTheHeapWhileOneLives) {
 #endif
 }
 
+// A version 1.2 bitstream whose connectivity header claims 101 million
+// vertices (the bytes 0x06060606): Draco's decoder allocated 3 GB for it
+// before reading anything more (found by fuzz_draco, 2026-11-28). Bitstreams
+// before version 2 are refused with a message naming the version.
+TEST(DracoRead, AnOldBitstreamVersionIsRefusedBeforeDracoAllocatesForIt) {
+  const test::ScratchDir dir("draco-old-version");
+  std::string bytes = std::string("DRACO\x01\x02\x01\x01\x00\x80\x00", 12) + std::string(120, '\x06');
+  const std::filesystem::path path = dir.path / "old.drc";
+  std::ofstream(path, std::ios::binary) << bytes;
+  auto got = read_draco(path);
+  ASSERT_FALSE(got.is_ok());
+  EXPECT_NE(got.status().message().find("old.drc: Draco bitstream version 1.2 is not read"), std::string::npos)
+      << got.status().message();
+}
+
 }  // namespace raylod
