@@ -152,9 +152,9 @@ struct RunSession {
 // up to an eighth of the working memory between them (all of it without a
 // memory limit); simplify and render then plan within the rest. The same on
 // every rank, so outputs do not change with the number of ranks. Also keeps
-// what the views' cut selections share (SelectionCache: 24 bytes a node,
-// 87 MiB for the 10M teapot's 3.8M nodes), taken from the memory simplify
-// and render plan with as well.
+// what the views' cut selections share (SelectionCache: at most 26 bytes a
+// node, 95 MiB for the 10M teapot's 3.8M nodes), taken from the memory
+// simplify and render plan with as well.
 void keep_pages_between_views(RunSession& session);
 // Evicts the kept pages down to retained_pages (after a trace, before
 // simplify and render); trace_view does it.

@@ -422,13 +422,16 @@ SelectionCache::Store SelectionCache::make_entry(const OctreeStore& store) {
   const int Q = store.header().quadric_depth;
   Store e;
   e.codes.resize(size_t(Q) + 1);
-  e.deviation.resize(size_t(Q) + 1);
+  e.slot.resize(size_t(Q) + 1);
+  size_t nodes_total = 0;
   for (int L = 0; L <= Q; ++L) {
     const auto nodes = store.level(L);
     e.codes[size_t(L)].resize(nodes.size());
     for (size_t i = 0; i < nodes.size(); ++i) e.codes[size_t(L)][i] = nodes[i].code;
-    e.deviation[size_t(L)].assign(nodes.size(), CollapseDeviation{-1.0, 0.0});
+    e.slot[size_t(L)].assign(nodes.size(), 0);
+    nodes_total += nodes.size();
   }
+  e.max_computed = std::max<size_t>(nodes_total / kComputedShare, 1);
   return e;
 }
 
@@ -443,9 +446,12 @@ SelectionCache::Store& SelectionCache::of(const OctreeStore& store) {
 
 uint64_t SelectionCache::bytes_for(std::span<const OctreeStore* const> stores) {
   uint64_t b = 0;
-  for (const OctreeStore* st : stores)
-    for (int L = 0; L <= st->header().quadric_depth; ++L)
-      b += st->level(L).size() * (sizeof(uint64_t) + sizeof(CollapseDeviation));
+  for (const OctreeStore* st : stores) {
+    uint64_t nodes = 0;
+    for (int L = 0; L <= st->header().quadric_depth; ++L) nodes += st->level(L).size();
+    b += nodes * (sizeof(uint64_t) + sizeof(uint32_t)) +
+         std::max<uint64_t>(nodes / kComputedShare, 1) * sizeof(CollapseDeviation);
+  }
   return b;
 }
 
@@ -1223,7 +1229,17 @@ StatusOr<ProbeResult> CutSelection::select(const ProbeConfig& config) {
     // fold.
     std::array<uint64_t, 8> finest_kept{};
     std::vector<std::vector<char>> collapsed(size_t(Q) + 1);
-    const std::vector<std::vector<uint64_t>>& codes_at = n.kept->codes;
+    SelectionCache::Store& kept = *n.kept;
+    // Deviations kept beyond the cache's bound are let go (recomputed when
+    // needed), and a slot must fit 32 bits.
+    size_t node_count = 0;
+    for (const std::vector<uint32_t>& slot : kept.slot) node_count += slot.size();
+    if (kept.computed.size() > kept.max_computed ||
+        kept.computed.size() + node_count >= std::numeric_limits<uint32_t>::max()) {
+      kept.computed.clear();
+      for (std::vector<uint32_t>& slot : kept.slot) std::fill(slot.begin(), slot.end(), 0);
+    }
+    const std::vector<std::vector<uint64_t>>& codes_at = kept.codes;
     for (int L = 0; L <= Q; ++L) {
       const auto nodes = st.level(L);
       const std::vector<uint64_t>& codes = codes_at[size_t(L)];
@@ -1236,18 +1252,26 @@ StatusOr<ProbeResult> CutSelection::select(const ProbeConfig& config) {
       // normal, 4 = for an open boundary in it, 5 = for a fold in it, 6 =
       // for a crease in it (mirrors and glass), 7 = for the far end of a
       // triangle seen beyond it.
-      std::vector<char> verdict(nodes.size(), 0);
-      tbb::parallel_for(tbb::blocked_range<size_t>(0, nodes.size(), 256), [&](const tbb::blocked_range<size_t>& r) {
-        for (size_t i = r.begin(); i != r.end(); ++i) {
-          if (inside[i]) continue;
-          const double f = n.need[size_t(L)][i];
-          if (!(diag < K * f)) continue;
-          if (!deviation) { verdict[i] = 1; continue; }
-          // The deviation tests compare what moves the surface in the image
-          // with the shift footprint (ProbeHit::shift_footprint).
-          const double fs = double(n.shift_need[size_t(L)][i]);
-          CollapseDeviation& dev = n.kept->deviation[size_t(L)][i];
-          if (dev.position < 0) {  // not computed by an earlier selection
+      // The deviations of the nodes this level tests that no selection
+      // computed before (SelectionCache): given slots, then computed.
+      if (deviation) {
+        std::vector<uint32_t>& slot = kept.slot[size_t(L)];
+        std::vector<char> wanted(nodes.size(), 0);
+        tbb::parallel_for(tbb::blocked_range<size_t>(0, nodes.size(), 1024), [&](const tbb::blocked_range<size_t>& r) {
+          for (size_t i = r.begin(); i != r.end(); ++i)
+            wanted[i] = !inside[i] && diag < K * n.need[size_t(L)][i] && slot[i] == 0;
+        });
+        std::vector<size_t> todo;
+        for (size_t i = 0; i < nodes.size(); ++i)
+          if (wanted[i]) {
+            todo.push_back(i);
+            slot[i] = uint32_t(kept.computed.size() + todo.size());
+          }
+        kept.computed.resize(kept.computed.size() + todo.size());
+        tbb::parallel_for(tbb::blocked_range<size_t>(0, todo.size(), 64), [&](const tbb::blocked_range<size_t>& r) {
+          for (size_t t = r.begin(); t != r.end(); ++t) {
+            const size_t i = todo[t];
+            CollapseDeviation& dev = kept.computed[slot[i] - 1];
             const Bbox cell = st.cell_bounds(CellKey{uint32_t(L), codes[i]});
             dev = collapse_deviation(nodes[i], Bbox{cell.lo - origin, cell.hi - origin}, node_normals, qem);
             // What the cell's area weighting hides, from its subtree
@@ -1263,6 +1287,19 @@ StatusOr<ProbeResult> CutSelection::select(const ProbeConfig& config) {
               dev.position = std::max(dev.position, descendant_deviation(sub, dev.representative));
             }
           }
+        });
+      }
+      std::vector<char> verdict(nodes.size(), 0);
+      tbb::parallel_for(tbb::blocked_range<size_t>(0, nodes.size(), 256), [&](const tbb::blocked_range<size_t>& r) {
+        for (size_t i = r.begin(); i != r.end(); ++i) {
+          if (inside[i]) continue;
+          const double f = n.need[size_t(L)][i];
+          if (!(diag < K * f)) continue;
+          if (!deviation) { verdict[i] = 1; continue; }
+          // The deviation tests compare what moves the surface in the image
+          // with the shift footprint (ProbeHit::shift_footprint).
+          const double fs = double(n.shift_need[size_t(L)][i]);
+          const CollapseDeviation& dev = kept.deviation(L, i);
           if (dev.position > config.tolerance_px * fs) { verdict[i] = 2; continue; }
           // What a quadric cannot bound (rims, folds, creases on mirrors
           // and glass, below) collapses only while the whole cell is within

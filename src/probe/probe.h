@@ -225,21 +225,35 @@ inline double default_angle_tolerance_px(int spp) {
 // What cut selections keep of a store between them (a view sequence's
 // views, RunSession::selection_cache): each level's node codes in a compact array
 // (the loops over every node read 8 bytes a node rather than the 144 of its
-// NodeRecord), and each node's collapse deviation
-// (geometry/collapse_deviation.h), computed the first time a selection tests
-// the node. Neither depends on the view, K, the tolerances or the criterion.
+// NodeRecord), and the collapse deviations (geometry/collapse_deviation.h)
+// of the nodes a selection tested, computed the first time one does.
+// Neither depends on the view, K, the tolerances or the criterion.
+// A selection tests few of a store's nodes (those not inside a cell already
+// collapsed, whose cell is small enough for K), so the deviations are kept
+// densely, in the order they were first computed, and each node holds only
+// a 4-byte slot into them: 12 bytes a node in all, where a deviation for
+// every node (56 bytes) made each process write 214 MB for the 10M-triangle
+// teapot's store before its first view.
 // Stores are told apart by their fingerprint and node counts (a store
 // rebuilt from the same mesh with the same options has the same nodes).
 // Selections that share one run one at a time.
 class SelectionCache {
  public:
   struct Store {
-    std::vector<std::vector<uint64_t>> codes;                // per level, in node order
-    std::vector<std::vector<CollapseDeviation>> deviation;  // per level; position < 0: not computed yet
+    std::vector<std::vector<uint64_t>> codes;  // per level, in node order
+    // Per level, per node: 1 + the index of its deviation in `computed`, or 0
+    // (not computed yet).
+    std::vector<std::vector<uint32_t>> slot;
+    std::vector<CollapseDeviation> computed;
+    // The most deviations kept (nodes / kComputedShare): a selection that
+    // starts with more clears them first, so the memory stays bounded.
+    size_t max_computed = 0;
+    const CollapseDeviation& deviation(int level, size_t i) const { return computed[slot[size_t(level)][i] - 1]; }
   };
+  static constexpr size_t kComputedShare = 4;
   Store& of(const OctreeStore& store);
-  // What a cache for these stores holds: 32 bytes a node (a code and a
-  // CollapseDeviation).
+  // What a cache for these stores holds at most: 12 bytes a node (a code and
+  // a slot), and a deviation for every kComputedShare-th.
   static uint64_t bytes_for(std::span<const OctreeStore* const> stores);
   // A cache's entry for one selection alone (none shared).
   static Store make_entry(const OctreeStore& store);

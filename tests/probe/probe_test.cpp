@@ -1237,13 +1237,46 @@ TEST(CutSelection, ASharedSelectionCacheChangesNoCut) {
   for (int L = 0; L <= store->header().quadric_depth; ++L) {
     ASSERT_EQ(entry.codes[size_t(L)].size(), store->level(L).size());
     for (size_t i = 0; i < store->level(L).size(); ++i) EXPECT_EQ(entry.codes[size_t(L)][i], store->level(L)[i].code);
-    for (const CollapseDeviation& d : entry.deviation[size_t(L)]) computed += d.position >= 0;
+    ASSERT_EQ(entry.slot[size_t(L)].size(), store->level(L).size());
+    for (const uint32_t slot : entry.slot[size_t(L)]) {
+      if (slot == 0) continue;
+      ASSERT_LE(slot, entry.computed.size());
+      EXPECT_GE(entry.computed[slot - 1].position, 0.0);
+      ++computed;
+    }
   }
   EXPECT_GT(computed, 0u);  // the deviations were kept
+  EXPECT_EQ(computed, entry.computed.size());  // each in one slot
   uint64_t nodes = 0;
   for (int L = 0; L <= store->header().quadric_depth; ++L) nodes += store->level(L).size();
   const OctreeStore* list[] = {store};
-  EXPECT_EQ(SelectionCache::bytes_for(list), nodes * (sizeof(uint64_t) + sizeof(CollapseDeviation)));
+  EXPECT_EQ(SelectionCache::bytes_for(list), nodes * (sizeof(uint64_t) + sizeof(uint32_t)) +
+                                                 nodes / SelectionCache::kComputedShare * sizeof(CollapseDeviation));
+
+  // A cache holding more deviations than its bound lets them go before the
+  // next selection, which then computes what it tests afresh: the same cut.
+  SelectionCache::Store& held = cache.of(*store);
+  const size_t before = held.computed.size();
+  held.max_computed = 1;
+  const Scene scene = make_scene(MaterialType::Glass, eyes[1], kLook);
+  ProbeConfig c;
+  c.rays = 600;
+  c.seed = 3;
+  auto t = trace_probe(scene, one.stores(), one.objects(), c);
+  ASSERT_TRUE(t) << t.status().message();
+  ProbeConfig shared = c;
+  shared.selection_cache = &cache;
+  auto with_cache = select_cuts(*t, scene, one.stores(), one.objects(), shared);
+  auto alone = select_cuts(*t, scene, one.stores(), one.objects(), c);
+  ASSERT_TRUE(with_cache.is_ok() && alone.is_ok());
+  expect_same_cut(with_cache->cuts[0], alone->cuts[0], "after the bound");
+  // Only this selection's deviations are held: as many as a fresh cache's.
+  SelectionCache fresh;
+  ProbeConfig own = c;
+  own.selection_cache = &fresh;
+  ASSERT_TRUE(select_cuts(*t, scene, one.stores(), one.objects(), own).is_ok());
+  EXPECT_GT(before, 0u);
+  EXPECT_EQ(held.computed.size(), fresh.of(*store).computed.size());
 }
 
 // The mirror and glass normal bound has its own tolerance (angle_tolerance_px):
