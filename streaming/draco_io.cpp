@@ -612,6 +612,11 @@ StatusOr<uint64_t> draco_triangle_count(const std::filesystem::path& path) {
   return mesh.triangle_count();
 }
 
+bool draco_attribute_holds_numbers(const draco::PointAttribute& attribute) {
+  const draco::DataType t = attribute.data_type();
+  return t != draco::DT_BOOL && t != draco::DT_INVALID && t < draco::DT_TYPES_COUNT;
+}
+
 StatusOr<IndexedMesh> decode_draco(const char* data, size_t size, const std::string& name) {
   const std::string where = name + ": ";
   // Bitstreams before version 2 give their vertex and face counts as raw
@@ -631,8 +636,10 @@ StatusOr<IndexedMesh> decode_draco(const char* data, size_t size, const std::str
   if (!dm) return Status::error(where + "Draco file holds no mesh");
   const draco::PointAttribute* pos = dm->GetNamedAttribute(draco::GeometryAttribute::POSITION);
   if (!pos || pos->num_components() != 3) return Status::error(where + "no 3-component position attribute");
+  if (!draco_attribute_holds_numbers(*pos)) return Status::error(where + "the position attribute does not hold numbers");
   const draco::PointAttribute* nrm = dm->GetNamedAttribute(draco::GeometryAttribute::NORMAL);
   if (nrm && nrm->num_components() != 3) nrm = nullptr;
+  if (nrm && !draco_attribute_holds_numbers(*nrm)) return Status::error(where + "the normal attribute does not hold numbers");
 
   IndexedMesh mesh;
   if (const draco::GeometryMetadata* metadata = dm->GetMetadata()) {

@@ -11,6 +11,10 @@
 #include "core/status.h"
 #include "streaming/mesh_reader.h"
 
+namespace draco {
+class PointAttribute;
+}
+
 namespace raylod {
 
 struct IndexedMesh {
@@ -101,6 +105,11 @@ StatusOr<DracoWriteReport> write_draco(const std::filesystem::path& path, const 
 StatusOr<DracoWriteReport> write_draco(const std::filesystem::path& path, IndexedMesh&& mesh,
                                        const DracoOptions& options);
 StatusOr<IndexedMesh> read_draco(const std::filesystem::path& path);
+// Whether a decoded attribute stores numbers that Draco can convert to float:
+// it converts a stored bool by reading each byte as a C++ bool, undefined for
+// bytes other than 0 and 1, so such an attribute is refused (fuzz_draco,
+// under UBSan, found a file whose bool positions held 3).
+bool draco_attribute_holds_numbers(const draco::PointAttribute& attribute);
 // The triangle count of a .drc without decoding it: from the header's
 // "raylod_triangles" metadata entry, which write_draco adds; a file without
 // one is decoded to count.

@@ -11,6 +11,7 @@
 #include <draco/compression/decode.h>
 #include <draco/mesh/mesh.h>
 
+#include "streaming/draco_io.h"
 #include "streaming/gltf_model.h"
 #include "streaming/vertex_table.h"
 
@@ -202,12 +203,14 @@ class GltfReader final : public MeshReader {
     if (!pos || pos->num_components() != 3)
       return Status::error(where + ": no 3-component Draco attribute with id " + std::to_string(plan.draco_position) +
                            " (POSITION)");
+    if (!draco_attribute_holds_numbers(*pos)) return Status::error(where + ": the POSITION attribute does not hold numbers");
     const draco::PointAttribute* nrm = nullptr;
     if (header_.has_normals) {
       nrm = dm->GetAttributeByUniqueId(uint32_t(plan.draco_normal));
       if (!nrm || nrm->num_components() != 3)
         return Status::error(where + ": no 3-component Draco attribute with id " + std::to_string(plan.draco_normal) +
                              " (NORMAL)");
+      if (!draco_attribute_holds_numbers(*nrm)) return Status::error(where + ": the NORMAL attribute does not hold numbers");
     }
     const uint32_t n = dm->num_points();
     draco_.positions.resize(n);

@@ -18,6 +18,7 @@
 
 #include <draco/compression/encode.h>
 #include <draco/mesh/mesh.h>
+#include <draco/mesh/triangle_soup_mesh_builder.h>
 
 #include "core/system.h"
 #include "simplify/collapse.h"
@@ -522,6 +523,44 @@ TEST(DracoRead, AnOldBitstreamVersionIsRefusedBeforeDracoAllocatesForIt) {
   ASSERT_FALSE(got.is_ok());
   EXPECT_NE(got.status().message().find("old.drc: Draco bitstream version 1.2 is not read"), std::string::npos)
       << got.status().message();
+}
+
+// Positions or normals stored as bools (Draco allows any data type) are
+// refused: Draco converts them by reading each byte as a C++ bool, undefined
+// for bytes other than 0 and 1 (fuzz_draco, under UBSan, found a file whose
+// bool position held 3).
+TEST(DracoRead, PositionsOrNormalsStoredAsBoolsAreRefused) {
+  const test::ScratchDir dir("draco-bool");
+  for (const bool bool_normals : {false, true}) {
+    draco::TriangleSoupMeshBuilder builder;
+    builder.Start(1);
+    const int pos = builder.AddAttribute(draco::GeometryAttribute::POSITION, 3,
+                                         bool_normals ? draco::DT_FLOAT32 : draco::DT_BOOL);
+    const int nrm = builder.AddAttribute(draco::GeometryAttribute::NORMAL, 3,
+                                         bool_normals ? draco::DT_BOOL : draco::DT_FLOAT32);
+    const float p[3][3] = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}}, n[3] = {0, 0, 1};
+    const bool bp[3][3] = {{false, false, false}, {true, false, false}, {false, true, false}}, bn[3] = {false, false, true};
+    if (bool_normals) {
+      builder.SetAttributeValuesForFace(pos, draco::FaceIndex(0), p[0], p[1], p[2]);
+      builder.SetAttributeValuesForFace(nrm, draco::FaceIndex(0), bn, bn, bn);
+    } else {
+      builder.SetAttributeValuesForFace(pos, draco::FaceIndex(0), bp[0], bp[1], bp[2]);
+      builder.SetAttributeValuesForFace(nrm, draco::FaceIndex(0), n, n, n);
+    }
+    std::unique_ptr<draco::Mesh> mesh = builder.Finalize();
+    ASSERT_TRUE(mesh);
+    draco::Encoder encoder;
+    encoder.SetEncodingMethod(draco::MESH_SEQUENTIAL_ENCODING);
+    draco::EncoderBuffer buffer;
+    ASSERT_TRUE(encoder.EncodeMeshToBuffer(*mesh, &buffer).ok());
+    const std::filesystem::path path = dir.path / "bool.drc";
+    std::ofstream(path, std::ios::binary).write(buffer.data(), std::streamsize(buffer.size()));
+    auto got = read_draco(path);
+    ASSERT_FALSE(got.is_ok());
+    const std::string what = bool_normals ? "bool.drc: the normal attribute does not hold numbers"
+                                          : "bool.drc: the position attribute does not hold numbers";
+    EXPECT_NE(got.status().message().find(what), std::string::npos) << got.status().message();
+  }
 }
 
 }  // namespace raylod
