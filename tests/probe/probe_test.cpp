@@ -1207,6 +1207,19 @@ TEST(CutSelection, ASharedSelectionCacheChangesNoCut) {
   const Built& b = teapot();
   const OneObject one(b);
   SelectionCache cache;
+  // Traces `scene` into `trace` and selects its cut with the shared cache and
+  // alone: the same cut.
+  auto same_cut_with_cache = [&](const Scene& scene, const ProbeConfig& c, const std::string& what, ProbeTrace& trace) {
+    auto t = trace_probe(scene, one.stores(), one.objects(), c);
+    ASSERT_TRUE(t) << t.status().message();
+    ProbeConfig shared = c;
+    shared.selection_cache = &cache;
+    auto with_cache = select_cuts(*t, scene, one.stores(), one.objects(), shared);
+    auto alone = select_cuts(*t, scene, one.stores(), one.objects(), c);
+    ASSERT_TRUE(with_cache.is_ok() && alone.is_ok());
+    expect_same_cut(with_cache->cuts[0], alone->cuts[0], what);
+    trace = std::move(*t);
+  };
   const std::array<Vec3d, 3> eyes = {kEye, Vec3d(-kEye.x, kEye.y, kEye.z), Vec3d(kEye.z, 0.5 * kEye.y, -kEye.x)};
   size_t compared = 0;
   for (MaterialType type : {MaterialType::Glass, MaterialType::Diffuse})
@@ -1218,14 +1231,8 @@ TEST(CutSelection, ASharedSelectionCacheChangesNoCut) {
         c.seed = 3;
         c.footprint_scale = k;
         c.tolerance_px = tol;
-        auto t = trace_probe(scene, one.stores(), one.objects(), c);
-        ASSERT_TRUE(t) << t.status().message();
-        ProbeConfig shared = c;
-        shared.selection_cache = &cache;
-        auto with_cache = select_cuts(*t, scene, one.stores(), one.objects(), shared);
-        auto alone = select_cuts(*t, scene, one.stores(), one.objects(), c);
-        ASSERT_TRUE(with_cache.is_ok() && alone.is_ok());
-        expect_same_cut(with_cache->cuts[0], alone->cuts[0], std::to_string(k) + " " + std::to_string(tol));
+        ProbeTrace t;
+        ASSERT_NO_FATAL_FAILURE(same_cut_with_cache(scene, c, std::to_string(k) + " " + std::to_string(tol), t));
         ++compared;
       }
   EXPECT_EQ(compared, 12u);
@@ -1262,19 +1269,13 @@ TEST(CutSelection, ASharedSelectionCacheChangesNoCut) {
   ProbeConfig c;
   c.rays = 600;
   c.seed = 3;
-  auto t = trace_probe(scene, one.stores(), one.objects(), c);
-  ASSERT_TRUE(t) << t.status().message();
-  ProbeConfig shared = c;
-  shared.selection_cache = &cache;
-  auto with_cache = select_cuts(*t, scene, one.stores(), one.objects(), shared);
-  auto alone = select_cuts(*t, scene, one.stores(), one.objects(), c);
-  ASSERT_TRUE(with_cache.is_ok() && alone.is_ok());
-  expect_same_cut(with_cache->cuts[0], alone->cuts[0], "after the bound");
+  ProbeTrace t;
+  ASSERT_NO_FATAL_FAILURE(same_cut_with_cache(scene, c, "after the bound", t));
   // Only this selection's deviations are held: as many as a fresh cache's.
   SelectionCache fresh;
   ProbeConfig own = c;
   own.selection_cache = &fresh;
-  ASSERT_TRUE(select_cuts(*t, scene, one.stores(), one.objects(), own).is_ok());
+  ASSERT_TRUE(select_cuts(t, scene, one.stores(), one.objects(), own).is_ok());
   EXPECT_GT(before, 0u);
   EXPECT_EQ(held.computed.size(), fresh.of(*store).computed.size());
 }

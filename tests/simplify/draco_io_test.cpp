@@ -18,9 +18,9 @@
 
 #include <draco/compression/encode.h>
 #include <draco/mesh/mesh.h>
-#include <draco/mesh/triangle_soup_mesh_builder.h>
 
 #include "core/system.h"
+#include "draco_bool_mesh.h"
 #include "simplify/collapse.h"
 #include "streaming/draco_io.h"
 #include "test_meshes.h"
@@ -532,29 +532,10 @@ TEST(DracoRead, AnOldBitstreamVersionIsRefusedBeforeDracoAllocatesForIt) {
 TEST(DracoRead, PositionsOrNormalsStoredAsBoolsAreRefused) {
   const test::ScratchDir dir("draco-bool");
   for (const bool bool_normals : {false, true}) {
-    draco::TriangleSoupMeshBuilder builder;
-    builder.Start(1);
-    const int pos = builder.AddAttribute(draco::GeometryAttribute::POSITION, 3,
-                                         bool_normals ? draco::DT_FLOAT32 : draco::DT_BOOL);
-    const int nrm = builder.AddAttribute(draco::GeometryAttribute::NORMAL, 3,
-                                         bool_normals ? draco::DT_BOOL : draco::DT_FLOAT32);
-    const float p[3][3] = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}}, n[3] = {0, 0, 1};
-    const bool bp[3][3] = {{false, false, false}, {true, false, false}, {false, true, false}}, bn[3] = {false, false, true};
-    if (bool_normals) {
-      builder.SetAttributeValuesForFace(pos, draco::FaceIndex(0), p[0], p[1], p[2]);
-      builder.SetAttributeValuesForFace(nrm, draco::FaceIndex(0), bn, bn, bn);
-    } else {
-      builder.SetAttributeValuesForFace(pos, draco::FaceIndex(0), bp[0], bp[1], bp[2]);
-      builder.SetAttributeValuesForFace(nrm, draco::FaceIndex(0), n, n, n);
-    }
-    std::unique_ptr<draco::Mesh> mesh = builder.Finalize();
-    ASSERT_TRUE(mesh);
-    draco::Encoder encoder;
-    encoder.SetEncodingMethod(draco::MESH_SEQUENTIAL_ENCODING);
-    draco::EncoderBuffer buffer;
-    ASSERT_TRUE(encoder.EncodeMeshToBuffer(*mesh, &buffer).ok());
+    const test::DracoBytes mesh = test::draco_mesh_with_bools(bool_normals);
+    ASSERT_FALSE(mesh.bytes.empty());
     const std::filesystem::path path = dir.path / "bool.drc";
-    std::ofstream(path, std::ios::binary).write(buffer.data(), std::streamsize(buffer.size()));
+    std::ofstream(path, std::ios::binary) << mesh.bytes;
     auto got = read_draco(path);
     ASSERT_FALSE(got.is_ok());
     const std::string what = bool_normals ? "bool.drc: the normal attribute does not hold numbers"

@@ -11,9 +11,8 @@
 #include <cstring>
 #include <thread>
 
-#include <draco/compression/encode.h>
-#include <draco/mesh/triangle_soup_mesh_builder.h>
 
+#include "draco_bool_mesh.h"
 #include "gltf_test_util.h"
 #include "reader_test_util.h"
 #include "streaming/draco_io.h"
@@ -163,25 +162,16 @@ TEST(GltfReader, DracoPrimitiveIsDecoded) {
 // primitive named: Draco would read each byte as a C++ bool, undefined for
 // bytes other than 0 and 1.
 TEST(GltfReader, DracoPositionsStoredAsBoolsAreRefused) {
-  draco::TriangleSoupMeshBuilder builder;
-  builder.Start(1);
-  const int att = builder.AddAttribute(draco::GeometryAttribute::POSITION, 3, draco::DT_BOOL);
-  const bool p[3][3] = {{false, false, false}, {true, false, false}, {false, true, false}};
-  builder.SetAttributeValuesForFace(att, draco::FaceIndex(0), p[0], p[1], p[2]);
-  std::unique_ptr<draco::Mesh> dm = builder.Finalize();
-  ASSERT_TRUE(dm);
-  draco::Encoder encoder;
-  encoder.SetEncodingMethod(draco::MESH_SEQUENTIAL_ENCODING);
-  draco::EncoderBuffer buffer;
-  ASSERT_TRUE(encoder.EncodeMeshToBuffer(*dm, &buffer).ok());
+  const test::DracoBytes mesh = test::draco_mesh_with_bools(false);
+  ASSERT_FALSE(mesh.bytes.empty());
   GltfBuilder b;
-  const int view = b.view(buffer.data(), buffer.size());
+  const int view = b.view(mesh.bytes.data(), mesh.bytes.size());
   b.doc["accessors"].push_back({{"componentType", test::kFloat}, {"count", 3}, {"type", "VEC3"},
                                 {"min", {0, 0, 0}}, {"max", {1, 1, 0}}});
   b.doc["accessors"].push_back({{"componentType", test::kUInt}, {"count", 3}, {"type", "SCALAR"}});
   json prim = GltfBuilder::primitive(0, 1);
   prim["extensions"]["KHR_draco_mesh_compression"] = {
-      {"bufferView", view}, {"attributes", {{"POSITION", dm->attribute(att)->unique_id()}}}};
+      {"bufferView", view}, {"attributes", {{"POSITION", mesh.position_id}}}};
   b.mesh({prim});
   b.doc["extensionsUsed"] = {"KHR_draco_mesh_compression"};
   b.doc["extensionsRequired"] = {"KHR_draco_mesh_compression"};
