@@ -23,6 +23,7 @@
 #include <draco/compression/decode.h>
 #include <draco/compression/encode.h>
 #include <draco/compression/point_cloud/point_cloud_decoder.h>
+#include <draco/core/varint_decoding.h>
 #include <draco/metadata/metadata_decoder.h>
 #include <draco/mesh/mesh.h>
 #include <tbb/parallel_for.h>
@@ -612,6 +613,51 @@ StatusOr<uint64_t> draco_triangle_count(const std::filesystem::path& path) {
   return mesh.triangle_count();
 }
 
+// The counts read as Draco 2.2 reads them (what Draco and raylod write;
+// other versions are left to Draco): the header, the metadata, then the
+// edgebreaker or sequential connectivity's counts. Real files take bits a
+// triangle (raylod's, 5 to 8 bytes); kDracoCountsPerByte would be 0.03 bits.
+Status check_draco_counts(const char* data, size_t size, const std::string& where) {
+  draco::DecoderBuffer buffer;
+  buffer.Init(data, size);
+  draco::DracoHeader header;
+  if (!draco::PointCloudDecoder::DecodeHeader(&buffer, &header).ok()) return Status::ok();
+  const uint16_t version = DRACO_BITSTREAM_VERSION(header.version_major, header.version_minor);
+  if (header.encoder_type != draco::TRIANGULAR_MESH || version != DRACO_BITSTREAM_VERSION(2, 2)) return Status::ok();
+  buffer.set_bitstream_version(version);
+  if (header.flags & METADATA_FLAG_MASK) {
+    draco::GeometryMetadata metadata;
+    draco::MetadataDecoder decoder;
+    if (!decoder.DecodeGeometryMetadata(&buffer, &metadata)) return Status::ok();
+  }
+  uint64_t faces = 0, vertices = 0;
+  if (header.encoder_method == draco::MESH_EDGEBREAKER_ENCODING) {
+    uint8_t traversal = 0, attribute_data = 0;
+    uint32_t encoded_vertices = 0, encoded_faces = 0, symbols = 0, split_symbols = 0;
+    if (!buffer.Decode(&traversal) || !draco::DecodeVarint(&encoded_vertices, &buffer) ||
+        !draco::DecodeVarint(&encoded_faces, &buffer) || !buffer.Decode(&attribute_data) ||
+        !draco::DecodeVarint(&symbols, &buffer) || !draco::DecodeVarint(&split_symbols, &buffer))
+      return Status::ok();
+    faces = encoded_faces;
+    vertices = uint64_t(encoded_vertices) + split_symbols;
+    if (encoded_vertices > 3 * faces)
+      return Status::error(where + "the Draco header claims " + std::to_string(encoded_vertices) + " vertices for " +
+                           std::to_string(faces) + " triangles (at most three a triangle)");
+  } else if (header.encoder_method == draco::MESH_SEQUENTIAL_ENCODING) {
+    uint32_t encoded_faces = 0, points = 0;
+    if (!draco::DecodeVarint(&encoded_faces, &buffer) || !draco::DecodeVarint(&points, &buffer)) return Status::ok();
+    faces = encoded_faces;
+    vertices = points;
+  }
+  const uint64_t most = kDracoCountFloor + kDracoCountsPerByte * uint64_t(size);
+  if (faces > most || vertices > most)
+    return Status::error(where + "the Draco header claims " + std::to_string(faces) + " triangles and " +
+                         std::to_string(vertices) + " vertices in " + std::to_string(size) +
+                         " bytes, more than raylod reads from a file of that size (" + std::to_string(kDracoCountFloor) +
+                         " and " + std::to_string(kDracoCountsPerByte) + " a byte)");
+  return Status::ok();
+}
+
 bool draco_attribute_holds_numbers(const draco::PointAttribute& attribute) {
   const draco::DataType t = attribute.data_type();
   return t != draco::DT_BOOL && t != draco::DT_INVALID && t < draco::DT_TYPES_COUNT;
@@ -627,6 +673,7 @@ StatusOr<IndexedMesh> decode_draco(const char* data, size_t size, const std::str
     return Status::error(where + "Draco bitstream version " + std::to_string(static_cast<unsigned char>(data[5])) + "." +
                          std::to_string(static_cast<unsigned char>(data[6])) +
                          " is not read (raylod reads version 2 and later)");
+  RAYLOD_RETURN_IF_ERROR(check_draco_counts(data, size, where));
   draco::DecoderBuffer buffer;
   buffer.Init(data, size);
   draco::Decoder decoder;

@@ -110,6 +110,15 @@ StatusOr<IndexedMesh> read_draco(const std::filesystem::path& path);
 // bytes other than 0 and 1, so such an attribute is refused (fuzz_draco,
 // under UBSan, found a file whose bool positions held 3).
 bool draco_attribute_holds_numbers(const draco::PointAttribute& attribute);
+// Draco sizes its tables from the counts a mesh's header claims before it
+// reads what they describe (a 415-byte file made it allocate 2.9 GB), so the
+// counts of a Draco 2.2 mesh are checked first: an error if it claims more
+// vertices than three a triangle, or more triangles or vertices than
+// kDracoCountFloor plus kDracoCountsPerByte a byte of `size` (real files take
+// bits a triangle). A header that does not parse is left to Draco.
+inline constexpr uint64_t kDracoCountFloor = uint64_t(1) << 22;
+inline constexpr uint64_t kDracoCountsPerByte = 256;
+Status check_draco_counts(const char* data, size_t size, const std::string& where);
 // The triangle count of a .drc without decoding it: from the header's
 // "raylod_triangles" metadata entry, which write_draco adds; a file without
 // one is decoded to count.

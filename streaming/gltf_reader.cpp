@@ -192,6 +192,8 @@ class GltfReader final : public MeshReader {
     const PrimitivePlan& plan = plans_[pieces_[piece_].plan];
     if (!plan.draco) return Status::ok();
     const std::string where = path_.string() + ": " + plan.where + ".extensions." + kDraco;
+    RAYLOD_RETURN_IF_ERROR(
+        check_draco_counts(reinterpret_cast<const char*>(plan.draco_data), plan.draco_size, where + ": "));
     draco::DecoderBuffer buffer;
     buffer.Init(reinterpret_cast<const char*>(plan.draco_data), plan.draco_size);
     draco::Decoder decoder;

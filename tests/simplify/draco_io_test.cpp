@@ -20,7 +20,7 @@
 #include <draco/mesh/mesh.h>
 
 #include "core/system.h"
-#include "draco_bool_mesh.h"
+#include "draco_hostile.h"
 #include "simplify/collapse.h"
 #include "streaming/draco_io.h"
 #include "test_meshes.h"
@@ -523,6 +523,37 @@ TEST(DracoRead, AnOldBitstreamVersionIsRefusedBeforeDracoAllocatesForIt) {
   ASSERT_FALSE(got.is_ok());
   EXPECT_NE(got.status().message().find("old.drc: Draco bitstream version 1.2 is not read"), std::string::npos)
       << got.status().message();
+}
+
+// A Draco 2.2 edgebreaker header claiming counts the file cannot hold is
+// refused before Draco sizes its tables from them: fuzz_draco found a
+// 415-byte file claiming 242,565,077 triangles, for which Draco allocated
+// 2.9 GB; and more vertices than three a triangle cannot be.
+TEST(DracoRead, ClaimedCountsBeyondWhatTheFileHoldsAreRefused) {
+  const test::ScratchDir dir("draco-counts");
+  auto varint = [](uint64_t v) {
+    std::string b;
+    do {
+      b += char((v & 0x7f) | (v >= 0x80 ? 0x80 : 0));
+      v >>= 7;
+    } while (v);
+    return b;
+  };
+  struct Case {
+    uint64_t vertices, faces;
+    std::string says;
+  };
+  for (const Case& c : {Case{35, 242565077, "claims 242565077 triangles and 35 vertices in 154 bytes"},
+                        Case{1000000, 10, "claims 1000000 vertices for 10 triangles"}}) {
+    const std::string bytes = test::draco_header_claiming(c.vertices, c.faces, 154);
+    ASSERT_EQ(bytes.size(), 154u);
+    const std::filesystem::path path = dir.path / "claims.drc";
+    std::ofstream(path, std::ios::binary) << bytes;
+    auto got = read_draco(path);
+    ASSERT_FALSE(got.is_ok());
+    EXPECT_NE(got.status().message().find("claims.drc: the Draco header " + c.says), std::string::npos)
+        << got.status().message();
+  }
 }
 
 // Positions or normals stored as bools (Draco allows any data type) are

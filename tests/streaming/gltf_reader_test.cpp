@@ -12,7 +12,7 @@
 #include <thread>
 
 
-#include "draco_bool_mesh.h"
+#include "draco_hostile.h"
 #include "gltf_test_util.h"
 #include "reader_test_util.h"
 #include "streaming/draco_io.h"
@@ -178,6 +178,28 @@ TEST(GltfReader, DracoPositionsStoredAsBoolsAreRefused) {
   const auto r = read_gltf(b, "bool.glb");
   ASSERT_FALSE(r.status.is_ok());
   EXPECT_NE(r.status.message().find("KHR_draco_mesh_compression: the POSITION attribute does not hold numbers"),
+            std::string::npos)
+      << r.status.message();
+}
+
+// A Draco primitive whose header claims more triangles than its bytes can
+// hold is refused before Draco allocates for them (draco_io.h,
+// check_draco_counts).
+TEST(GltfReader, DracoPrimitiveClaimingMoreThanItHoldsIsRefused) {
+  const std::string bytes = test::draco_header_claiming(35, 242565077, 200);
+  GltfBuilder b;
+  const int view = b.view(bytes.data(), bytes.size());
+  b.doc["accessors"].push_back({{"componentType", test::kFloat}, {"count", 3}, {"type", "VEC3"},
+                                {"min", {0, 0, 0}}, {"max", {1, 1, 0}}});
+  b.doc["accessors"].push_back({{"componentType", test::kUInt}, {"count", 3}, {"type", "SCALAR"}});
+  json prim = GltfBuilder::primitive(0, 1);
+  prim["extensions"]["KHR_draco_mesh_compression"] = {{"bufferView", view}, {"attributes", {{"POSITION", 0}}}};
+  b.mesh({prim});
+  b.doc["extensionsUsed"] = {"KHR_draco_mesh_compression"};
+  b.doc["extensionsRequired"] = {"KHR_draco_mesh_compression"};
+  const auto r = read_gltf(b, "claims.glb");
+  ASSERT_FALSE(r.status.is_ok());
+  EXPECT_NE(r.status.message().find("KHR_draco_mesh_compression: the Draco header claims 242565077 triangles"),
             std::string::npos)
       << r.status.message();
 }

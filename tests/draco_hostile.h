@@ -1,8 +1,5 @@
-// A one-triangle Draco mesh (sequential encoding) whose positions, or whose
-// normals, are stored as bools: the readers must refuse it, since Draco
-// converts a stored bool by reading each byte as a C++ bool (undefined for
-// bytes other than 0 and 1). The encoded bytes, and the position
-// attribute's unique id (what a glTF primitive names).
+// Draco data the readers must refuse (the .drc reader and glTF's Draco
+// primitives).
 #pragma once
 
 #include <draco/compression/encode.h>
@@ -17,6 +14,11 @@ struct DracoBytes {
   int position_id = -1;
 };
 
+// A one-triangle mesh (sequential encoding) whose positions, or whose
+// normals, are stored as bools: Draco converts a stored bool by reading each
+// byte as a C++ bool, undefined for bytes other than 0 and 1. The encoded
+// bytes, and the position attribute's unique id (what a glTF primitive
+// names).
 inline DracoBytes draco_mesh_with_bools(bool bool_normals) {
   draco::TriangleSoupMeshBuilder builder;
   builder.Start(1);
@@ -40,6 +42,25 @@ inline DracoBytes draco_mesh_with_bools(bool bool_normals) {
   draco::EncoderBuffer buffer;
   if (!encoder.EncodeMeshToBuffer(*mesh, &buffer).ok()) return {};
   return {std::string(buffer.data(), buffer.size()), int(mesh->attribute(pos)->unique_id())};
+}
+
+// `size` bytes: a Draco 2.2 edgebreaker mesh header (no metadata) claiming
+// `vertices` and `faces`, then the connectivity's other counts (one
+// attribute data, as many symbols as faces, no split symbols), then filler.
+// Draco sizes its tables from such counts before reading anything else.
+inline std::string draco_header_claiming(uint64_t vertices, uint64_t faces, size_t size) {
+  auto varint = [](uint64_t v) {
+    std::string b;
+    do {
+      b += char((v & 0x7f) | (v >= 0x80 ? 0x80 : 0));
+      v >>= 7;
+    } while (v);
+    return b;
+  };
+  std::string bytes = std::string("DRACO\x02\x02\x01\x01\x00\x00", 11) + '\0' + varint(vertices) + varint(faces) +
+                      '\x01' + varint(faces) + varint(0);
+  if (bytes.size() < size) bytes += std::string(size - bytes.size(), '\x33');
+  return bytes;
 }
 
 }  // namespace raylod::test
