@@ -531,14 +531,6 @@ TEST(DracoRead, AnOldBitstreamVersionIsRefusedBeforeDracoAllocatesForIt) {
 // 2.9 GB; and more vertices than three a triangle cannot be.
 TEST(DracoRead, ClaimedCountsBeyondWhatTheFileHoldsAreRefused) {
   const test::ScratchDir dir("draco-counts");
-  auto varint = [](uint64_t v) {
-    std::string b;
-    do {
-      b += char((v & 0x7f) | (v >= 0x80 ? 0x80 : 0));
-      v >>= 7;
-    } while (v);
-    return b;
-  };
   struct Case {
     uint64_t vertices, faces;
     std::string says;

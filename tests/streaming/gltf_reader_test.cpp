@@ -158,24 +158,31 @@ TEST(GltfReader, DracoPrimitiveIsDecoded) {
   }
 }
 
+// A .glb of one triangle whose primitive holds `draco` bytes
+// (KHR_draco_mesh_compression, its POSITION the attribute `position_id`),
+// read as `name`.
+auto read_draco_primitive(const std::string& draco, int position_id, const std::string& name) {
+  GltfBuilder b;
+  const int view = b.view(draco.data(), draco.size());
+  b.doc["accessors"].push_back({{"componentType", test::kFloat}, {"count", 3}, {"type", "VEC3"},
+                                {"min", {0, 0, 0}}, {"max", {1, 1, 0}}});
+  b.doc["accessors"].push_back({{"componentType", test::kUInt}, {"count", 3}, {"type", "SCALAR"}});
+  json prim = GltfBuilder::primitive(0, 1);
+  prim["extensions"]["KHR_draco_mesh_compression"] = {{"bufferView", view},
+                                                      {"attributes", {{"POSITION", position_id}}}};
+  b.mesh({prim});
+  b.doc["extensionsUsed"] = {"KHR_draco_mesh_compression"};
+  b.doc["extensionsRequired"] = {"KHR_draco_mesh_compression"};
+  return read_gltf(b, name);
+}
+
 // A Draco primitive whose positions are stored as bools is refused with the
 // primitive named: Draco would read each byte as a C++ bool, undefined for
 // bytes other than 0 and 1.
 TEST(GltfReader, DracoPositionsStoredAsBoolsAreRefused) {
   const test::DracoBytes mesh = test::draco_mesh_with_bools(false);
   ASSERT_FALSE(mesh.bytes.empty());
-  GltfBuilder b;
-  const int view = b.view(mesh.bytes.data(), mesh.bytes.size());
-  b.doc["accessors"].push_back({{"componentType", test::kFloat}, {"count", 3}, {"type", "VEC3"},
-                                {"min", {0, 0, 0}}, {"max", {1, 1, 0}}});
-  b.doc["accessors"].push_back({{"componentType", test::kUInt}, {"count", 3}, {"type", "SCALAR"}});
-  json prim = GltfBuilder::primitive(0, 1);
-  prim["extensions"]["KHR_draco_mesh_compression"] = {
-      {"bufferView", view}, {"attributes", {{"POSITION", mesh.position_id}}}};
-  b.mesh({prim});
-  b.doc["extensionsUsed"] = {"KHR_draco_mesh_compression"};
-  b.doc["extensionsRequired"] = {"KHR_draco_mesh_compression"};
-  const auto r = read_gltf(b, "bool.glb");
+  const auto r = read_draco_primitive(mesh.bytes, mesh.position_id, "bool.glb");
   ASSERT_FALSE(r.status.is_ok());
   EXPECT_NE(r.status.message().find("KHR_draco_mesh_compression: the POSITION attribute does not hold numbers"),
             std::string::npos)
@@ -186,18 +193,7 @@ TEST(GltfReader, DracoPositionsStoredAsBoolsAreRefused) {
 // hold is refused before Draco allocates for them (draco_io.h,
 // check_draco_counts).
 TEST(GltfReader, DracoPrimitiveClaimingMoreThanItHoldsIsRefused) {
-  const std::string bytes = test::draco_header_claiming(35, 242565077, 200);
-  GltfBuilder b;
-  const int view = b.view(bytes.data(), bytes.size());
-  b.doc["accessors"].push_back({{"componentType", test::kFloat}, {"count", 3}, {"type", "VEC3"},
-                                {"min", {0, 0, 0}}, {"max", {1, 1, 0}}});
-  b.doc["accessors"].push_back({{"componentType", test::kUInt}, {"count", 3}, {"type", "SCALAR"}});
-  json prim = GltfBuilder::primitive(0, 1);
-  prim["extensions"]["KHR_draco_mesh_compression"] = {{"bufferView", view}, {"attributes", {{"POSITION", 0}}}};
-  b.mesh({prim});
-  b.doc["extensionsUsed"] = {"KHR_draco_mesh_compression"};
-  b.doc["extensionsRequired"] = {"KHR_draco_mesh_compression"};
-  const auto r = read_gltf(b, "claims.glb");
+  const auto r = read_draco_primitive(test::draco_header_claiming(35, 242565077, 200), 0, "claims.glb");
   ASSERT_FALSE(r.status.is_ok());
   EXPECT_NE(r.status.message().find("KHR_draco_mesh_compression: the Draco header claims 242565077 triangles"),
             std::string::npos)
