@@ -614,7 +614,7 @@ StatusOr<uint64_t> draco_triangle_count(const std::filesystem::path& path) {
 }
 
 // The counts read as Draco 2.2 reads them (what Draco and raylod write;
-// other versions are left to Draco): the header, the metadata, then the
+// other 2.x versions are left to Draco): the header, the metadata, then the
 // edgebreaker or sequential connectivity's counts. Real files take bits a
 // triangle (raylod's, 5 to 8 bytes); kDracoCountsPerByte would be 0.03 bits.
 Status check_draco_counts(const char* data, size_t size, const std::string& where) {
@@ -622,6 +622,13 @@ Status check_draco_counts(const char* data, size_t size, const std::string& wher
   buffer.Init(data, size);
   draco::DracoHeader header;
   if (!draco::PointCloudDecoder::DecodeHeader(&buffer, &header).ok()) return Status::ok();
+  // Bitstreams before version 2 give their vertex and face counts as raw
+  // 32-bit numbers, which Draco's decoder allocates for before it reads any
+  // connectivity: 22 bytes made it allocate 3 GB (found by fuzz_draco).
+  // Draco has written 2.x since 2017, as raylod does; older ones are refused.
+  if (header.version_major < 2)
+    return Status::error(where + "Draco bitstream version " + std::to_string(header.version_major) + "." +
+                         std::to_string(header.version_minor) + " is not read (raylod reads version 2 and later)");
   const uint16_t version = DRACO_BITSTREAM_VERSION(header.version_major, header.version_minor);
   if (header.encoder_type != draco::TRIANGULAR_MESH || version != DRACO_BITSTREAM_VERSION(2, 2)) return Status::ok();
   buffer.set_bitstream_version(version);
@@ -665,14 +672,6 @@ bool draco_attribute_holds_numbers(const draco::PointAttribute& attribute) {
 
 StatusOr<IndexedMesh> decode_draco(const char* data, size_t size, const std::string& name) {
   const std::string where = name + ": ";
-  // Bitstreams before version 2 give their vertex and face counts as raw
-  // 32-bit numbers, which Draco's decoder allocates for before it reads any
-  // connectivity: 22 bytes made it allocate 3 GB (found by fuzz_draco).
-  // Draco has written 2.x since 2017, as raylod does; older ones are refused.
-  if (size >= 7 && std::memcmp(data, "DRACO", 5) == 0 && static_cast<unsigned char>(data[5]) < 2)
-    return Status::error(where + "Draco bitstream version " + std::to_string(static_cast<unsigned char>(data[5])) + "." +
-                         std::to_string(static_cast<unsigned char>(data[6])) +
-                         " is not read (raylod reads version 2 and later)");
   RAYLOD_RETURN_IF_ERROR(check_draco_counts(data, size, where));
   draco::DecoderBuffer buffer;
   buffer.Init(data, size);

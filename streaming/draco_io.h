@@ -111,11 +111,13 @@ StatusOr<IndexedMesh> read_draco(const std::filesystem::path& path);
 // under UBSan, found a file whose bool positions held 3).
 bool draco_attribute_holds_numbers(const draco::PointAttribute& attribute);
 // Draco sizes its tables from the counts a mesh's header claims before it
-// reads what they describe (a 415-byte file made it allocate 2.9 GB), so the
-// counts of a Draco 2.2 mesh are checked first: an error if it claims more
-// vertices than three a triangle, or more triangles or vertices than
-// kDracoCountFloor plus kDracoCountsPerByte a byte of `size` (real files take
-// bits a triangle). A header that does not parse is left to Draco.
+// reads what they describe (a 415-byte file made it allocate 2.9 GB), so a
+// header is checked first: an error for a bitstream before version 2 (raw
+// 32-bit counts; a 150-byte one made Draco allocate 3 GB), and for a Draco
+// 2.2 mesh that claims more vertices than three a triangle, or more
+// triangles or vertices than kDracoCountFloor plus kDracoCountsPerByte a
+// byte of `size` (real files take bits a triangle). A header that does not
+// parse is left to Draco. Both Draco readers (.drc, glTF primitives) call it.
 inline constexpr uint64_t kDracoCountFloor = uint64_t(1) << 22;
 inline constexpr uint64_t kDracoCountsPerByte = 256;
 Status check_draco_counts(const char* data, size_t size, const std::string& where);

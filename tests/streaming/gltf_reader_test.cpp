@@ -200,6 +200,17 @@ TEST(GltfReader, DracoPrimitiveClaimingMoreThanItHoldsIsRefused) {
       << r.status.message();
 }
 
+// A Draco primitive of a bitstream before version 2 is refused unread, as a
+// .drc file is: Draco allocates for its raw 32-bit counts.
+TEST(GltfReader, DracoPrimitiveBeforeVersion2IsRefused) {
+  const std::string bytes = std::string("DRACO\x01\x02\x01\x01\x00\x00", 11) + std::string(120, '\x06');
+  const auto r = read_draco_primitive(bytes, 0, "old.glb");
+  ASSERT_FALSE(r.status.is_ok());
+  EXPECT_NE(r.status.message().find("KHR_draco_mesh_compression: Draco bitstream version 1.2 is not read"),
+            std::string::npos)
+      << r.status.message();
+}
+
 // A sphere as PLY, read, welded, written as .glb through the writer, read
 // back: every triangle comes back within the Draco position bound.
 TEST(GltfReader, PlyToGlbRoundTripWithinTheQuantisationBound) {
