@@ -1256,14 +1256,9 @@ StatusOr<ProbeResult> CutSelection::select(const ProbeConfig& config) {
       // computed before (SelectionCache): given slots, then computed.
       if (deviation) {
         std::vector<uint32_t>& slot = kept.slot[size_t(L)];
-        std::vector<char> wanted(nodes.size(), 0);
-        tbb::parallel_for(tbb::blocked_range<size_t>(0, nodes.size(), 1024), [&](const tbb::blocked_range<size_t>& r) {
-          for (size_t i = r.begin(); i != r.end(); ++i)
-            wanted[i] = !inside[i] && diag < K * n.need[size_t(L)][i] && slot[i] == 0;
-        });
         std::vector<size_t> todo;
         for (size_t i = 0; i < nodes.size(); ++i)
-          if (wanted[i]) {
+          if (!inside[i] && diag < K * n.need[size_t(L)][i] && slot[i] == 0) {
             todo.push_back(i);
             slot[i] = uint32_t(kept.computed.size() + todo.size());
           }

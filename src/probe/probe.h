@@ -231,9 +231,10 @@ inline double default_angle_tolerance_px(int spp) {
 // A selection tests few of a store's nodes (those not inside a cell already
 // collapsed, whose cell is small enough for K), so the deviations are kept
 // densely, in the order they were first computed, and each node holds only
-// a 4-byte slot into them: 12 bytes a node in all, where a deviation for
-// every node (56 bytes) made each process write 214 MB for the 10M-triangle
-// teapot's store before its first view.
+// a 4-byte slot into them: 12 bytes a node with its code, plus the
+// deviations kept, where a deviation for every node (56 bytes) made each
+// process write 214 MB for the 10M-triangle teapot's store before its first
+// view.
 // Stores are told apart by their fingerprint and node counts (a store
 // rebuilt from the same mesh with the same options has the same nodes).
 // Selections that share one run one at a time.
