@@ -399,6 +399,7 @@ struct WorkQueue::State {
   bool dynamic = false;
   std::atomic<bool> stopped{false};
   bool done = false;  // this rank was told there is no more
+  uint64_t taken = 0;  // indices this rank was given
   uint64_t round_robin = 0;
   // Rank 0's ledger: rank r's block [next[r], end[r]) of what is left.
   std::mutex mutex;
@@ -484,7 +485,27 @@ WorkQueue::~WorkQueue() {
 
 bool WorkQueue::dynamic() const { return state_->dynamic; }
 
+uint64_t WorkQueue::handed_out() {
+  State& s = *state_;
+  std::lock_guard lock(s.mutex);
+  if (s.dynamic && world().rank == 0) {
+    uint64_t left = 0;
+    for (size_t r = 0; r < s.next.size(); ++r) left += s.end[r] - s.next[r];
+    return s.count - left;
+  }
+  return s.taken;
+}
+
 std::optional<uint64_t> WorkQueue::next() {
+  std::optional<uint64_t> i = next_index();
+  if (i) {
+    std::lock_guard lock(state_->mutex);
+    ++state_->taken;
+  }
+  return i;
+}
+
+std::optional<uint64_t> WorkQueue::next_index() {
   World& w = world();
   State& s = *state_;
   if (s.done) return std::nullopt;

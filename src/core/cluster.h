@@ -179,8 +179,13 @@ class WorkQueue {
   // This rank takes no more work (it failed); on rank 0, nobody gets more.
   void stop();
   bool dynamic() const;
+  // How many indices have been handed out: on rank 0 of a dynamic queue, to
+  // every rank (what a progress display of the whole job counts); elsewhere,
+  // to this rank.
+  uint64_t handed_out();
 
  private:
+  std::optional<uint64_t> next_index();
   struct State;
   std::unique_ptr<State> state_;
 };

@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstring>
 #include <mutex>
 #include <optional>
 
@@ -15,6 +16,7 @@
 #include <nlohmann/json.hpp>
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
+#include <tbb/parallel_for_each.h>
 #include <glm/gtc/matrix_transform.hpp>
 
 #include "core/cluster.h"
@@ -373,17 +375,42 @@ RenderResult render_embree_scene(const EmbreeScene& geometry, const Scene& world
 
   const int tile = std::max(1, options.tile_size);
   const int tiles_x = (width + tile - 1) / tile, tiles_y = (height + tile - 1) / tile;
-  const int ranks = std::max(1, options.tile_ranks), first_tile = std::clamp(options.tile_rank, 0, ranks - 1);
-  // This rank's tiles: first_tile, first_tile + ranks, ...
-  const int my_tiles = (tiles_x * tiles_y - first_tile + ranks - 1) / ranks;
+  const uint64_t tiles = uint64_t(tiles_x) * uint64_t(tiles_y);
+  const uint64_t runs = std::clamp<uint64_t>(uint64_t(std::max(1, options.tile_runs)), 1, tiles);
   std::optional<Progress> progress;
-  if (options.progress) progress.emplace("render", uint64_t(my_tiles), "tiles");
+  if (options.progress) progress.emplace("render", options.next_tile_run ? 0 : tiles, "tiles");
   std::mutex counters_mutex;
   RayCounters counters;
-  tbb::parallel_for(tbb::blocked_range<int>(0, my_tiles, 1), [&](const tbb::blocked_range<int>& r) {
+  // Work items: a tile, or "take the next run" (tile == kFetch). Taking a
+  // run queues the next fetch, then the run's tiles: the thread that took it
+  // renders them in order (the last queued first), and an idle thread steals
+  // the oldest item, the fetch, so the next run is asked for only when a
+  // thread has nothing left to do.
+  constexpr uint64_t kFetch = UINT64_MAX;
+  std::mutex fetch_mutex;
+  uint64_t whole_frame_next = 0;
+  auto fetch = [&](tbb::feeder<uint64_t>& feeder) {
+    std::optional<uint64_t> k;
+    {
+      std::lock_guard<std::mutex> lock(fetch_mutex);
+      if (options.next_tile_run) k = options.next_tile_run();
+      else if (whole_frame_next < runs) k = whole_frame_next++;
+      if (!k || *k >= runs) return;
+      result.tile_runs.push_back(*k);
+    }
+    feeder.add(kFetch);
+    const auto [first, last] = tile_run_bounds(tiles, runs, *k);
+    for (uint64_t t = last; t-- > first;) feeder.add(t);
+  };
+  const uint64_t start_items[] = {kFetch};
+  tbb::parallel_for_each(std::begin(start_items), std::end(start_items), [&](uint64_t item, tbb::feeder<uint64_t>& feeder) {
+    if (item == kFetch) {
+      fetch(feeder);
+      return;
+    }
     RayCounters local;
-    for (int k = r.begin(); k != r.end(); ++k) {
-      const int t = first_tile + k * ranks;
+    {
+      const int t = int(item);
       const int x0 = (t % tiles_x) * tile, y0 = (t / tiles_x) * tile;
       const int x1 = std::min(width, x0 + tile), y1 = std::min(height, y0 + tile);
       // 4x4 pixel blocks (clipped to the tile): sample s of every pixel of a
@@ -474,6 +501,7 @@ RenderResult render_embree_scene(const EmbreeScene& geometry, const Scene& world
     counters += local;
   });
   if (progress) progress->finish();
+  std::sort(result.tile_runs.begin(), result.tile_runs.end());
 
   RenderStats& st = result.stats;
   st.rays = counters;
@@ -498,22 +526,32 @@ RenderResult render_embree_scene(const EmbreeScene& geometry, const Scene& world
 namespace {
 
 // Under mpirun: every rank's tiles and ray counters, gathered into rank 0's
-// result. Each image goes straight from a rank's buffer into the same rows
-// of rank 0's (cluster::gather_blocks, no packing): on a 3840 x 2160 frame
-// over 2 ranks, packing each rank's rows into one string, gathering the
-// strings and unpacking them took about 0.2 s after the last rank's trace;
-// this takes 0.03 s.
+// result. Rank 0 learns which runs of tiles each rank rendered; then each
+// image goes straight from a rank's buffer into the same rows of rank 0's
+// (cluster::gather_blocks, no packing): on a 3840 x 2160 frame over 2 ranks,
+// packing each rank's rows into one string, gathering the strings and
+// unpacking them took about 0.2 s after the last rank's trace; this takes
+// 0.03 s.
 void gather_tiles(RenderResult& result, const RenderOptions& options) {
-  const int ranks = options.tile_ranks, tile = std::max(1, options.tile_size);
+  const int tile = std::max(1, options.tile_size);
   const int width = result.color.width, height = result.color.height;
-  const int tiles_x = (width + tile - 1) / tile, tiles = tiles_x * ((height + tile - 1) / tile);
+  const int tiles_x = (width + tile - 1) / tile;
+  const uint64_t tiles = uint64_t(tiles_x) * uint64_t((height + tile - 1) / tile);
+  const uint64_t runs = std::clamp<uint64_t>(uint64_t(std::max(1, options.tile_runs)), 1, tiles);
+  std::string mine(result.tile_runs.size() * sizeof(uint64_t), '\0');
+  if (!mine.empty()) std::memcpy(mine.data(), result.tile_runs.data(), mine.size());
+  const std::vector<std::string> runs_of = cluster::gather(mine);
   // Rank r's tiles' rows in order, as runs of pixels.
   auto rows_of = [&](int r) {
+    const std::string& list = cluster::is_root() ? runs_of[size_t(r)] : mine;
     std::vector<cluster::Block> rows;
-    for (int t = r; t < tiles; t += ranks) {
-      const int x0 = (t % tiles_x) * tile, y0 = (t / tiles_x) * tile;
-      const int n = std::min(width, x0 + tile) - x0;
-      for (int y = y0; y < std::min(height, y0 + tile); ++y) rows.push_back({uint64_t(y) * width + x0, uint64_t(n)});
+    for (size_t i = 0; i + sizeof(uint64_t) <= list.size(); i += sizeof(uint64_t)) {
+      const auto [first, last] = tile_run_bounds(tiles, runs, cluster::from_bytes<uint64_t>(list, i));
+      for (uint64_t t = first; t < last; ++t) {
+        const int x0 = int(t % uint64_t(tiles_x)) * tile, y0 = int(t / uint64_t(tiles_x)) * tile;
+        const int n = std::min(width, x0 + tile) - x0;
+        for (int y = y0; y < std::min(height, y0 + tile); ++y) rows.push_back({uint64_t(y) * width + x0, uint64_t(n)});
+      }
     }
     std::sort(rows.begin(), rows.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
     return rows;
@@ -526,9 +564,17 @@ void gather_tiles(RenderResult& result, const RenderOptions& options) {
   RayCounters total;
   for (const std::string& part : parts) total += cluster::from_bytes<RayCounters>(part);
   result.stats.rays = total;
+  result.tile_runs.resize(runs);
+  for (uint64_t k = 0; k < runs; ++k) result.tile_runs[k] = k;
 }
 
 }  // namespace
+
+std::pair<uint64_t, uint64_t> tile_run_bounds(uint64_t tiles, uint64_t runs, uint64_t k) {
+  const uint64_t base = tiles / runs, extra = tiles % runs;
+  const uint64_t first = k * base + std::min(k, extra);
+  return {first, first + base + (k < extra ? 1 : 0)};
+}
 
 StatusOr<RenderResult> render(const Scene& scene, const RenderOptions& options) {
   auto log = [&](const std::string& m) { if (options.log) options.log(m); };
@@ -557,13 +603,30 @@ StatusOr<RenderResult> render(const Scene& scene, const RenderOptions& options) 
     log("effects on: " + effects_for(scene, used).describe());
   }
   RenderOptions tiles = options;
+  std::optional<cluster::WorkQueue> queue;
+  std::optional<Progress> progress;
   if (split) {
-    tiles.tile_rank = cluster::rank();
-    tiles.tile_ranks = cluster::size();
+    // About kRunsPerRank runs a rank: the last run handed out, which a rank
+    // may still be rendering when the others are done, is a small part of
+    // the frame, and a rank asks rank 0 for work that many times.
+    constexpr int kRunsPerRank = 48;
+    const int tile = std::max(1, options.tile_size);
+    const int64_t frame_tiles = int64_t((scene.camera.width + tile - 1) / tile) * ((scene.camera.height + tile - 1) / tile);
+    tiles.tile_runs = int(std::clamp<int64_t>(int64_t(kRunsPerRank) * cluster::size(), 1, frame_tiles));
+    queue.emplace(uint64_t(tiles.tile_runs));
+    if (options.progress && cluster::is_root()) progress.emplace("render", uint64_t(tiles.tile_runs), "runs of tiles started");
+    tiles.progress = false;
+    tiles.next_tile_run = [&] {
+      std::optional<uint64_t> k = queue->next();
+      if (progress) progress->set(queue->handed_out());
+      return k;
+    };
   }
   const auto t_trace = std::chrono::steady_clock::now();
   RenderResult result = render_embree_scene(*geometry, scene, tiles);
   if (split) {
+    queue.reset();
+    if (progress) progress->finish();
     gather_tiles(result, tiles);
     result.stats.render_seconds = seconds_since(t_trace);  // the whole frame's, gathering included
   }

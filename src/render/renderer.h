@@ -7,7 +7,9 @@
 #include <filesystem>
 #include <functional>
 #include <memory>
+#include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "core/status.h"
@@ -47,13 +49,21 @@ struct RenderOptions {
   // shadow rays as occlusion packets; false: one ray at a time. Both give the
   // same image (tests/render/packet_test.cpp); packets are faster.
   bool camera_packets = true;
-  // Render only the tiles t (in row-major tile order) with
-  // t % tile_ranks == tile_rank; the others stay 0.
-  int tile_rank = 0, tile_ranks = 1;
-  // Under mpirun (core/cluster.h): render() splits the tiles across the ranks
-  // (round robin: tile t on rank t % N) and gathers the pixels on rank 0; the
-  // other ranks' result holds only their own tiles and must not be written.
-  // Every rank calls render() with the same scene.
+  // Rendering part of a frame: its tiles in row-major order are cut into
+  // tile_runs runs of consecutive tiles (tile_run_bounds), and
+  // next_tile_run hands out the runs to render, one index a call (never
+  // from two threads at once), nullopt when none are left. The threads ask
+  // for the next run while the last one's tiles are still being rendered.
+  // The result's tile_runs lists the runs rendered; other pixels stay 0.
+  // Empty next_tile_run: the whole frame.
+  int tile_runs = 1;
+  std::function<std::optional<uint64_t>()> next_tile_run;
+  // Under mpirun (core/cluster.h): render() deals the frame's runs of tiles
+  // to the ranks as they ask for them (cluster::WorkQueue: each rank starts
+  // on its own share of the rows and takes from the others' when done), and
+  // gathers the pixels on rank 0; the other ranks' result holds only their
+  // own tiles and must not be written. The pixels do not depend on which
+  // rank rendered them. Every rank calls render() with the same scene.
   bool split_across_ranks = false;
   bool progress = true;         // progress bars on stderr
   // Informational messages (effects on, BVH quality, ...); null = silent.
@@ -86,7 +96,13 @@ struct RenderResult {
   Image depth, normal;               // empty unless asked for
   std::vector<uint32_t> triangle_id; // empty unless asked for; width * height
   RenderStats stats;
+  std::vector<uint64_t> tile_runs;   // the runs of tiles rendered (RenderOptions::next_tile_run), increasing
 };
+
+// The tiles [first, last) of run k, when a frame's `tiles` tiles in
+// row-major order are cut into `runs` runs (1 <= runs <= tiles) whose
+// lengths differ by at most one.
+std::pair<uint64_t, uint64_t> tile_run_bounds(uint64_t tiles, uint64_t runs, uint64_t k);
 
 // Resident bytes the renderer needs for a scene of this many triangles:
 // welded mesh arrays plus the Embree BVH (with the layout BvhConfig picks),

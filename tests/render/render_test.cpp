@@ -363,10 +363,32 @@ TEST(BvhQualityChoice, LowBuildIsDeterministicAndFindsTheSameHits) {
   for (size_t i = 0; i < m.depth.pixels.size(); ++i) EXPECT_NEAR(m.depth.pixels[i], b.depth.pixels[i], 1e-4f) << i;
 }
 
-// What `mpirun raylod render` does on each rank: the tiles t with
-// t % ranks == rank, each pixel as the whole frame has it, and the rays of
-// the shares adding up to the frame's.
-TEST(TileShares, TheRanksTilesMakeTheFrame) {
+TEST(TileShares, RunsOfTilesCoverTheFrameOnceWithLengthsOneApart) {
+  EXPECT_EQ(tile_run_bounds(10, 4, 0), std::make_pair(uint64_t(0), uint64_t(3)));
+  EXPECT_EQ(tile_run_bounds(10, 4, 1), std::make_pair(uint64_t(3), uint64_t(6)));
+  EXPECT_EQ(tile_run_bounds(10, 4, 2), std::make_pair(uint64_t(6), uint64_t(8)));
+  EXPECT_EQ(tile_run_bounds(10, 4, 3), std::make_pair(uint64_t(8), uint64_t(10)));
+  for (uint64_t tiles : {1, 7, 35, 8160})
+    for (uint64_t runs = 1; runs <= std::min<uint64_t>(tiles, 100); ++runs) {
+      uint64_t next = 0, shortest = UINT64_MAX, longest = 0;
+      for (uint64_t k = 0; k < runs; ++k) {
+        const auto [first, last] = tile_run_bounds(tiles, runs, k);
+        ASSERT_EQ(first, next) << tiles << " tiles, " << runs << " runs, run " << k;
+        shortest = std::min(shortest, last - first);
+        longest = std::max(longest, last - first);
+        next = last;
+      }
+      EXPECT_EQ(next, tiles);
+      EXPECT_GE(shortest, 1u);
+      EXPECT_LE(longest - shortest, 1u);
+    }
+}
+
+// What `mpirun raylod render` does on each rank: the runs of tiles it was
+// handed (unevenly, as a rank that finishes early takes more), each pixel
+// as the whole frame has it, the rest 0, and the rays of the shares adding
+// up to the frame's.
+TEST(TileShares, TheRanksRunsMakeTheFrame) {
   Scene s = base_scene(50, 37);  // partial tiles at the right and bottom
   s.camera.eye = {0.5, 2, 5};
   s.camera.look_at = {0, 0.8, 0};
@@ -381,17 +403,31 @@ TEST(TileShares, TheRanksTilesMakeTheFrame) {
   RenderOptions o = quiet_options();
   o.tile_size = 8;
   const RenderResult whole = render_meshes(meshes(), s, o);
-  const int ranks = 3, tiles_x = (50 + 7) / 8;
+  EXPECT_EQ(whole.tile_runs, std::vector<uint64_t>{0});
+  const int tiles_x = (50 + 7) / 8, tiles = tiles_x * ((37 + 7) / 8);
+  o.tile_runs = 8;  // 35 tiles: runs of 5 and 4
+  const std::vector<std::vector<uint64_t>> dealt = {{3, 0, 1, 2}, {7}, {4, 6, 5}};
   RayCounters rays;
   std::vector<int> covered(size_t(50) * 37, 0);
-  for (int r = 0; r < ranks; ++r) {
-    o.tile_rank = r;
-    o.tile_ranks = ranks;
+  for (size_t r = 0; r < dealt.size(); ++r) {
+    size_t given = 0;
+    o.next_tile_run = [&]() -> std::optional<uint64_t> {
+      if (given == dealt[r].size()) return std::nullopt;
+      return dealt[r][given++];
+    };
     const RenderResult share = render_meshes(meshes(), s, o);
+    std::vector<uint64_t> runs = dealt[r];
+    std::sort(runs.begin(), runs.end());
+    EXPECT_EQ(share.tile_runs, runs);
     rays += share.stats.rays;
     for (int y = 0; y < 37; ++y)
       for (int x = 0; x < 50; ++x) {
-        const bool mine = ((y / 8) * tiles_x + x / 8) % ranks == r;
+        const uint64_t t = uint64_t((y / 8) * tiles_x + x / 8);
+        bool mine = false;
+        for (uint64_t k : runs) {
+          const auto [first, last] = tile_run_bounds(uint64_t(tiles), 8, k);
+          mine = mine || (t >= first && t < last);
+        }
         for (int c = 0; c < 3; ++c)
           ASSERT_EQ(share.color.at(x, y)[c], mine ? whole.color.at(x, y)[c] : 0.0f) << x << "," << y << " rank " << r;
         covered[size_t(y) * 50 + x] += mine;
