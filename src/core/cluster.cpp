@@ -407,6 +407,24 @@ struct WorkQueue::State {
 #if RAYLOD_WITH_MPI
   MPI_Comm comm = MPI_COMM_NULL;
   std::thread server;
+  // A rank's request sent and not yet waited for (ask_ahead), and where its
+  // answer goes.
+  bool ask_ahead = false, asked = false;
+  MPI_Request answer = MPI_REQUEST_NULL;
+  int64_t answered = -1;
+
+  void ask() {
+    char none = 0;
+    MPI_Send(&none, 1, MPI_CHAR, 0, 1, comm);
+    MPI_Irecv(&answered, 1, MPI_INT64_T, 0, 1, comm, &answer);
+    asked = true;
+  }
+  // The answer to the request sent (-1: no more).
+  int64_t wait_answer() {
+    wait_lazily(answer);
+    asked = false;
+    return answered;
+  }
 #endif
 
   void deal(int ranks) {
@@ -429,10 +447,15 @@ struct WorkQueue::State {
   }
 };
 
-WorkQueue::WorkQueue(uint64_t count) : state_(std::make_unique<State>()) {
+WorkQueue::WorkQueue(uint64_t count, bool ask_ahead) : state_(std::make_unique<State>()) {
   World& w = world();
   State& s = *state_;
   s.count = count;
+#if RAYLOD_WITH_MPI
+  s.ask_ahead = ask_ahead;
+#else
+  (void)ask_ahead;
+#endif
   s.round_robin = uint64_t(w.rank);
   s.deal(w.size);
   if (w.size == 1) return;
@@ -524,16 +547,13 @@ std::optional<uint64_t> WorkQueue::next_index() {
     return i;
   }
 #if RAYLOD_WITH_MPI
-  char none = 0;
-  int64_t i = -1;
-  MPI_Send(&none, 1, MPI_CHAR, 0, 1, s.comm);
-  MPI_Request request;
-  MPI_Irecv(&i, 1, MPI_INT64_T, 0, 1, s.comm, &request);
-  wait_lazily(request);
+  if (!s.asked) s.ask();
+  const int64_t i = s.wait_answer();
   if (i < 0) {
-    s.done = true;
+    s.done = true;  // rank 0 counted this rank as finished
     return std::nullopt;
   }
+  if (s.ask_ahead) s.ask();
   return uint64_t(i);
 #else
   return std::nullopt;
@@ -548,6 +568,9 @@ void WorkQueue::stop() {
   s.done = true;
 #if RAYLOD_WITH_MPI
   if (s.dynamic && w.size > 1 && w.rank != 0) {
+    // A request asked ahead is answered first; if the answer was "no more",
+    // rank 0 has counted this rank as finished already.
+    if (s.asked && s.wait_answer() < 0) return;
     char none = 0;
     MPI_Send(&none, 1, MPI_CHAR, 0, 2, s.comm);
   }
