@@ -52,8 +52,9 @@ struct RenderOptions {
   // Rendering part of a frame: its tiles in row-major order are cut into
   // tile_runs runs of consecutive tiles (tile_run_bounds), and
   // next_tile_run hands out the runs to render, one index a call (never
-  // from two threads at once), nullopt when none are left. The threads ask
-  // for the next run while the last one's tiles are still being rendered.
+  // from two threads at once), nullopt when none are left. A thread asks for
+  // the next run when it has nothing left to render, while the others may
+  // still be on the last run's tiles.
   // The result's tile_runs lists the runs rendered; other pixels stay 0.
   // Empty next_tile_run: the whole frame.
   int tile_runs = 1;
