@@ -431,7 +431,7 @@ SelectionCache::Store SelectionCache::make_entry(const OctreeStore& store) {
     e.slot[size_t(L)].assign(nodes.size(), 0);
     nodes_total += nodes.size();
   }
-  e.max_computed = std::max<size_t>(nodes_total / kComputedShare, 1);
+  e.max_computed = size_t(most_computed(nodes_total));
   return e;
 }
 
@@ -450,7 +450,7 @@ uint64_t SelectionCache::bytes_for(std::span<const OctreeStore* const> stores) {
     uint64_t nodes = 0;
     for (int L = 0; L <= st->header().quadric_depth; ++L) nodes += st->level(L).size();
     b += nodes * (sizeof(uint64_t) + sizeof(uint32_t)) +
-         std::max<uint64_t>(nodes / kComputedShare, 1) * sizeof(CollapseDeviation);
+         most_computed(nodes) * sizeof(CollapseDeviation);
   }
   return b;
 }

@@ -146,6 +146,7 @@
 // m * a_ray * path length.
 #pragma once
 
+#include <algorithm>
 #include <array>
 #include <cstdint>
 #include <limits>
@@ -252,6 +253,8 @@ class SelectionCache {
     const CollapseDeviation& deviation(int level, size_t i) const { return computed[slot[size_t(level)][i] - 1]; }
   };
   static constexpr size_t kComputedShare = 4;
+  // The most deviations kept for a store of `nodes` nodes.
+  static uint64_t most_computed(uint64_t nodes) { return std::max<uint64_t>(nodes / kComputedShare, 1); }
   Store& of(const OctreeStore& store);
   // What a cache for these stores holds at most: 12 bytes a node (a code and
   // a slot), and a deviation for every kComputedShare-th.

@@ -343,6 +343,25 @@ StatusOr<std::vector<TriangleMesh>> load_scene_meshes(const Scene& world_scene, 
   return meshes;
 }
 
+namespace {
+
+// A frame's tiles (RenderOptions::tile_size, row-major) and the runs they are
+// cut into (RenderOptions::tile_runs, at least one and at most one a tile).
+struct TileGrid {
+  int tile = 1, tiles_x = 0;
+  uint64_t tiles = 0, runs = 1;
+};
+TileGrid tile_grid(int width, int height, const RenderOptions& options) {
+  TileGrid g;
+  g.tile = std::max(1, options.tile_size);
+  g.tiles_x = (width + g.tile - 1) / g.tile;
+  g.tiles = uint64_t(g.tiles_x) * uint64_t((height + g.tile - 1) / g.tile);
+  g.runs = std::clamp<uint64_t>(uint64_t(std::max(1, options.tile_runs)), 1, std::max<uint64_t>(g.tiles, 1));
+  return g;
+}
+
+}  // namespace
+
 RenderResult render_embree_scene(const EmbreeScene& geometry, const Scene& world_scene, const RenderOptions& options) {
   const auto start = std::chrono::steady_clock::now();
   const Scene scene = in_render_frame(world_scene);
@@ -373,10 +392,7 @@ RenderResult render_embree_scene(const EmbreeScene& geometry, const Scene& world
   if (options.aov_normal) result.normal = Image(width, height, 3);
   if (options.aov_triangle_id) result.triangle_id.assign(size_t(width) * height, kNoTriangle);
 
-  const int tile = std::max(1, options.tile_size);
-  const int tiles_x = (width + tile - 1) / tile, tiles_y = (height + tile - 1) / tile;
-  const uint64_t tiles = uint64_t(tiles_x) * uint64_t(tiles_y);
-  const uint64_t runs = std::clamp<uint64_t>(uint64_t(std::max(1, options.tile_runs)), 1, tiles);
+  const auto [tile, tiles_x, tiles, runs] = tile_grid(width, height, options);
   std::optional<Progress> progress;
   if (options.progress) progress.emplace("render", options.next_tile_run ? 0 : tiles, "tiles");
   std::mutex counters_mutex;
@@ -533,11 +549,8 @@ namespace {
 // unpacking them took about 0.2 s after the last rank's trace; this takes
 // 0.03 s.
 void gather_tiles(RenderResult& result, const RenderOptions& options) {
-  const int tile = std::max(1, options.tile_size);
   const int width = result.color.width, height = result.color.height;
-  const int tiles_x = (width + tile - 1) / tile;
-  const uint64_t tiles = uint64_t(tiles_x) * uint64_t((height + tile - 1) / tile);
-  const uint64_t runs = std::clamp<uint64_t>(uint64_t(std::max(1, options.tile_runs)), 1, tiles);
+  const auto [tile, tiles_x, tiles, runs] = tile_grid(width, height, options);
   std::string mine(result.tile_runs.size() * sizeof(uint64_t), '\0');
   if (!mine.empty()) std::memcpy(mine.data(), result.tile_runs.data(), mine.size());
   const std::vector<std::string> runs_of = cluster::gather(mine);
@@ -612,9 +625,8 @@ StatusOr<RenderResult> render(const Scene& scene, const RenderOptions& options) 
     // (ask_ahead): on the 4K frame below, 48 and 200 runs a rank took as
     // long, 12 longer (README, "Running on a cluster").
     constexpr int kRunsPerRank = 48;
-    const int tile = std::max(1, options.tile_size);
-    const int64_t frame_tiles = int64_t((scene.camera.width + tile - 1) / tile) * ((scene.camera.height + tile - 1) / tile);
-    tiles.tile_runs = int(std::clamp<int64_t>(int64_t(kRunsPerRank) * cluster::size(), 1, frame_tiles));
+    tiles.tile_runs = kRunsPerRank * cluster::size();
+    tiles.tile_runs = int(tile_grid(scene.camera.width, scene.camera.height, tiles).runs);  // at most one a tile
     queue.emplace(uint64_t(tiles.tile_runs), /*ask_ahead=*/true);
     if (options.progress && cluster::is_root()) progress.emplace("render", uint64_t(tiles.tile_runs), "runs of tiles started");
     tiles.progress = false;
