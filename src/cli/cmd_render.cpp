@@ -91,11 +91,14 @@ Status run_render(int argc, char** argv, bool& help) {
   RAYLOD_RETURN_IF_ERROR(cluster::rank0_first([&] { return resolve_generated_meshes(scene, default_cache_dir()); }));
 
   opts.split_across_ranks = true;
+  // An 8-bit output needs only the 8-bit frame: encoded tile by tile where
+  // it is rendered (RenderOptions::srgb_color).
+  opts.srgb_color = !is_float_image_format(output);
   RAYLOD_ASSIGN_OR_RETURN(RenderResult result, render(scene, opts));
   // Rank 0 holds the whole frame and writes it; the others wait to learn
   // whether it could, so that a failed write ends the job like any failure.
   auto write_outputs = [&]() -> Status {
-    RAYLOD_RETURN_IF_ERROR(write_image(output, result.color));
+    RAYLOD_RETURN_IF_ERROR(opts.srgb_color ? write_image(output, result.srgb) : write_image(output, result.color));
     auto written_aovs = write_aovs(output, result);
     if (!written_aovs.is_ok()) {  // nothing of a failed render stays: the image goes with its AOVs
       std::error_code ec;

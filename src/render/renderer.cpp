@@ -55,11 +55,15 @@ void strata(int spp, int& sx, int& sy) {
   sy = spp / sx;
 }
 
-bool is_float_format(const std::filesystem::path& path) {
+}  // namespace
+
+bool is_float_image_format(const std::filesystem::path& path) {
   std::string ext = path.extension().string();
   std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char ch) { return char(std::tolower(ch)); });
   return ext == ".exr" || ext == ".hdr" || ext == ".tif" || ext == ".tiff" || ext == ".pfm";
 }
+
+namespace {
 
 // A device or FIFO without an extension (`-o /dev/null`, a pipe) takes a
 // PNG: the name has no format to give, and the bytes only pass through.
@@ -174,7 +178,7 @@ uint64_t estimate_render_memory(uint64_t triangles, const BvhConfig& config) {
 }
 
 uint64_t estimate_image_memory(int width, int height, const RenderOptions& options) {
-  const uint64_t per_pixel = 18 + (options.aov_depth ? 8 : 0) + (options.aov_normal ? 15 : 0) +
+  const uint64_t per_pixel = (options.srgb_color ? 6 : 18) + (options.aov_depth ? 8 : 0) + (options.aov_normal ? 15 : 0) +
                              (options.aov_triangle_id ? 8 : 0);
   return uint64_t(std::max(width, 0)) * uint64_t(std::max(height, 0)) * per_pixel;
 }
@@ -387,7 +391,8 @@ RenderResult render_embree_scene(const EmbreeScene& geometry, const Scene& world
   strata(spp, sx, sy);
 
   RenderResult result;
-  result.color = Image(width, height, 3);
+  if (options.srgb_color) result.srgb = SrgbImage(width, height, 3);
+  else result.color = Image(width, height, 3);
   if (options.aov_depth) result.depth = Image(width, height, 1);
   if (options.aov_normal) result.normal = Image(width, height, 3);
   if (options.aov_triangle_id) result.triangle_id.assign(size_t(width) * height, kNoTriangle);
@@ -466,9 +471,14 @@ RenderResult render_embree_scene(const EmbreeScene& geometry, const Scene& world
         if (job.s != spp - 1) return;
         for (int i = 0; i < blk.n; ++i) {
           const int x = blk.x0 + i % blk.w, y = blk.y0 + i / blk.w;
-          float* c = result.color.at(x, y);
           const Vec3 mean = blk.sum[i] / float(spp);
-          c[0] = mean.x; c[1] = mean.y; c[2] = mean.z;
+          if (options.srgb_color) {
+            uint8_t* c = result.srgb.at(x, y);
+            c[0] = srgb_byte(mean.x); c[1] = srgb_byte(mean.y); c[2] = srgb_byte(mean.z);
+          } else {
+            float* c = result.color.at(x, y);
+            c[0] = mean.x; c[1] = mean.y; c[2] = mean.z;
+          }
           // AOVs come from the pixel's first sample (no blending across edges).
           const CameraSample& f = blk.first[i];
           if (options.aov_depth) *result.depth.at(x, y) = f.hit ? float(f.depth) : 0.0f;
@@ -549,7 +559,7 @@ namespace {
 // unpacking them took about 0.2 s after the last rank's trace; this takes
 // 0.03 s.
 void gather_tiles(RenderResult& result, const RenderOptions& options) {
-  const int width = result.color.width, height = result.color.height;
+  const int width = result.stats.width, height = result.stats.height;
   const auto [tile, tiles_x, tiles, runs] = tile_grid(width, height, options);
   std::string mine(result.tile_runs.size() * sizeof(uint64_t), '\0');
   if (!mine.empty()) std::memcpy(mine.data(), result.tile_runs.data(), mine.size());
@@ -571,6 +581,7 @@ void gather_tiles(RenderResult& result, const RenderOptions& options) {
   };
   for (Image* im : {&result.color, &result.depth, &result.normal})
     if (!im->empty()) cluster::gather_blocks(im->pixels.data(), sizeof(float) * size_t(im->channels), rows_of);
+  if (!result.srgb.empty()) cluster::gather_blocks(result.srgb.bytes.data(), size_t(result.srgb.channels), rows_of);
   if (!result.triangle_id.empty()) cluster::gather_blocks(result.triangle_id.data(), sizeof(uint32_t), rows_of);
   const std::vector<std::string> parts = cluster::gather(cluster::to_bytes(result.stats.rays));
   if (!cluster::is_root()) return;
@@ -650,16 +661,11 @@ StatusOr<RenderResult> render(const Scene& scene, const RenderOptions& options) 
   return result;
 }
 
-Status write_image(const std::filesystem::path& path, const Image& image) {
-  if (image.empty()) return Status::error(path.string() + ": empty image");
-  if (is_float_format(path)) {
-    OIIO::ImageSpec spec(image.width, image.height, image.channels, OIIO::TypeDesc::FLOAT);
-    if (image.channels == 1) spec.channelnames = {"Z"};
-    return write_pixels(path, spec, image.pixels.data(), OIIO::TypeDesc::FLOAT);
-  }
-  std::vector<uint8_t> bytes(image.pixels.size());
-  srgb_bytes(image.pixels, bytes);
-  OIIO::ImageSpec spec(image.width, image.height, image.channels, OIIO::TypeDesc::UINT8);
+namespace {
+
+// An 8-bit sRGB image to an 8-bit format.
+Status write_srgb_bytes(const std::filesystem::path& path, int width, int height, int channels, const uint8_t* bytes) {
+  OIIO::ImageSpec spec(width, height, channels, OIIO::TypeDesc::UINT8);
   spec.attribute("oiio:ColorSpace", "sRGB");
   // PNG rows unfiltered (libpng's PNG_FILTER_NONE) rather than libpng's
   // per-row choice among all five filters: on raylod's renders (default,
@@ -668,7 +674,28 @@ Status write_image(const std::filesystem::path& path, const Image& image) {
   // 0.32 -> 0.12 s, 822 -> 741 KB). Other writers ignore the attribute.
   constexpr int kPngFilterNone = 0x08;
   spec.attribute("png:filter", kPngFilterNone);
-  return write_pixels(path, spec, bytes.data(), OIIO::TypeDesc::UINT8);
+  return write_pixels(path, spec, bytes, OIIO::TypeDesc::UINT8);
+}
+
+}  // namespace
+
+Status write_image(const std::filesystem::path& path, const Image& image) {
+  if (image.empty()) return Status::error(path.string() + ": empty image");
+  if (is_float_image_format(path)) {
+    OIIO::ImageSpec spec(image.width, image.height, image.channels, OIIO::TypeDesc::FLOAT);
+    if (image.channels == 1) spec.channelnames = {"Z"};
+    return write_pixels(path, spec, image.pixels.data(), OIIO::TypeDesc::FLOAT);
+  }
+  std::vector<uint8_t> bytes(image.pixels.size());
+  srgb_bytes(image.pixels, bytes);
+  return write_srgb_bytes(path, image.width, image.height, image.channels, bytes.data());
+}
+
+Status write_image(const std::filesystem::path& path, const SrgbImage& image) {
+  if (image.empty()) return Status::error(path.string() + ": empty image");
+  if (is_float_image_format(path))
+    return Status::error(path.string() + ": a float format needs the linear image, and this one is 8-bit sRGB");
+  return write_srgb_bytes(path, image.width, image.height, image.channels, image.bytes.data());
 }
 
 Status check_output_image(const std::filesystem::path& path) {

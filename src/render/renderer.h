@@ -30,6 +30,19 @@ struct Image {
   const float* at(int x, int y) const { return &pixels[(size_t(y) * width + x) * channels]; }
 };
 
+// An 8-bit sRGB image, what PNG and JPEG files store: srgb_byte
+// (render/srgb.h) of each linear value, channels interleaved, row 0 at the
+// top.
+struct SrgbImage {
+  int width = 0, height = 0, channels = 0;
+  std::vector<uint8_t> bytes;
+  SrgbImage() = default;
+  SrgbImage(int w, int h, int c) : width(w), height(h), channels(c), bytes(size_t(w) * h * c, 0) {}
+  bool empty() const { return bytes.empty(); }
+  uint8_t* at(int x, int y) { return &bytes[(size_t(y) * width + x) * channels]; }
+  const uint8_t* at(int x, int y) const { return &bytes[(size_t(y) * width + x) * channels]; }
+};
+
 struct RenderOptions {
   int spp = 0;                  // samples per pixel; 0 = the scene's spp
   uint64_t memory_limit = 0;    // bytes for meshes + BVH and the image (estimate_image_memory); 0 = no limit
@@ -40,6 +53,12 @@ struct RenderOptions {
   std::vector<char> omit_object;
   // Appended to the error when the scene does not fit memory_limit.
   std::string over_limit_hint = "Use `raylod run`, which simplifies the mesh first.";
+  // The color only as 8-bit sRGB (the result's srgb; its color stays
+  // empty), each pixel encoded as its tile is finished, on the rank that
+  // rendered it: for an 8-bit output, the same bytes as write_image makes
+  // from the linear image, for a quarter of the frame's memory, and under
+  // mpirun a quarter of the bytes to gather and no serial encoding on rank 0.
+  bool srgb_color = false;
   bool wireframe = false;       // darken pixels near triangle edges (triangle density)
   bool aov_depth = false;       // camera-ray hit distance, 1 channel (0 where nothing is hit)
   bool aov_normal = false;      // shading normal facing the camera, 3 channels
@@ -93,7 +112,8 @@ std::string render_stats_json(const RenderStats& stats);
 inline constexpr uint32_t kNoTriangle = 0xffffffffu;
 
 struct RenderResult {
-  Image color;                       // linear RGB
+  Image color;                       // linear RGB (empty with RenderOptions::srgb_color)
+  SrgbImage srgb;                    // the color as 8-bit sRGB, with RenderOptions::srgb_color only
   Image depth, normal;               // empty unless asked for
   std::vector<uint32_t> triangle_id; // empty unless asked for; width * height
   RenderStats stats;
@@ -110,7 +130,8 @@ std::pair<uint64_t, uint64_t> tile_run_bounds(uint64_t tiles, uint64_t runs, uin
 // measured on the teapot meshes (tools/bench_render) and rounded up.
 uint64_t estimate_render_memory(uint64_t triangles, const BvhConfig& config = {});
 // Resident bytes the frame takes: the float image (12 bytes a pixel), the
-// 8-bit copy and encoded bytes written from it (3 + 3), and each AOV asked
+// 8-bit copy and encoded bytes written from it (3 + 3), or with srgb_color
+// the 8-bit frame and its encoded bytes (3 + 3), and each AOV asked
 // for with its own copy to write (depth 8, normal 15, triangle id 8). A
 // 6000 x 6000 frame is 618 MiB; under --memory-limit 300M it ran to 566 to
 // 677 MiB before the frame was counted.
@@ -166,6 +187,13 @@ StatusOr<RenderResult> render(const Scene& scene, const RenderOptions& options);
 // formats (PNG, JPEG, ...) get sRGB-encoded values clamped to [0, 1].
 // Atomic: written under a temporary name, then renamed.
 Status write_image(const std::filesystem::path& path, const Image& image);
+// Writes an 8-bit sRGB image (RenderOptions::srgb_color) to an 8-bit format:
+// the same file as write_image of the linear image it was encoded from. A
+// float format is an error (the linear values are gone).
+Status write_image(const std::filesystem::path& path, const SrgbImage& image);
+// Whether write_image stores path's format as linear floats (EXR, HDR,
+// TIFF, PFM) rather than 8-bit sRGB.
+bool is_float_image_format(const std::filesystem::path& path);
 // Checks, before any work, that an image can be written to path: a writer
 // exists for its extension and its directory exists.
 Status check_output_image(const std::filesystem::path& path);

@@ -18,6 +18,7 @@
 #include "core/system.h"
 #include "render/integrator.h"
 #include "render/renderer.h"
+#include "render/srgb.h"
 #include "render_test_util.h"
 #include "streaming/draco_io.h"
 
@@ -436,6 +437,83 @@ TEST(TileShares, TheRanksRunsMakeTheFrame) {
   EXPECT_EQ(std::count(covered.begin(), covered.end(), 1), 50 * 37);
   EXPECT_EQ(rays.total(), whole.stats.rays.total());
   EXPECT_EQ(rays.reflection, whole.stats.rays.reflection);
+}
+
+// RenderOptions::srgb_color: each pixel encoded where its tile is finished
+// gives the bytes of encoding the linear frame, for the whole frame and for
+// a rank's runs of tiles, and the same PNG file; a float format refuses it.
+TEST(SrgbColor, EncodedTileByTileIsTheLinearFrameEncoded) {
+  Scene s = base_scene(50, 37);  // partial tiles at the right and bottom
+  s.camera.eye = {0.5, 2, 5};
+  s.camera.look_at = {0, 0.8, 0};
+  s.materials = {material("glossy", MaterialType::Glossy), material("floor", MaterialType::Diffuse)};
+  s.lights = {point_light({2, 5, 3}, 80)};  // bright enough to clip: bytes at 255
+  auto meshes = [&] {
+    std::vector<TriangleMesh> m;
+    m.push_back(make_sphere({0, 1, 0}, 0.8f, 16, 32, 0));
+    m.push_back(make_ground_mesh(Ground{0, 20, 1}, s.camera));
+    return m;
+  };
+  RenderOptions o = quiet_options();
+  o.tile_size = 8;
+  const RenderResult linear = render_meshes(meshes(), s, o);
+  std::vector<uint8_t> expected(linear.color.pixels.size());
+  srgb_bytes(linear.color.pixels, expected);
+  size_t clipped = 0, black = 0;
+  for (uint8_t b : expected) clipped += b == 255, black += b == 0;
+  EXPECT_GT(clipped, 0u);
+  EXPECT_GT(black, 0u);
+  o.srgb_color = true;
+  const RenderResult encoded = render_meshes(meshes(), s, o);
+  EXPECT_TRUE(encoded.color.empty());
+  ASSERT_EQ(encoded.srgb.width, 50);
+  ASSERT_EQ(encoded.srgb.height, 37);
+  ASSERT_EQ(encoded.srgb.channels, 3);
+  EXPECT_EQ(encoded.srgb.bytes, expected);
+  EXPECT_EQ(encoded.stats.rays.total(), linear.stats.rays.total());
+  // A rank's share: its runs' pixels as the whole frame has them.
+  o.tile_runs = 8;
+  const std::vector<uint64_t> dealt = {6, 1, 3};
+  size_t given = 0;
+  o.next_tile_run = [&]() -> std::optional<uint64_t> {
+    if (given == dealt.size()) return std::nullopt;
+    return dealt[given++];
+  };
+  const RenderResult share = render_meshes(meshes(), s, o);
+  const int tiles_x = (50 + 7) / 8, tiles = tiles_x * ((37 + 7) / 8);
+  size_t mine_pixels = 0;
+  for (int y = 0; y < 37; ++y)
+    for (int x = 0; x < 50; ++x) {
+      const uint64_t t = uint64_t((y / 8) * tiles_x + x / 8);
+      bool mine = false;
+      for (uint64_t k : dealt) {
+        const auto [first, last] = tile_run_bounds(uint64_t(tiles), 8, k);
+        mine = mine || (t >= first && t < last);
+      }
+      if (!mine) continue;
+      ++mine_pixels;
+      for (int c = 0; c < 3; ++c) ASSERT_EQ(share.srgb.at(x, y)[c], encoded.srgb.at(x, y)[c]) << x << "," << y;
+    }
+  EXPECT_GT(mine_pixels, 0u);
+  // The same file as the linear frame's.
+  const auto dir = test_tmp("render-srgb");
+  ASSERT_TRUE(write_image(dir / "linear.png", linear.color).is_ok());
+  ASSERT_TRUE(write_image(dir / "encoded.png", encoded.srgb).is_ok());
+  auto bytes = [](const std::filesystem::path& p) {
+    std::ifstream f(p, std::ios::binary);
+    return std::string(std::istreambuf_iterator<char>(f), {});
+  };
+  EXPECT_FALSE(bytes(dir / "linear.png").empty());
+  EXPECT_EQ(bytes(dir / "linear.png"), bytes(dir / "encoded.png"));
+  const Status exr = write_image(dir / "encoded.exr", encoded.srgb);
+  ASSERT_FALSE(exr.is_ok());
+  EXPECT_NE(exr.message().find("encoded.exr"), std::string::npos) << exr.message();
+  EXPECT_NE(exr.message().find("linear"), std::string::npos) << exr.message();
+  EXPECT_FALSE(std::filesystem::exists(dir / "encoded.exr"));
+  // The frame's memory estimate counts the 8-bit frame, not the float one.
+  RenderOptions bytes_only;
+  bytes_only.srgb_color = true;
+  EXPECT_LT(estimate_image_memory(3840, 2160, bytes_only), estimate_image_memory(3840, 2160, RenderOptions{}) / 2);
 }
 
 TEST(Aov, DepthNormalAndTriangleIdOfTheCentrePixel) {
