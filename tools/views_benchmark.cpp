@@ -55,8 +55,8 @@ StatusOr<Strategy> run_strategy(const std::string& name, const Scene& scene, con
   Strategy s;
   s.name = name;
   s.images.resize(cameras.size());
-  auto keep = [&](size_t i, const Image& color) -> Status {
-    s.images[i] = color;
+  auto keep = [&](size_t i, const RenderResult& r) -> Status {
+    s.images[i] = r.color;
     return {};
   };
   std::fprintf(stderr, "views_benchmark: %s\n", name.c_str());

@@ -75,8 +75,9 @@ Status report_views(const Args& args, const ViewsResult& r, const RunOptions& op
 Status run_view_sequence(const Args& args, Scene scene, const std::vector<Camera>& cameras, const RunOptions& opts,
                          const std::filesystem::path& output, const LogFn& log) {
   const bool shared = args.has("--shared-cut");
-  auto write_view = [&](size_t i, const Image& color) -> Status {
-    return write_image(numbered_image_path(output, i), color);
+  auto write_view = [&](size_t i, const RenderResult& r) -> Status {
+    const std::filesystem::path image = numbered_image_path(output, i);
+    return opts.srgb_color ? write_image(image, r.srgb) : write_image(image, r.color);
   };
   RAYLOD_ASSIGN_OR_RETURN(ViewsResult r, run_views(std::move(scene), cameras, opts, shared, write_view, log));
   // Rank 0 has every view's statistics; the others wait to learn whether it
@@ -171,6 +172,9 @@ Status run_run(int argc, char** argv, bool& help) {
   }
   const bool quiet = apply_quiet(args);
   opts.progress = !quiet;
+  // Only --compare looks at the linear colors; an 8-bit image is encoded
+  // tile by tile where rendered (RenderOptions::srgb_color).
+  opts.srgb_color = !args.has("--compare") && !is_float_image_format(output);
   LogFn log;
   if (!quiet) log = [](const std::string& m) { std::fprintf(stderr, "raylod run: %s\n", m.c_str()); };
 
@@ -223,7 +227,7 @@ Status run_run(int argc, char** argv, bool& help) {
   // others wait to learn whether it could, so that a failed write ends the
   // job like any failure.
   auto write_outputs = [&]() -> Status {
-    RAYLOD_RETURN_IF_ERROR(write_image(output, r.render.color));
+    RAYLOD_RETURN_IF_ERROR(opts.srgb_color ? write_image(output, r.render.srgb) : write_image(output, r.render.color));
     for (const std::string& w : r.warnings) std::fprintf(stderr, "raylod run: warning: %s\n", w.c_str());
 
     summary("raylod run: %s\n", args.positionals().empty() ? "embedded default scene" : args.positionals()[0].c_str());

@@ -913,6 +913,7 @@ StatusOr<RenderResult> render_simplified(const Scene& scene, std::span<const Pro
                                          uint64_t memory_limit, const LogFn& log, bool split_across_ranks) {
   RenderOptions ro;
   ro.split_across_ranks = split_across_ranks;
+  ro.srgb_color = options.srgb_color;
   ro.spp = options.spp;
   ro.memory_limit = memory_limit;
   ro.progress = options.progress;

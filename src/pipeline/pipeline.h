@@ -76,6 +76,10 @@ struct RunOptions {
   int spp = 0;                        // 0 = the scene's
   int max_coarsening_steps = 12;      // K doubles per step when over memory
   std::filesystem::path export_mesh;  // also write the simplified meshes here as .glb (empty: no)
+  // The render's color only as 8-bit sRGB (RenderOptions::srgb_color), for
+  // an 8-bit output that nothing compares: the result's render.srgb, or the
+  // views' images, instead of linear colors.
+  bool srgb_color = false;
 };
 
 struct StageTimes {

@@ -39,7 +39,7 @@ Status render_view(RunSession& session, const Scene& scene, const Camera& camera
                                                             options, session.memory_limit, log));
   stats.render = seconds_since(t);
   stats.render_stats = r.stats;
-  if (on_image) RAYLOD_RETURN_IF_ERROR(on_image(i, r.color));
+  if (on_image) RAYLOD_RETURN_IF_ERROR(on_image(i, r));
   return {};
 }
 

@@ -57,8 +57,9 @@ struct ViewsResult {
   double seconds_per_view() const { return views.empty() ? 0 : total_seconds / double(views.size()); }
 };
 
-// Called once per view as soon as it is rendered (the image is not kept).
-using ViewImageFn = std::function<Status(size_t view, const Image& color)>;
+// Called once per view as soon as it is rendered (the image is not kept):
+// its color, linear, or 8-bit sRGB with RunOptions::srgb_color.
+using ViewImageFn = std::function<Status(size_t view, const RenderResult& render)>;
 
 StatusOr<ViewsResult> run_views(Scene scene, std::span<const Camera> cameras, const RunOptions& options,
                                 bool shared_cut, const ViewImageFn& on_image, const LogFn& log);

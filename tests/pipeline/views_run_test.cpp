@@ -12,6 +12,7 @@
 
 #include "pipeline/simplified_cache.h"
 #include "pipeline/views.h"
+#include "render/renderer.h"
 #include "run_command.h"
 #include "test_tmp.h"
 
@@ -102,6 +103,26 @@ TEST(ViewsRun, ThreeViewsWriteNumberedImagesAndPerViewStatsAndReuseTheCache) {
   EXPECT_EQ(k["summary"]["cache_reuse"], 3);
   for (const auto& v : k["views"]) EXPECT_TRUE(v["cache_hit"].get<bool>());
   EXPECT_EQ(slurp(f.dir / "out_01.png"), first);
+
+  // An 8-bit image is encoded tile by tile where it is rendered
+  // (RunOptions::srgb_color); a float one keeps the linear colors. Written
+  // to PNG, the linear colors give the same file, for the views and for a
+  // single view.
+  const std::string exr_args = "run '" + scene.string() + "' --views '" + (f.dir / "v.json").string() + "' -o '" +
+                               (f.dir / "lin_##.exr").string() + "' --rays 500 -q";
+  auto linear = raylod(f, exr_args);
+  ASSERT_EQ(linear.status, 0) << linear.out;
+  auto single = raylod(f, "run '" + scene.string() + "' -o '" + (f.dir / "one.png").string() + "' --rays 500 -q");
+  ASSERT_EQ(single.status, 0) << single.out;
+  auto single_linear = raylod(f, "run '" + scene.string() + "' -o '" + (f.dir / "one.exr").string() + "' --rays 500 -q");
+  ASSERT_EQ(single_linear.status, 0) << single_linear.out;
+  for (const auto& [exr, png] : {std::pair{"lin_00.exr", "out_00.png"}, std::pair{"lin_01.exr", "out_01.png"},
+                                 std::pair{"lin_02.exr", "out_02.png"}, std::pair{"one.exr", "one.png"}}) {
+    auto colors = read_image(f.dir / exr);
+    ASSERT_TRUE(colors.is_ok()) << colors.status().message();
+    ASSERT_TRUE(write_image(f.dir / "from_linear.png", *colors).is_ok());
+    EXPECT_EQ(slurp(f.dir / "from_linear.png"), slurp(f.dir / png)) << png;
+  }
 }
 
 TEST(ViewsRun, BadViewsFileFailsNamingTheElementAndWritesNothing) {
