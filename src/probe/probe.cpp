@@ -537,6 +537,7 @@ std::string probe_key(const Scene& scene, const OctreeStore& store, std::span<co
   mix(config.balance);
   mix(config.calibration_quantile);
   mix(config.curved_unreached_tilt);
+  mix(config.unreached_angle_allowance);
   mix(config.shadow_factor);
   mix(config.limits.min_cos);
   mix(config.limits.max_turn);
@@ -560,6 +561,8 @@ Status check_probe_inputs(const Scene& scene, std::span<const ProbeStore> stores
   if (!(config.footprint_scale > 0)) return Status::error("probe: footprint scale must be > 0");
   if (!(config.tolerance_px > 0)) return Status::error("probe: tolerance must be > 0 pixels");
   if (!(config.angle_tolerance_px > 0)) return Status::error("probe: angle tolerance must be > 0 pixels");
+  if (!(config.unreached_angle_allowance > 0))
+    return Status::error("probe: the unreached cells' angle allowance must be > 0");
   if (!(config.calibration_quantile >= 0 && config.calibration_quantile <= 1))
     return Status::error("probe: the calibration quantile must be between 0 and 1");
   return {};
@@ -870,6 +873,7 @@ struct CutSelection::State {
   // What the unreached curved cells' calibration (make()) read of the config.
   bool curved_unreached_tilt = true;
   double calibration_quantile = 0;
+  double unreached_angle_allowance = 0;
   std::vector<StoreNeeds> needs;
   double prepare_seconds = 0;
 };
@@ -897,6 +901,7 @@ StatusOr<CutSelection> CutSelection::make(std::span<const ProbeView> views, cons
   state.shadow_factor = config.shadow_factor;
   state.curved_unreached_tilt = config.curved_unreached_tilt;
   state.calibration_quantile = config.calibration_quantile;
+  state.unreached_angle_allowance = config.unreached_angle_allowance;
   state.needs.resize(stores.size());
   std::vector<ViewFacts> facts;
   for (const ProbeView& v : views) facts.push_back(make_view_facts(v));
@@ -1100,6 +1105,7 @@ StatusOr<CutSelection> CutSelection::make(std::span<const ProbeView> views, cons
       shift_need[size_t(Q)].assign(nodes.size(), std::numeric_limits<float>::infinity());
       if (n.specular) tilt[size_t(Q)].assign(nodes.size(), kInf);
       const bool store_specular = n.specular;
+      const double unreached_allowance = config.unreached_angle_allowance;
       tbb::parallel_for(tbb::blocked_range<size_t>(0, nodes.size(), 1024), [&](const tbb::blocked_range<size_t>& r) {
         // Per view, the first measured cell at or after the range's first node.
         std::vector<size_t> at(views.size());
@@ -1133,7 +1139,7 @@ StatusOr<CutSelection> CutSelection::make(std::span<const ProbeView> views, cons
                 const double curved = curvature_factor[v] * kappa * seen;
                 if (std::isfinite(curved)) unreached = std::max(unreached, curved);
               }
-              a = std::min(a, hit ? hit->tilt : unreached);
+              a = std::min(a, hit ? hit->tilt : unreached_allowance * unreached);
             }
           }
           need[size_t(Q)][i] = f;
@@ -1174,7 +1180,8 @@ StatusOr<ProbeResult> CutSelection::select(const ProbeConfig& config) {
   const std::span<const ProbeView> views = state.views;
   RAYLOD_RETURN_IF_ERROR(check_probe_inputs(scene, stores, objects, config));
   if (config.curved_unreached_tilt != state.curved_unreached_tilt ||
-      config.calibration_quantile != state.calibration_quantile)
+      config.calibration_quantile != state.calibration_quantile ||
+      config.unreached_angle_allowance != state.unreached_angle_allowance)
     return Status::error("probe: a cut selection was prepared for another calibration of unreached curved cells");
   if (config.shadow_factor != state.shadow_factor)
     return Status::error("probe: a cut selection was prepared for another shadow factor");

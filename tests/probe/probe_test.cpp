@@ -1197,6 +1197,9 @@ TEST(CutSelection, EverySelectionIsSelectCutsExactly) {
   other = c;
   other.calibration_quantile = 0.5;
   EXPECT_FALSE(selection->select(other).is_ok());
+  other = c;
+  other.unreached_angle_allowance = 1;
+  EXPECT_FALSE(selection->select(other).is_ok());
 }
 
 // A SelectionCache shared by the selections of several views and
@@ -1322,6 +1325,66 @@ TEST(ProbeDeviation, AngleToleranceLoosensOnlyMirrorAndGlass) {
   auto rejected = run_probe(make_scene(MaterialType::Glass, kEye, kLook), one.stores(), one.objects(), bad);
   ASSERT_FALSE(rejected);
   EXPECT_NE(rejected.status().message().find("angle tolerance"), std::string::npos) << rejected.status().message();
+}
+
+// Cells no test ray reached are held to unreached_angle_allowance times the
+// angle tolerance, measured cells to the tolerance itself: on a mirror
+// teapot (grading off, so that no cell is split), raising the allowance
+// only loosens the cut, and every cell it lets go coarser holds an
+// unreached part (a cell of the stricter cut with no hit, or a finest cell
+// the stricter cut kept whole); a diffuse teapot has no normal bound and
+// does not change; an allowance of 0 is refused.
+TEST(ProbeDeviation, UnreachedAllowanceLoosensOnlyWhereNoRayHit) {
+  const Built& b = teapot();
+  const OneObject one(b);
+  auto probe = [&](MaterialType type, double allowance, double angle = 1) {
+    ProbeConfig c;
+    c.rays = 2000;
+    c.seed = 7;
+    c.angle_tolerance_px = angle;
+    c.balance = CutBalance::Off;
+    c.unreached_angle_allowance = allowance;
+    return run_probe(make_scene(type, kEye, kLook), one.stores(), one.objects(), c);
+  };
+  auto strict = probe(MaterialType::Mirror, 1), loose = probe(MaterialType::Mirror, 4);
+  ASSERT_TRUE(strict && loose);
+  const Cut &s = strict->cuts[0], &l = loose->cuts[0];
+  EXPECT_NE(s.key, l.key);  // cached cuts do not mix
+  for (const CollapsedCell& c : s.cells) EXPECT_TRUE(collapsed_by(l, c.key)) << "level " << c.key.level;
+  size_t coarser = 0;
+  for (const CollapsedCell& c : l.cells) {
+    if (collapsed_by(s, c.key)) continue;
+    ++coarser;
+    // The stricter cut's cells inside c: some hold no hit, or they do not
+    // cover c (the rest of c was kept whole, where a finest cell may hold
+    // no hit).
+    bool unreached_part = false;
+    double covered = 0;  // the share of c the stricter cut's cells cover
+    for (const CollapsedCell& d : s.cells) {
+      if (d.key.level <= c.key.level || (d.key.code >> (3 * (d.key.level - c.key.level))) != c.key.code) continue;
+      covered += std::ldexp(1.0, -3 * int(d.key.level - c.key.level));
+      unreached_part = unreached_part || d.hits == 0;
+    }
+    EXPECT_TRUE(unreached_part || covered < 1 || c.hits == 0) << "level " << c.key.level << ", covered " << covered;
+  }
+  EXPECT_GT(coarser, 0u) << "a larger allowance should let unreached cells collapse further";
+  EXPECT_LT(l.cells.size() + l.counters.at("cells_kept_for_normals"), s.cells.size() + s.counters.at("cells_kept_for_normals"));
+
+  // Unreached cells held to 2 x 1 and to 1 x 2 pixel angles alike, measured
+  // cells to 1 and to 2: the second cut is the looser, and not the same.
+  auto measured_strict = probe(MaterialType::Mirror, 2, 1), measured_loose = probe(MaterialType::Mirror, 1, 2);
+  ASSERT_TRUE(measured_strict && measured_loose);
+  const Cut &ms = measured_strict->cuts[0], &ml = measured_loose->cuts[0];
+  EXPECT_NE(cells_of(ms), cells_of(ml)) << "the measured cells' tolerance should move the cut";
+  for (const CollapsedCell& c : ms.cells) EXPECT_TRUE(collapsed_by(ml, c.key)) << "level " << c.key.level;
+
+  auto d1 = probe(MaterialType::Diffuse, 1), d2 = probe(MaterialType::Diffuse, 4);
+  ASSERT_TRUE(d1 && d2);
+  EXPECT_EQ(cells_of(d1->cuts[0]), cells_of(d2->cuts[0]));
+
+  auto rejected = probe(MaterialType::Mirror, 0);
+  ASSERT_FALSE(rejected);
+  EXPECT_NE(rejected.status().message().find("allowance"), std::string::npos) << rejected.status().message();
 }
 
 // Unreached cells on a curved mirror or glass surface take the tilt c kappa
