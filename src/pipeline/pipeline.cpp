@@ -684,7 +684,9 @@ StatusOr<FittedCuts> select_fitting_cuts(RunSession& session, std::span<const Pr
   for (const auto& st : stores.stores) input_triangles += st->header().triangle_count;
   // The render's need counts its frame (renderer.h, estimate_image_memory);
   // a frame that alone outgrows the limit leaves no cut that helps.
-  const uint64_t image = estimate_image_memory(scene.camera.width, scene.camera.height, RenderOptions{});
+  RenderOptions frame;
+  frame.srgb_color = options.srgb_color;  // as render_simplified will render it
+  const uint64_t image = estimate_image_memory(scene.camera.width, scene.camera.height, frame);
   if (budget.limited() && image >= memory_limit)
     return Status::error("the " + std::to_string(scene.camera.width) + " x " + std::to_string(scene.camera.height) +
                          " image needs about " + format_bytes(image) + ", more than the " + format_bytes(memory_limit) +
