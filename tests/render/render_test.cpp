@@ -6,6 +6,7 @@
 
 #include <cmath>
 #include <cstring>
+#include <span>
 #include <fstream>
 
 #if defined(__linux__)
@@ -385,27 +386,45 @@ TEST(TileShares, RunsOfTilesCoverTheFrameOnceWithLengthsOneApart) {
     }
 }
 
+// The tile-share tests' scene: a sphere of `sphere` over a ground plane,
+// 50 x 37 pixels (partial 8 x 8 tiles at the right and bottom), and its meshes.
+Scene sphere_on_ground(const Material& sphere, double light) {
+  Scene s = base_scene(50, 37);
+  s.camera.eye = {0.5, 2, 5};
+  s.camera.look_at = {0, 0.8, 0};
+  s.materials = {sphere, material("floor", MaterialType::Diffuse)};
+  s.lights = {point_light({2, 5, 3}, light)};
+  return s;
+}
+std::vector<TriangleMesh> sphere_on_ground_meshes(const Scene& s) {
+  std::vector<TriangleMesh> m;
+  m.push_back(make_sphere({0, 1, 0}, 0.8f, 16, 32, 0));
+  m.push_back(make_ground_mesh(Ground{0, 20, 1}, s.camera));
+  return m;
+}
+// Whether pixel (x, y) of that 50 x 37 frame, cut into 8 x 8 tiles and
+// those into `run_count` runs, lies in one of `runs`.
+bool in_runs(int x, int y, uint64_t run_count, std::span<const uint64_t> runs) {
+  const int tiles_x = (50 + 7) / 8, tiles = tiles_x * ((37 + 7) / 8);
+  const uint64_t t = uint64_t((y / 8) * tiles_x + x / 8);
+  for (uint64_t k : runs) {
+    const auto [first, last] = tile_run_bounds(uint64_t(tiles), run_count, k);
+    if (t >= first && t < last) return true;
+  }
+  return false;
+}
+
 // What `mpirun raylod render` does on each rank: the runs of tiles it was
 // handed (unevenly, as a rank that finishes early takes more), each pixel
 // as the whole frame has it, the rest 0, and the rays of the shares adding
 // up to the frame's.
 TEST(TileShares, TheRanksRunsMakeTheFrame) {
-  Scene s = base_scene(50, 37);  // partial tiles at the right and bottom
-  s.camera.eye = {0.5, 2, 5};
-  s.camera.look_at = {0, 0.8, 0};
-  s.materials = {material("mirror", MaterialType::Mirror), material("floor", MaterialType::Diffuse)};
-  s.lights = {point_light({2, 5, 3}, 30)};
-  auto meshes = [&] {
-    std::vector<TriangleMesh> m;
-    m.push_back(make_sphere({0, 1, 0}, 0.8f, 16, 32, 0));
-    m.push_back(make_ground_mesh(Ground{0, 20, 1}, s.camera));
-    return m;
-  };
+  const Scene s = sphere_on_ground(material("mirror", MaterialType::Mirror), 30);
+  auto meshes = [&] { return sphere_on_ground_meshes(s); };
   RenderOptions o = quiet_options();
   o.tile_size = 8;
   const RenderResult whole = render_meshes(meshes(), s, o);
   EXPECT_EQ(whole.tile_runs, std::vector<uint64_t>{0});
-  const int tiles_x = (50 + 7) / 8, tiles = tiles_x * ((37 + 7) / 8);
   o.tile_runs = 8;  // 35 tiles: runs of 5 and 4
   const std::vector<std::vector<uint64_t>> dealt = {{3, 0, 1, 2}, {7}, {4, 6, 5}};
   RayCounters rays;
@@ -423,12 +442,7 @@ TEST(TileShares, TheRanksRunsMakeTheFrame) {
     rays += share.stats.rays;
     for (int y = 0; y < 37; ++y)
       for (int x = 0; x < 50; ++x) {
-        const uint64_t t = uint64_t((y / 8) * tiles_x + x / 8);
-        bool mine = false;
-        for (uint64_t k : runs) {
-          const auto [first, last] = tile_run_bounds(uint64_t(tiles), 8, k);
-          mine = mine || (t >= first && t < last);
-        }
+        const bool mine = in_runs(x, y, 8, runs);
         for (int c = 0; c < 3; ++c)
           ASSERT_EQ(share.color.at(x, y)[c], mine ? whole.color.at(x, y)[c] : 0.0f) << x << "," << y << " rank " << r;
         covered[size_t(y) * 50 + x] += mine;
@@ -443,17 +457,9 @@ TEST(TileShares, TheRanksRunsMakeTheFrame) {
 // gives the bytes of encoding the linear frame, for the whole frame and for
 // a rank's runs of tiles, and the same PNG file; a float format refuses it.
 TEST(SrgbColor, EncodedTileByTileIsTheLinearFrameEncoded) {
-  Scene s = base_scene(50, 37);  // partial tiles at the right and bottom
-  s.camera.eye = {0.5, 2, 5};
-  s.camera.look_at = {0, 0.8, 0};
-  s.materials = {material("glossy", MaterialType::Glossy), material("floor", MaterialType::Diffuse)};
-  s.lights = {point_light({2, 5, 3}, 80)};  // bright enough to clip: bytes at 255
-  auto meshes = [&] {
-    std::vector<TriangleMesh> m;
-    m.push_back(make_sphere({0, 1, 0}, 0.8f, 16, 32, 0));
-    m.push_back(make_ground_mesh(Ground{0, 20, 1}, s.camera));
-    return m;
-  };
+  // A light bright enough to clip: bytes at 255.
+  const Scene s = sphere_on_ground(material("glossy", MaterialType::Glossy), 80);
+  auto meshes = [&] { return sphere_on_ground_meshes(s); };
   RenderOptions o = quiet_options();
   o.tile_size = 8;
   const RenderResult linear = render_meshes(meshes(), s, o);
@@ -480,17 +486,10 @@ TEST(SrgbColor, EncodedTileByTileIsTheLinearFrameEncoded) {
     return dealt[given++];
   };
   const RenderResult share = render_meshes(meshes(), s, o);
-  const int tiles_x = (50 + 7) / 8, tiles = tiles_x * ((37 + 7) / 8);
   size_t mine_pixels = 0;
   for (int y = 0; y < 37; ++y)
     for (int x = 0; x < 50; ++x) {
-      const uint64_t t = uint64_t((y / 8) * tiles_x + x / 8);
-      bool mine = false;
-      for (uint64_t k : dealt) {
-        const auto [first, last] = tile_run_bounds(uint64_t(tiles), 8, k);
-        mine = mine || (t >= first && t < last);
-      }
-      if (!mine) continue;
+      if (!in_runs(x, y, 8, dealt)) continue;
       ++mine_pixels;
       for (int c = 0; c < 3; ++c) ASSERT_EQ(share.srgb.at(x, y)[c], encoded.srgb.at(x, y)[c]) << x << "," << y;
     }
