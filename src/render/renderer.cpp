@@ -581,7 +581,7 @@ void gather_tiles(RenderResult& result, const RenderOptions& options) {
   };
   for (Image* im : {&result.color, &result.depth, &result.normal})
     if (!im->empty()) cluster::gather_blocks(im->pixels.data(), sizeof(float) * size_t(im->channels), rows_of);
-  if (!result.srgb.empty()) cluster::gather_blocks(result.srgb.bytes.data(), size_t(result.srgb.channels), rows_of);
+  if (!result.srgb.empty()) cluster::gather_blocks(result.srgb.pixels.data(), size_t(result.srgb.channels), rows_of);
   if (!result.triangle_id.empty()) cluster::gather_blocks(result.triangle_id.data(), sizeof(uint32_t), rows_of);
   const std::vector<std::string> parts = cluster::gather(cluster::to_bytes(result.stats.rays));
   if (!cluster::is_root()) return;
@@ -695,7 +695,7 @@ Status write_image(const std::filesystem::path& path, const SrgbImage& image) {
   if (image.empty()) return Status::error(path.string() + ": empty image");
   if (is_float_image_format(path))
     return Status::error(path.string() + ": a float format needs the linear image, and this one is 8-bit sRGB");
-  return write_srgb_bytes(path, image.width, image.height, image.channels, image.bytes.data());
+  return write_srgb_bytes(path, image.width, image.height, image.channels, image.pixels.data());
 }
 
 Status check_output_image(const std::filesystem::path& path) {

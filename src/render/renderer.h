@@ -19,29 +19,21 @@
 
 namespace raylod {
 
-// A float image, channels interleaved, row 0 at the top.
-struct Image {
+// An image, channels interleaved, row 0 at the top: linear floats (Image),
+// or the 8-bit sRGB bytes PNG and JPEG files store (SrgbImage: srgb_byte,
+// render/srgb.h, of each linear value).
+template <class T>
+struct ImageOf {
   int width = 0, height = 0, channels = 0;
-  std::vector<float> pixels;
-  Image() = default;
-  Image(int w, int h, int c) : width(w), height(h), channels(c), pixels(size_t(w) * h * c, 0.0f) {}
+  std::vector<T> pixels;
+  ImageOf() = default;
+  ImageOf(int w, int h, int c) : width(w), height(h), channels(c), pixels(size_t(w) * h * c, T(0)) {}
   bool empty() const { return pixels.empty(); }
-  float* at(int x, int y) { return &pixels[(size_t(y) * width + x) * channels]; }
-  const float* at(int x, int y) const { return &pixels[(size_t(y) * width + x) * channels]; }
+  T* at(int x, int y) { return &pixels[(size_t(y) * width + x) * channels]; }
+  const T* at(int x, int y) const { return &pixels[(size_t(y) * width + x) * channels]; }
 };
-
-// An 8-bit sRGB image, what PNG and JPEG files store: srgb_byte
-// (render/srgb.h) of each linear value, channels interleaved, row 0 at the
-// top.
-struct SrgbImage {
-  int width = 0, height = 0, channels = 0;
-  std::vector<uint8_t> bytes;
-  SrgbImage() = default;
-  SrgbImage(int w, int h, int c) : width(w), height(h), channels(c), bytes(size_t(w) * h * c, 0) {}
-  bool empty() const { return bytes.empty(); }
-  uint8_t* at(int x, int y) { return &bytes[(size_t(y) * width + x) * channels]; }
-  const uint8_t* at(int x, int y) const { return &bytes[(size_t(y) * width + x) * channels]; }
-};
+using Image = ImageOf<float>;
+using SrgbImage = ImageOf<uint8_t>;
 
 struct RenderOptions {
   int spp = 0;                  // samples per pixel; 0 = the scene's spp

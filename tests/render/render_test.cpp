@@ -475,7 +475,7 @@ TEST(SrgbColor, EncodedTileByTileIsTheLinearFrameEncoded) {
   ASSERT_EQ(encoded.srgb.width, 50);
   ASSERT_EQ(encoded.srgb.height, 37);
   ASSERT_EQ(encoded.srgb.channels, 3);
-  EXPECT_EQ(encoded.srgb.bytes, expected);
+  EXPECT_EQ(encoded.srgb.pixels, expected);
   EXPECT_EQ(encoded.stats.rays.total(), linear.stats.rays.total());
   // A rank's share: its runs' pixels as the whole frame has them.
   o.tile_runs = 8;
