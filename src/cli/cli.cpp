@@ -135,7 +135,7 @@ StatusOr<double> crease_angle_from_args(const Args& args, double fallback) {
 }
 
 std::vector<Args::Option> cut_options() {
-  char k[256], tol[200], angle[300];
+  char k[256], tol[200], angle[400];
   std::snprintf(k, sizeof k, "K: cells may collapse while their diagonal < K x footprint\n"
                 "                              (default %g; %g with --criterion diagonal)",
                 kDefaultFootprintScale, kDefaultDiagonalFootprintScale);
@@ -144,8 +144,9 @@ std::vector<Args::Option> cut_options() {
                 "                              in pixels (default %g; less above 4 spp)", kDefaultTolerancePx);
   std::snprintf(angle, sizeof angle,
                 "deviation criterion on mirrors and glass: largest turn of a reflected\n"
-                "                              or refracted ray, in pixel angles (default %g; less above 4 spp)",
-                kDefaultAngleTolerancePx);
+                "                              or refracted ray, in pixel angles, where test rays measured it\n"
+                "                              (default %g; %g times it where none reached; less above 4 spp)",
+                kDefaultAngleTolerancePx, kDefaultUnreachedAngleAllowance);
   return {{"--criterion", "", "which cells collapse: deviation (default; bounded surface and\n"
                               "                              mirror-normal error) or diagonal (the paper's K test alone)", true, "NAME"},
           {"--tolerance", "", tol, true, "PX"},
