@@ -98,7 +98,7 @@ Status run_render(int argc, char** argv, bool& help) {
   // Rank 0 holds the whole frame and writes it; the others wait to learn
   // whether it could, so that a failed write ends the job like any failure.
   auto write_outputs = [&]() -> Status {
-    RAYLOD_RETURN_IF_ERROR(opts.srgb_color ? write_image(output, result.srgb) : write_image(output, result.color));
+    RAYLOD_RETURN_IF_ERROR(write_color(output, result));
     auto written_aovs = write_aovs(output, result);
     if (!written_aovs.is_ok()) {  // nothing of a failed render stays: the image goes with its AOVs
       std::error_code ec;

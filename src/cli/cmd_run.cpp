@@ -76,8 +76,7 @@ Status run_view_sequence(const Args& args, Scene scene, const std::vector<Camera
                          const std::filesystem::path& output, const LogFn& log) {
   const bool shared = args.has("--shared-cut");
   auto write_view = [&](size_t i, const RenderResult& r) -> Status {
-    const std::filesystem::path image = numbered_image_path(output, i);
-    return opts.srgb_color ? write_image(image, r.srgb) : write_image(image, r.color);
+    return write_color(numbered_image_path(output, i), r);
   };
   RAYLOD_ASSIGN_OR_RETURN(ViewsResult r, run_views(std::move(scene), cameras, opts, shared, write_view, log));
   // Rank 0 has every view's statistics; the others wait to learn whether it
@@ -227,7 +226,7 @@ Status run_run(int argc, char** argv, bool& help) {
   // others wait to learn whether it could, so that a failed write ends the
   // job like any failure.
   auto write_outputs = [&]() -> Status {
-    RAYLOD_RETURN_IF_ERROR(opts.srgb_color ? write_image(output, r.render.srgb) : write_image(output, r.render.color));
+    RAYLOD_RETURN_IF_ERROR(write_color(output, r.render));
     for (const std::string& w : r.warnings) std::fprintf(stderr, "raylod run: warning: %s\n", w.c_str());
 
     summary("raylod run: %s\n", args.positionals().empty() ? "embedded default scene" : args.positionals()[0].c_str());

@@ -1182,7 +1182,7 @@ StatusOr<ProbeResult> CutSelection::select(const ProbeConfig& config) {
   if (config.curved_unreached_tilt != state.curved_unreached_tilt ||
       config.calibration_quantile != state.calibration_quantile ||
       config.unreached_angle_allowance != state.unreached_angle_allowance)
-    return Status::error("probe: a cut selection was prepared for another calibration of unreached curved cells");
+    return Status::error("probe: a cut selection was prepared for another bound on unreached mirror and glass cells");
   if (config.shadow_factor != state.shadow_factor)
     return Status::error("probe: a cut selection was prepared for another shadow factor");
   const auto t_select = std::chrono::steady_clock::now();

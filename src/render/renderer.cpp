@@ -698,6 +698,10 @@ Status write_image(const std::filesystem::path& path, const SrgbImage& image) {
   return write_srgb_bytes(path, image.width, image.height, image.channels, image.pixels.data());
 }
 
+Status write_color(const std::filesystem::path& path, const RenderResult& render) {
+  return render.srgb.empty() ? write_image(path, render.color) : write_image(path, render.srgb);
+}
+
 Status check_output_image(const std::filesystem::path& path) {
   if (path.empty()) return Status::error("no output image given");
   if (!path.has_extension() && !is_extensionless_device(path))

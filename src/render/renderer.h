@@ -183,6 +183,9 @@ Status write_image(const std::filesystem::path& path, const Image& image);
 // the same file as write_image of the linear image it was encoded from. A
 // float format is an error (the linear values are gone).
 Status write_image(const std::filesystem::path& path, const SrgbImage& image);
+// Writes a render's color as the render made it: its 8-bit frame
+// (RenderOptions::srgb_color), else its linear one.
+Status write_color(const std::filesystem::path& path, const RenderResult& render);
 // Whether write_image stores path's format as linear floats (EXR, HDR,
 // TIFF, PFM) rather than 8-bit sRGB.
 bool is_float_image_format(const std::filesystem::path& path);

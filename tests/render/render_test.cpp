@@ -504,6 +504,13 @@ TEST(SrgbColor, EncodedTileByTileIsTheLinearFrameEncoded) {
   };
   EXPECT_FALSE(bytes(dir / "linear.png").empty());
   EXPECT_EQ(bytes(dir / "linear.png"), bytes(dir / "encoded.png"));
+  // write_color writes whichever frame the render made.
+  ASSERT_TRUE(write_color(dir / "from_encoded.png", encoded).is_ok());
+  ASSERT_TRUE(write_color(dir / "from_linear.png", linear).is_ok());
+  EXPECT_EQ(bytes(dir / "from_encoded.png"), bytes(dir / "linear.png"));
+  EXPECT_EQ(bytes(dir / "from_linear.png"), bytes(dir / "linear.png"));
+  ASSERT_TRUE(write_color(dir / "from_linear.exr", linear).is_ok());
+  EXPECT_FALSE(write_color(dir / "from_encoded.exr", encoded).is_ok());
   const Status exr = write_image(dir / "encoded.exr", encoded.srgb);
   ASSERT_FALSE(exr.is_ok());
   EXPECT_NE(exr.message().find("encoded.exr"), std::string::npos) << exr.message();
