@@ -40,7 +40,13 @@ Status run_render(int argc, char** argv, bool& help) {
   }
   if (!args.has("--output")) return Status::error("missing -o IMAGE (see raylod render --help)");
   const std::filesystem::path output = args.get("--output");
-  RAYLOD_RETURN_IF_ERROR(check_output_image(output));
+  // Only rank 0 writes images, so only it loads the image codec (0.4 s of
+  // OpenImageIO's libraries at a process's start, render/image_codec.h); a
+  // failure there meets the other ranks at their first agreement.
+  auto check_image = [](const std::filesystem::path& p) {
+    return cluster::is_root() ? check_output_image(p) : check_output_image_path(p);
+  };
+  RAYLOD_RETURN_IF_ERROR(check_image(output));
   RAYLOD_RETURN_IF_ERROR(check_stats_json_path(args));
 
   RenderOptions opts;
@@ -71,7 +77,7 @@ Status run_render(int argc, char** argv, bool& help) {
                                   std::pair{opts.aov_triangle_id, "triangle-id"}}) {
       if (!on) continue;
       // Checked like the image: a path that cannot be written fails before rendering, not after.
-      RAYLOD_RETURN_IF_ERROR(check_output_image(aov_path(output, aov)));
+      RAYLOD_RETURN_IF_ERROR(check_image(aov_path(output, aov)));
       outputs.push_back({aov_path(output, aov), std::string("the ") + aov + " AOV"});
     }
     RAYLOD_RETURN_IF_ERROR(check_outputs_apart(outputs, scene_input_files(args, scene)));

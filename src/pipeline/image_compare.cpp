@@ -3,20 +3,11 @@
 #include <cmath>
 #include <limits>
 
-#include <OpenImageIO/imagebuf.h>
-#include <OpenImageIO/imagebufalgo.h>
-
+#include "render/image_codec.h"
 #include "render/srgb.h"
 
 namespace raylod {
 namespace {
-
-OIIO::ImageBuf to_buf(const Image& im) {
-  OIIO::ImageSpec spec(im.width, im.height, im.channels, OIIO::TypeDesc::FLOAT);
-  OIIO::ImageBuf buf(spec);
-  buf.set_pixels(OIIO::ROI::All(), OIIO::TypeDesc::FLOAT, im.pixels.data());
-  return buf;
-}
 
 std::vector<double> luminance(const Image& im) {
   std::vector<double> y(size_t(im.width) * im.height);
@@ -75,14 +66,14 @@ StatusOr<ImageError> compare_images(const Image& image, const Image& reference) 
   if (image.width != reference.width || image.height != reference.height || image.channels != reference.channels)
     return Status::error("images differ in size: " + std::to_string(image.width) + "x" + std::to_string(image.height) +
                          " vs " + std::to_string(reference.width) + "x" + std::to_string(reference.height));
+  RAYLOD_ASSIGN_OR_RETURN(const ImageCodec* codec, image_codec());
   Image a = to_display(image), b = to_display(reference);
   ImageError e;
-  OIIO::ImageBuf ba = to_buf(a), bb = to_buf(b);
-  auto cr = OIIO::ImageBufAlgo::compare(ba, bb, 0.01f, 1.0f);
-  e.psnr = cr.PSNR;
-  e.max_diff = cr.maxerror;
-  e.mean_diff = cr.meanerror;
-  e.pixels_over_1_percent = uint64_t(cr.nwarn + cr.nfail);
+  const Comparison cr = codec->compare(a.pixels.data(), b.pixels.data(), {a.width, a.height, a.channels, PixelType::Float});
+  e.psnr = cr.psnr;
+  e.max_diff = cr.max_error;
+  e.mean_diff = cr.mean_error;
+  e.pixels_over_1_percent = cr.over_threshold;
   e.ssim = ssim(a, b);
   return e;
 }

@@ -4,10 +4,8 @@
 #include <cmath>
 #include <cstdio>
 
-#include <OpenImageIO/imagebuf.h>
-#include <OpenImageIO/imagebufalgo.h>
-
-#include "core/system.h"
+#include "render/image_codec.h"
+#include "render/renderer.h"
 
 namespace raylod {
 namespace {
@@ -49,59 +47,59 @@ Status write_plot(const std::filesystem::path& path, const std::vector<PlotSerie
   y0 = std::floor(y0 / ys - 0.25) * ys; y1 = std::ceil(y1 / ys + 0.25) * ys;
 
   const int W = cfg.width, H = cfg.height, left = 90, right = 30, top = 50, bottom = 70;
-  OIIO::ImageBuf img(OIIO::ImageSpec(W, H, 3, OIIO::TypeDesc::FLOAT));
-  const float white[3] = {1, 1, 1}, black[3] = {0, 0, 0}, grey[3] = {0.85f, 0.85f, 0.85f};
-  OIIO::ImageBufAlgo::fill(img, white);
+  const Vec3 black{0, 0, 0}, grey{0.85f, 0.85f, 0.85f};
+  std::vector<DrawOp> ops;
+  auto op = [&](DrawOp::Kind kind, int ax, int ay, int bx, int by, Vec3 c) {
+    DrawOp d;
+    d.kind = kind;
+    d.x0 = ax; d.y0 = ay; d.x1 = bx; d.y1 = by;
+    d.color[0] = c.x; d.color[1] = c.y; d.color[2] = c.z;
+    ops.push_back(std::move(d));
+  };
+  auto text = [&](int x, int y, const std::string& t, int size, Vec3 c) {
+    op(DrawOp::Kind::Text, x, y, x, y, c);
+    ops.back().size = size;
+    ops.back().text = t;
+  };
   auto px = [&](double x) { return int(left + (x - x0) / (x1 - x0) * (W - left - right)); };
   auto py = [&](double y) { return int(H - bottom - (y - y0) / (y1 - y0) * (H - top - bottom)); };
-  bool text_ok = true;
-  auto text = [&](int x, int y, const std::string& t, int size, const float* color) {
-    if (text_ok) text_ok = OIIO::ImageBufAlgo::render_text(img, x, y, t, size, kFont, {color, 3});
-  };
   for (double x = x0; x <= x1 + 1e-9; x += xs) {
-    OIIO::ImageBufAlgo::render_line(img, px(x), top, px(x), H - bottom, grey);
+    op(DrawOp::Kind::Line, px(x), top, px(x), H - bottom, grey);
     text(px(x) - 10, H - bottom + 22, label(x), 15, black);
   }
   for (double y = y0; y <= y1 + 1e-9; y += ys) {
-    OIIO::ImageBufAlgo::render_line(img, left, py(y), W - right, py(y), grey);
+    op(DrawOp::Kind::Line, left, py(y), W - right, py(y), grey);
     text(left - 60, py(y) + 5, label(y), 15, black);
   }
-  OIIO::ImageBufAlgo::render_box(img, left, top, W - right, H - bottom, black);
+  op(DrawOp::Kind::Box, left, top, W - right, H - bottom, black);
   text(left, 26, cfg.title, 20, black);
   text(W / 2 - 80, H - 20, cfg.x_label, 17, black);
   text(8, top - 4, cfg.y_label, 15, black);
 
   int legend_y = top + 24;
   for (const auto& s : series) {
-    const float c[3] = {s.color.x, s.color.y, s.color.z};
     std::vector<std::pair<double, double>> pts;
     for (auto p : s.points)
       if (std::isfinite(p.first) && std::isfinite(p.second)) pts.push_back(p);
     for (size_t i = 0; i < pts.size(); ++i) {
       int x = px(pts[i].first), y = py(pts[i].second);
-      OIIO::ImageBufAlgo::render_box(img, x - 4, y - 4, x + 4, y + 4, {c, 3}, true);
+      op(DrawOp::Kind::FilledBox, x - 4, y - 4, x + 4, y + 4, s.color);
       if (s.lines && i > 0) {
         int xp = px(pts[i - 1].first), yp = py(pts[i - 1].second);
-        for (int d = -1; d <= 1; ++d) OIIO::ImageBufAlgo::render_line(img, xp, yp + d, x, y + d, {c, 3});
+        for (int d = -1; d <= 1; ++d) op(DrawOp::Kind::Line, xp, yp + d, x, y + d, s.color);
       }
     }
-    OIIO::ImageBufAlgo::render_box(img, W - right - 330, legend_y - 10, W - right - 318, legend_y + 2, {c, 3}, true);
+    op(DrawOp::Kind::FilledBox, W - right - 330, legend_y - 10, W - right - 318, legend_y + 2, s.color);
     text(W - right - 310, legend_y + 2, s.name, 15, black);
     legend_y += 22;
   }
-  // OpenImageIO chooses the format from the file name, so the temporary keeps the extension.
-  AtomicOutput out(path);
-  std::filesystem::path tmp = out.temp_path();
-  tmp += path.extension();
-  if (!img.write(tmp.string())) {
-    std::error_code ec;
-    std::filesystem::remove(tmp, ec);
-    return Status::error(path.string() + ": cannot write plot: " + img.geterror());
-  }
-  std::error_code ec;
-  std::filesystem::rename(tmp, out.temp_path(), ec);
-  if (ec) return Status::error(path.string() + ": " + ec.message());
-  return out.commit();
+  RAYLOD_ASSIGN_OR_RETURN(const ImageCodec* codec, image_codec());
+  std::vector<float> rgb(size_t(W) * size_t(H) * 3, 1.0f);  // white
+  codec->draw(rgb.data(), W, H, ops, kFont);  // without a font, the text is left out
+  // The plot's colours are display values: stored as they are, not encoded.
+  SrgbImage image(W, H, 3);
+  for (size_t i = 0; i < rgb.size(); ++i) image.pixels[i] = uint8_t(std::lround(std::clamp(rgb[i], 0.0f, 1.0f) * 255.0f));
+  return write_image(path, image);
 }
 
 }  // namespace raylod

@@ -192,6 +192,9 @@ bool is_float_image_format(const std::filesystem::path& path);
 // Checks, before any work, that an image can be written to path: a writer
 // exists for its extension and its directory exists.
 Status check_output_image(const std::filesystem::path& path);
+// The same without asking the image codec for a writer (it is not loaded):
+// for the ranks of a job that never write the image.
+Status check_output_image_path(const std::filesystem::path& path);
 // Reads an image as linear float (the inverse of write_image), for tests and tools.
 StatusOr<Image> read_image(const std::filesystem::path& path);
 // A triangle-id buffer as a one-channel 32-bit unsigned EXR.

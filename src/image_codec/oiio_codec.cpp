@@ -1,0 +1,130 @@
+// libraylod_oiio.so: the OpenImageIO side of render/image_codec.h. Every
+// call to OpenImageIO in raylod is here; the program loads this module only
+// when it reads, writes, compares or draws an image.
+#include <OpenImageIO/filesystem.h>
+#include <OpenImageIO/imagebuf.h>
+#include <OpenImageIO/imagebufalgo.h>
+#include <OpenImageIO/imageio.h>
+
+#include "render/image_codec.h"
+
+namespace raylod {
+namespace {
+
+OIIO::TypeDesc type_of(PixelType t) {
+  switch (t) {
+    case PixelType::UInt8: return OIIO::TypeDesc::UINT8;
+    case PixelType::UInt32: return OIIO::TypeDesc::UINT32;
+    case PixelType::Float: return OIIO::TypeDesc::FLOAT;
+  }
+  return OIIO::TypeDesc::FLOAT;
+}
+
+PixelType pixel_type_of(OIIO::TypeDesc t) {
+  if (t.basetype == OIIO::TypeDesc::UINT8) return PixelType::UInt8;
+  if (t.basetype == OIIO::TypeDesc::UINT32) return PixelType::UInt32;
+  return PixelType::Float;
+}
+
+bool has_writer(const std::string& writer, std::string* error) {
+  if (OIIO::ImageOutput::create(writer)) return true;
+  if (error) *error = OIIO::geterror();
+  return false;
+}
+
+Encoded encode(const EncodeRequest& r) {
+  Encoded result;
+  auto out = OIIO::ImageOutput::create(r.writer);
+  if (!out) {
+    result.error = "cannot write images of this type (" + OIIO::geterror() + ")";
+    return result;
+  }
+  OIIO::ImageSpec spec(r.layout.width, r.layout.height, r.layout.channels, type_of(r.layout.type));
+  if (!r.channel_names.empty()) spec.channelnames = r.channel_names;
+  if (r.srgb) spec.attribute("oiio:ColorSpace", "sRGB");
+  if (r.png_filter >= 0) spec.attribute("png:filter", r.png_filter);
+  // No timestamp in the file (an empty DateTime stops the EXR writer from
+  // adding one): the same render gives the same bytes.
+  spec.attribute("DateTime", "");
+  // Writers that can encode into memory do (libjpeg's, for one, ends the
+  // process on a failed file write); the program then writes the bytes,
+  // checking every write.
+  OIIO::Filesystem::IOVecOutput memory(result.bytes);
+  result.in_memory = out->supports("ioproxy") && out->set_ioproxy(&memory);
+  if (!out->open(r.file, spec)) {
+    result.error = "cannot open for writing: " + out->geterror();
+    return result;
+  }
+  const bool wrote = out->write_image(type_of(r.layout.type), r.pixels);
+  const bool closed = out->close();
+  if (!wrote || !closed) result.error = "write failed (disk full?): " + out->geterror();
+  return result;
+}
+
+Decoded decode(const std::string& path) {
+  Decoded result;
+  auto in = OIIO::ImageInput::open(path);
+  if (!in) {
+    result.error = OIIO::geterror();
+    return result;
+  }
+  const OIIO::ImageSpec& spec = in->spec();
+  result.layout = {spec.width, spec.height, spec.nchannels, pixel_type_of(spec.format)};
+  result.integer = spec.format.basetype == OIIO::TypeDesc::UINT8 || spec.format.basetype == OIIO::TypeDesc::UINT16;
+  result.pixels.resize(size_t(spec.width) * size_t(spec.height) * size_t(spec.nchannels));
+  if (!in->read_image(0, 0, 0, spec.nchannels, OIIO::TypeDesc::FLOAT, result.pixels.data())) {
+    result.error = in->geterror();
+    if (result.error.empty()) result.error = "truncated";
+  }
+  in->close();
+  return result;
+}
+
+OIIO::ImageBuf float_buffer(const float* pixels, const PixelLayout& l) {
+  OIIO::ImageBuf buf(OIIO::ImageSpec(l.width, l.height, l.channels, OIIO::TypeDesc::FLOAT));
+  buf.set_pixels(OIIO::ROI::All(), OIIO::TypeDesc::FLOAT, pixels);
+  return buf;
+}
+
+Comparison compare(const float* a, const float* b, const PixelLayout& layout) {
+  const OIIO::ImageBuf ba = float_buffer(a, layout), bb = float_buffer(b, layout);
+  const auto cr = OIIO::ImageBufAlgo::compare(ba, bb, 0.01f, 1.0f);
+  return {cr.PSNR, cr.maxerror, cr.meanerror, uint64_t(cr.nwarn + cr.nfail)};
+}
+
+bool draw(float* rgb, int width, int height, const std::vector<DrawOp>& ops, const char* font) {
+  const PixelLayout layout{width, height, 3, PixelType::Float};
+  OIIO::ImageBuf img = float_buffer(rgb, layout);
+  bool text_ok = true;
+  for (const DrawOp& op : ops) {
+    const OIIO::cspan<float> color(op.color, 3);
+    switch (op.kind) {
+      case DrawOp::Kind::Line: OIIO::ImageBufAlgo::render_line(img, op.x0, op.y0, op.x1, op.y1, color); break;
+      case DrawOp::Kind::Box: OIIO::ImageBufAlgo::render_box(img, op.x0, op.y0, op.x1, op.y1, color); break;
+      case DrawOp::Kind::FilledBox: OIIO::ImageBufAlgo::render_box(img, op.x0, op.y0, op.x1, op.y1, color, true); break;
+      case DrawOp::Kind::Text:
+        // After a text fails (no font), the rest are left out too.
+        if (text_ok) text_ok = OIIO::ImageBufAlgo::render_text(img, op.x0, op.y0, op.text, op.size, font, color);
+        break;
+    }
+  }
+  img.get_pixels(OIIO::ROI::All(), OIIO::TypeDesc::FLOAT, rgb);
+  return text_ok;
+}
+
+const ImageCodec kCodec = [] {
+  ImageCodec c;
+  c.has_writer = has_writer;
+  c.encode = encode;
+  c.decode = decode;
+  c.compare = compare;
+  c.draw = draw;
+  return c;
+}();
+
+}  // namespace
+}  // namespace raylod
+
+extern "C" __attribute__((visibility("default"))) const raylod::ImageCodec* raylod_image_codec() {
+  return &raylod::kCodec;
+}
