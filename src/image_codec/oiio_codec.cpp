@@ -112,15 +112,8 @@ bool draw(float* rgb, int width, int height, const std::vector<DrawOp>& ops, con
   return text_ok;
 }
 
-const ImageCodec kCodec = [] {
-  ImageCodec c;
-  c.has_writer = has_writer;
-  c.encode = encode;
-  c.decode = decode;
-  c.compare = compare;
-  c.draw = draw;
-  return c;
-}();
+const ImageCodec kCodec{.abi = kImageCodecAbi, .has_writer = has_writer, .encode = encode, .decode = decode,
+                        .compare = compare, .draw = draw};
 
 }  // namespace
 }  // namespace raylod
