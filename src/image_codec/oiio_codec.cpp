@@ -119,5 +119,16 @@ const ImageCodec kCodec{.abi = kImageCodecAbi, .has_writer = has_writer, .encode
 }  // namespace raylod
 
 extern "C" __attribute__((visibility("default"))) const raylod::ImageCodec* raylod_image_codec() {
+  // OpenImageIO and OpenEXR single-threaded: no thread pools of their own
+  // beside raylod's TBB workers (raylod's images are encoded one at a time,
+  // and libpng's encoder has no threads to use). Pool threads started by a
+  // module loaded with dlopen also made LeakSanitizer's exit-time check
+  // crash now and then ("Tracer caught signal 11") in the sanitizer suite.
+  static const bool configured = [] {
+    OIIO::attribute("threads", 1);
+    OIIO::attribute("exr_threads", -1);  // OpenEXR without a thread pool
+    return true;
+  }();
+  (void)configured;
   return &raylod::kCodec;
 }
