@@ -20,17 +20,7 @@ OIIO::TypeDesc type_of(PixelType t) {
   return OIIO::TypeDesc::FLOAT;
 }
 
-PixelType pixel_type_of(OIIO::TypeDesc t) {
-  if (t.basetype == OIIO::TypeDesc::UINT8) return PixelType::UInt8;
-  if (t.basetype == OIIO::TypeDesc::UINT32) return PixelType::UInt32;
-  return PixelType::Float;
-}
-
-bool has_writer(const std::string& writer, std::string* error) {
-  if (OIIO::ImageOutput::create(writer)) return true;
-  if (error) *error = OIIO::geterror();
-  return false;
-}
+bool has_writer(const std::string& writer) { return OIIO::ImageOutput::create(writer) != nullptr; }
 
 Encoded encode(const EncodeRequest& r) {
   Encoded result;
@@ -69,7 +59,7 @@ Decoded decode(const std::string& path) {
     return result;
   }
   const OIIO::ImageSpec& spec = in->spec();
-  result.layout = {spec.width, spec.height, spec.nchannels, pixel_type_of(spec.format)};
+  result.layout = {spec.width, spec.height, spec.nchannels, PixelType::Float};
   result.integer = spec.format.basetype == OIIO::TypeDesc::UINT8 || spec.format.basetype == OIIO::TypeDesc::UINT16;
   result.pixels.resize(size_t(spec.width) * size_t(spec.height) * size_t(spec.nchannels));
   if (!in->read_image(0, 0, 0, spec.nchannels, OIIO::TypeDesc::FLOAT, result.pixels.data())) {
@@ -92,7 +82,7 @@ Comparison compare(const float* a, const float* b, const PixelLayout& layout) {
   return {cr.PSNR, cr.maxerror, cr.meanerror, uint64_t(cr.nwarn + cr.nfail)};
 }
 
-bool draw(float* rgb, int width, int height, const std::vector<DrawOp>& ops, const char* font) {
+void draw(float* rgb, int width, int height, const std::vector<DrawOp>& ops, const char* font) {
   const PixelLayout layout{width, height, 3, PixelType::Float};
   OIIO::ImageBuf img = float_buffer(rgb, layout);
   bool text_ok = true;
@@ -109,7 +99,6 @@ bool draw(float* rgb, int width, int height, const std::vector<DrawOp>& ops, con
     }
   }
   img.get_pixels(OIIO::ROI::All(), OIIO::TypeDesc::FLOAT, rgb);
-  return text_ok;
 }
 
 const ImageCodec kCodec{.abi = kImageCodecAbi, .has_writer = has_writer, .encode = encode, .decode = decode,

@@ -95,7 +95,7 @@ Status write_plot(const std::filesystem::path& path, const std::vector<PlotSerie
   }
   RAYLOD_ASSIGN_OR_RETURN(const ImageCodec* codec, image_codec());
   std::vector<float> rgb(size_t(W) * size_t(H) * 3, 1.0f);  // white
-  codec->draw(rgb.data(), W, H, ops, kFont);  // without a font, the text is left out
+  codec->draw(rgb.data(), W, H, ops, kFont);  // without a font, without the text
   // The plot's colours are display values: stored as they are, not encoded.
   SrgbImage image(W, H, 3);
   for (size_t i = 0; i < rgb.size(); ++i) image.pixels[i] = uint8_t(std::lround(std::clamp(rgb[i], 0.0f, 1.0f) * 255.0f));

@@ -2,15 +2,12 @@
 
 #include <dlfcn.h>
 
-#include <atomic>
 #include <cstdlib>
 #include <filesystem>
 #include <mutex>
 
 namespace raylod {
 namespace {
-
-std::atomic<bool> g_loaded{false};
 
 // Where the module may be, in the order tried (image_codec.h).
 std::vector<std::filesystem::path> candidates() {
@@ -49,9 +46,7 @@ StatusOr<const ImageCodec*> load() {
     if (!codec || codec->abi != kImageCodecAbi)
       return Status::error("the image codec " + path.string() +
                            " is from another build of raylod (rebuild it with the program)");
-    // Never unloaded: the table points into it.
-    g_loaded = true;
-    return codec;
+    return codec;  // never unloaded: the table points into it
   }
   return Status::error(std::string("cannot find the image codec ") + kImageCodecModule +
                        ", which reads and writes images (tried: " + (tried.empty() ? "nothing" : tried) +
@@ -66,7 +61,5 @@ StatusOr<const ImageCodec*> image_codec() {
   std::call_once(once, [] { codec = load(); });
   return codec;
 }
-
-bool image_codec_loaded() { return g_loaded; }
 
 }  // namespace raylod

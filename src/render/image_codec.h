@@ -32,7 +32,7 @@
 
 namespace raylod {
 
-inline constexpr uint32_t kImageCodecAbi = 1;
+inline constexpr uint32_t kImageCodecAbi = 2;
 inline constexpr const char* kImageCodecModule = "libraylod_oiio.so";
 inline constexpr const char* kImageCodecEntry = "raylod_image_codec";
 
@@ -64,7 +64,7 @@ struct Encoded {
 
 struct Decoded {
   std::string error;       // empty on success
-  PixelLayout layout;      // pixels as floats, layout.type the file's own type
+  PixelLayout layout;      // of `pixels`: floats, whatever the file stores
   bool integer = false;    // the file stores 8- or 16-bit integers (sRGB-encoded)
   std::vector<float> pixels;
 };
@@ -85,22 +85,20 @@ struct DrawOp {
 
 struct ImageCodec {
   uint32_t abi = kImageCodecAbi;
-  // Whether a writer exists for `writer` (as EncodeRequest::writer); the
-  // library's message if not.
-  bool (*has_writer)(const std::string& writer, std::string* error) = nullptr;
+  // Whether a writer exists for `writer` (as EncodeRequest::writer).
+  bool (*has_writer)(const std::string& writer) = nullptr;
   Encoded (*encode)(const EncodeRequest& request) = nullptr;
   Decoded (*decode)(const std::string& path) = nullptr;
   // a and b: same layout, floats.
   Comparison (*compare)(const float* a, const float* b, const PixelLayout& layout) = nullptr;
-  // Draws `ops` in order onto rgb (3 floats a pixel, width x height).
-  // False if a text could not be drawn (no font); everything else is drawn.
-  bool (*draw)(float* rgb, int width, int height, const std::vector<DrawOp>& ops, const char* font) = nullptr;
+  // Draws `ops` in order onto rgb (3 floats a pixel, width x height). Text
+  // that cannot be drawn (no font) is left out, and the text after it;
+  // everything else is drawn.
+  void (*draw)(float* rgb, int width, int height, const std::vector<DrawOp>& ops, const char* font) = nullptr;
 };
 
 // The module's table, loaded on first use (thread-safe); the same error on
 // every call if it cannot be loaded.
 StatusOr<const ImageCodec*> image_codec();
-// Whether image_codec() has loaded the module in this process.
-bool image_codec_loaded();
 
 }  // namespace raylod

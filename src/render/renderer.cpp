@@ -702,7 +702,7 @@ Status check_output_image_path(const std::filesystem::path& path) {
 Status check_output_image(const std::filesystem::path& path) {
   RAYLOD_RETURN_IF_ERROR(check_output_image_path(path));
   RAYLOD_ASSIGN_OR_RETURN(const ImageCodec* codec, image_codec());
-  if (!codec->has_writer(image_writer_for(path), nullptr))
+  if (!codec->has_writer(image_writer_for(path)))
     return Status::error(path.string() + ": no image writer for '" + path.extension().string() + "' files");
   return {};
 }
