@@ -1193,7 +1193,7 @@ StatusOr<BuildReport> build_store_from_stream(const MeshStreamOpener& open, cons
   layout.page_count = binned.pages.codes.size();
   const uint64_t header_bytes = encode_header(header, layout).size();
   layout.node_table_offset = align_up(header_bytes, 64);
-  layout.node_table_bytes = encoded_leaves_bytes(leaves);
+  layout.node_table_bytes = nodes * sizeof(NodeRecord);
   layout.page_table_offset = align_up(layout.node_table_offset + layout.node_table_bytes, 64);
   layout.data_offset = align_up(layout.page_table_offset + layout.page_count * sizeof(PageInfo), 4096);
 
@@ -1221,26 +1221,50 @@ StatusOr<BuildReport> build_store_from_stream(const MeshStreamOpener& open, cons
   report.runs_held_peak = runs.held_peak();
   const std::vector<uint8_t> boundary = std::move(boundary_flags.flags);
   layout.data_bytes = data_end - layout.data_offset;
-  layout.file_bytes = data_end;
   // Closing the unlinked runs file frees its blocks and page cache (about a
   // second per 2 GiB here); it is part of the cost of building.
   runs_owner.reset();
-  {  // The leaves, encoded 64k at a time.
-    uint32_t crc = 0;
-    uint64_t offset = layout.node_table_offset, previous = 0;
-    std::string chunk;
-    for (size_t i = 0; i < leaves.size(); i += 65536) {
-      chunk.clear();
-      const size_t n = std::min<size_t>(65536, leaves.size() - i);
-      encode_leaves(std::span<const NodeRecord>(leaves).subspan(i, n), std::span<const uint8_t>(boundary).subspan(i, n),
-                    previous, chunk);
-      RAYLOD_RETURN_IF_ERROR(pwrite_all(fd, chunk.data(), chunk.size(), offset, tmp));
-      crc = crc32c(chunk.data(), chunk.size(), crc);
-      offset += chunk.size();
+  {
+    // The node table, the leaves first, then each level above summed from
+    // the one below it (held only while the next is summed); the CRC runs
+    // over the table in file order, so it is taken once all is written.
+    std::vector<uint64_t> level_begin(1, 0);
+    for (uint64_t c : level_counts) level_begin.push_back(level_begin.back() + c);
+    auto write_level = [&](int level, std::span<const NodeRecord> records) -> Status {
+      if (records.size() != level_counts[size_t(level)])
+        return Status::error(store_path.string() + ": internal error: level " + std::to_string(level) + " has " +
+                             std::to_string(records.size()) + " nodes, not " + std::to_string(level_counts[size_t(level)]));
+      return pwrite_all(fd, records.data(), records.size_bytes(),
+                        layout.node_table_offset + level_begin[size_t(level)] * sizeof(NodeRecord), tmp);
+    };
+    RAYLOD_RETURN_IF_ERROR(write_level(binned.depth, leaves));
+    std::vector<NodeRecord> below;
+    for (int level = binned.depth - 1; level >= 0; --level) {
+      std::vector<NodeRecord> above = sum_parent_level(level + 1 == binned.depth ? std::span<const NodeRecord>(leaves)
+                                                                                 : std::span<const NodeRecord>(below));
+      RAYLOD_RETURN_IF_ERROR(write_level(level, above));
+      below = std::move(above);
     }
-    if (offset != layout.node_table_offset + layout.node_table_bytes)
-      return Status::error(store_path.string() + ": internal error: node table size changed");
+    below = {};
+    uint32_t crc = 0;
+    std::string chunk(4u << 20, '\0');
+    for (uint64_t done = 0; done < layout.node_table_bytes;) {
+      const size_t n = size_t(std::min<uint64_t>(chunk.size(), layout.node_table_bytes - done));
+      RAYLOD_RETURN_IF_ERROR(pread_all(fd, chunk.data(), n, layout.node_table_offset + done, tmp));
+      crc = crc32c(chunk.data(), n, crc);
+      done += n;
+    }
     layout.node_table_crc = crc;
+  }
+  {  // The boundary list: the flagged leaves' codes, after the page data.
+    std::vector<uint64_t> codes;
+    for (size_t i = 0; i < leaves.size(); ++i)
+      if (boundary[i]) codes.push_back(leaves[i].code);
+    layout.boundary_offset = align_up(data_end, 8);
+    layout.boundary_count = codes.size();
+    layout.boundary_crc = crc32c(codes.data(), codes.size() * 8);
+    layout.file_bytes = layout.boundary_offset + codes.size() * 8;
+    RAYLOD_RETURN_IF_ERROR(pwrite_all(fd, codes.data(), codes.size() * 8, layout.boundary_offset, tmp));
   }
   RAYLOD_RETURN_IF_ERROR(pwrite_all(fd, pages.data(), pages.size() * sizeof(PageInfo), layout.page_table_offset, tmp));
   layout.page_table_crc = crc32c(pages.data(), pages.size() * sizeof(PageInfo));
@@ -1262,7 +1286,7 @@ StatusOr<BuildReport> build_store_from_stream(const MeshStreamOpener& open, cons
   report.page_level = plan.page_level;
   report.nodes = nodes;
   report.pages = pages.size();
-  report.node_table_bytes = nodes * sizeof(NodeRecord);  // in memory once opened
+  report.node_table_bytes = nodes * sizeof(NodeRecord);
   report.store_bytes = layout.file_bytes;
   report.source_bytes = source.bytes;
   report.coarsened = header.coarsened;

@@ -4,6 +4,7 @@
 #include "streaming/octree_store.h"
 
 #include <fcntl.h>
+#include <sys/mman.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -65,35 +66,6 @@ class ByteReader {
 
 namespace {
 
-inline void put_varint(std::string& out, uint64_t v) {
-  while (v >= 0x80) {
-    out.push_back(char(uint8_t(v) | 0x80));
-    v >>= 7;
-  }
-  out.push_back(char(v));
-}
-
-inline size_t varint_bytes(uint64_t v) {
-  size_t n = 1;
-  while (v >= 0x80) {
-    v >>= 7;
-    ++n;
-  }
-  return n;
-}
-
-// A varint at p (at most `avail` bytes); 0 bytes consumed if malformed.
-inline size_t get_varint(const char* p, size_t avail, uint64_t& v) {
-  v = 0;
-  for (size_t i = 0; i < std::min<size_t>(avail, 10); ++i) {
-    const uint8_t b = uint8_t(p[i]);
-    if (i == 9 && b > 1) return 0;
-    v |= uint64_t(b & 0x7f) << (7 * i);
-    if (!(b & 0x80)) return i + 1;
-  }
-  return 0;
-}
-
 void add_node(NodeRecord& a, const NodeRecord& b) {
   quadric_add(a.quadric, b.quadric);
   a.vertex_sum += b.vertex_sum;
@@ -102,27 +74,6 @@ void add_node(NodeRecord& a, const NodeRecord& b) {
 }
 
 }  // namespace
-
-uint64_t encoded_leaves_bytes(std::span<const NodeRecord> leaves) {
-  uint64_t bytes = 0, previous = 0;
-  for (const NodeRecord& n : leaves) {
-    // The boundary flag takes the low bit and never changes the length.
-    bytes += varint_bytes(n.code - previous) + varint_bytes(n.corner_count << 1) + kLeafFixedBytes;
-    previous = n.code;
-  }
-  return bytes;
-}
-
-void encode_leaves(std::span<const NodeRecord> leaves, std::span<const uint8_t> boundary, uint64_t& previous_code,
-                   std::string& out) {
-  for (size_t i = 0; i < leaves.size(); ++i) {
-    const NodeRecord& n = leaves[i];
-    put_varint(out, n.code - previous_code);
-    put_varint(out, n.corner_count << 1 | uint64_t(!boundary.empty() && boundary[i]));
-    out.append(reinterpret_cast<const char*>(&n) + offsetof(NodeRecord, quadric), kLeafFixedBytes);
-    previous_code = n.code;
-  }
-}
 
 std::vector<uint64_t> level_counts_of(std::span<const NodeRecord> leaves, int depth) {
   std::vector<uint64_t> counts(size_t(depth) + 1, 0);
@@ -135,25 +86,28 @@ std::vector<uint64_t> level_counts_of(std::span<const NodeRecord> leaves, int de
   return counts;
 }
 
-bool sum_parent_levels(std::vector<NodeRecord>& nodes, const std::vector<uint64_t>& level_begin, int depth) {
-  for (int l = depth - 1; l >= 0; --l) {
-    const size_t cb = level_begin[size_t(l) + 1], ce = level_begin[size_t(l) + 2];
-    size_t out = level_begin[size_t(l)];
-    const size_t end = cb;  // level l ends where level l + 1 begins
-    for (size_t i = cb; i < ce; ++i) {
-      const NodeRecord& c = nodes[i];
-      if (out > level_begin[size_t(l)] && nodes[out - 1].code == (c.code >> 3)) {
-        add_node(nodes[out - 1], c);
-      } else {
-        if (out == end) return false;
-        nodes[out] = c;
-        nodes[out].code = c.code >> 3;
-        ++out;
-      }
+std::vector<NodeRecord> sum_parent_level(std::span<const NodeRecord> children) {
+  std::vector<NodeRecord> parents;
+  for (const NodeRecord& c : children) {
+    if (!parents.empty() && parents.back().code == (c.code >> 3)) {
+      add_node(parents.back(), c);
+    } else {
+      parents.push_back(c);
+      parents.back().code = c.code >> 3;
     }
-    if (out != end) return false;
   }
-  return true;
+  return parents;
+}
+
+bool parents_match(std::span<const NodeRecord> parents, std::span<const NodeRecord> children) {
+  size_t p = 0;
+  for (size_t i = 0; i < children.size(); ++i) {
+    const uint64_t code = children[i].code >> 3;
+    if (i > 0 && code == children[i - 1].code >> 3) continue;
+    if (p == parents.size() || parents[p].code != code) return false;
+    ++p;
+  }
+  return p == parents.size();
 }
 
 std::string encode_header(const StoreHeader& h, const Layout& l) {
@@ -171,7 +125,9 @@ std::string encode_header(const StoreHeader& h, const Layout& l) {
   for (uint64_t c : l.level_counts) blob.put(c);
   blob.put(l.node_table_offset); blob.put(l.node_table_crc); blob.put(l.node_table_bytes);
   blob.put(l.page_count); blob.put(l.page_table_offset); blob.put(l.page_table_crc);
-  blob.put(l.data_offset); blob.put(l.data_bytes); blob.put(l.file_bytes);
+  blob.put(l.data_offset); blob.put(l.data_bytes);
+  blob.put(l.boundary_offset); blob.put(l.boundary_count); blob.put(l.boundary_crc);
+  blob.put(l.file_bytes);
   blob.put(h.reuse_limit_lo); blob.put(h.reuse_limit_hi);
   blob.put(int32_t(h.grid_bits));
   blob.put_vec(h.mesh_origin);
@@ -253,7 +209,7 @@ Status read_header(int fd, const std::filesystem::path& path, StoreHeader& h, La
   }
   ok = ok && r.get(l.node_table_offset) && r.get(l.node_table_crc) && r.get(l.node_table_bytes) && r.get(l.page_count) &&
        r.get(l.page_table_offset) && r.get(l.page_table_crc) && r.get(l.data_offset) && r.get(l.data_bytes) &&
-       r.get(l.file_bytes) && r.get(h.reuse_limit_lo) && r.get(h.reuse_limit_hi) && r.get(grid_bits) && r.get_vec(h.mesh_origin) && r.at_end();
+       r.get(l.boundary_offset) && r.get(l.boundary_count) && r.get(l.boundary_crc) && r.get(l.file_bytes) && r.get(h.reuse_limit_lo) && r.get(h.reuse_limit_hi) && r.get(grid_bits) && r.get_vec(h.mesh_origin) && r.at_end();
   if (!ok || pl < 0 || pl > int(kMaxLevel) || !(h.root_size > 0) || grid_bits < 1 || grid_bits > 30 ||
       !is_finite(h.mesh_origin))
     return Status::error(name + ": malformed store header");
@@ -268,18 +224,17 @@ Status read_header(int fd, const std::filesystem::path& path, StoreHeader& h, La
   // sum, so a header with a valid CRC but absurd numbers cannot wrap past the
   // checks below (and then make load_tables allocate from them).
   uint64_t nodes = 0;
-  // Only the leaves are on disk (at least kLeafFixedBytes + 2 bytes each); a
-  // level above holds at most as many nodes as the one below it.
+  // Every node takes sizeof(NodeRecord) bytes on disk; a level above holds
+  // at most as many nodes as the one below it.
   for (size_t i = l.level_counts.size(); i-- > 0;) {
     const uint64_t c = l.level_counts[i];
-    uint64_t cap = i + 1 == l.level_counts.size() ? size / (kLeafFixedBytes + 2) : l.level_counts[i + 1];
+    uint64_t cap = i + 1 == l.level_counts.size() ? size / sizeof(NodeRecord) : l.level_counts[i + 1];
     cap = std::min<uint64_t>(cap, uint64_t(1) << std::min<size_t>(3 * i, 63));  // level i has at most 8^i cells
-    if (c > cap || (c == 0) != (l.level_counts.back() == 0))
+    if (c > cap || (c == 0) != (l.level_counts.back() == 0) || nodes > size / sizeof(NodeRecord))
       return Status::error(name + ": malformed store header (node counts)");
     nodes += c;
   }
   h.node_table_bytes = nodes * sizeof(NodeRecord);
-  h.node_table_file_bytes = l.node_table_bytes;
   h.page_data_bytes = l.data_bytes;
   if (size < l.file_bytes)
     return Status::error(name + ": truncated store (" + std::to_string(size) + " bytes, header says " +
@@ -288,13 +243,16 @@ Status read_header(int fd, const std::filesystem::path& path, StoreHeader& h, La
     return Status::error(name + ": store has " + std::to_string(size) + " bytes but its header says " +
                          std::to_string(l.file_bytes) + " (corrupt)");
   auto outside = [&](uint64_t offset, uint64_t length) { return offset > l.file_bytes || length > l.file_bytes - offset; };
-  // Each leaf takes at least kLeafFixedBytes + 2 bytes on disk.
   const uint64_t leaves = l.level_counts.back();
-  if (leaves > l.node_table_bytes / (kLeafFixedBytes + 2) || l.node_table_bytes > leaves * kLeafMaxBytes)
+  if (l.node_table_bytes != nodes * sizeof(NodeRecord) || l.node_table_offset % alignof(NodeRecord) != 0)
     return Status::error(name + ": malformed store header (node table size)");
+  if (l.boundary_count > leaves || l.boundary_offset % alignof(uint64_t) != 0)
+    return Status::error(name + ": malformed store header (boundary list)");
   if (l.page_count > l.file_bytes / sizeof(PageInfo) || outside(l.node_table_offset, l.node_table_bytes) ||
       outside(l.page_table_offset, l.page_count * sizeof(PageInfo)) || outside(l.data_offset, l.data_bytes) ||
-      l.data_offset + l.data_bytes != l.file_bytes)
+      l.boundary_offset < l.data_offset + l.data_bytes || l.boundary_offset - (l.data_offset + l.data_bytes) >= 8 ||
+      outside(l.boundary_offset, l.boundary_count * 8) ||
+      l.boundary_offset + l.boundary_count * 8 != l.file_bytes)
     return Status::error(name + ": malformed store header (tables outside the file)");
   return {};
 }
@@ -321,6 +279,7 @@ Status write_record(const std::filesystem::path& store, const std::string& ident
 class FileStore final : public OctreeStore {
  public:
   ~FileStore() override {
+    if (mapping_) ::munmap(mapping_, mapping_bytes_);
     if (fd_ >= 0) ::close(fd_);
   }
 
@@ -340,8 +299,7 @@ class FileStore final : public OctreeStore {
 
   std::span<const NodeRecord> level(int level) const override {
     if (level < 0 || level > header_.quadric_depth) return {};
-    return std::span<const NodeRecord>(nodes_.data() + level_begin_[size_t(level)],
-                                       nodes_.data() + level_begin_[size_t(level) + 1]);
+    return std::span<const NodeRecord>(nodes_ + level_begin_[size_t(level)], nodes_ + level_begin_[size_t(level) + 1]);
   }
 
   const NodeRecord* find(const CellKey& key) const override {
@@ -429,21 +387,7 @@ class FileStore final : public OctreeStore {
     uint64_t total = 0;
     level_begin_.assign(1, 0);
     for (uint64_t c : layout_.level_counts) level_begin_.push_back(total += c);
-    {
-      // The node table (144 bytes a node: 524 MiB for the 10M teapot's
-      // store) is written once, front to back, here, in small pages. Advised
-      // huge pages (cli/huge_page_new.cpp) made the kernel find and zero 2
-      // MiB pages on first touch: one view of the default scene, three
-      // alternating runs of each at 1 thread, spent 0.4 to 1.2 s more in
-      // all (5.41 and 6.16 s against 4.99 and 5.00 s with RAYLOD_HUGE_PAGES=0),
-      // nearly all of it opening the store, and its probes and renders
-      // were no faster for them.
-      const ScopedSmallPages small_pages;
-      nodes_.resize(total);
-      RAYLOD_RETURN_IF_ERROR(read_leaves());
-      if (!sum_parent_levels(nodes_, level_begin_, header_.quadric_depth))
-        return Status::error(name + ": node table does not match its level counts (corrupt)");
-    }
+    RAYLOD_RETURN_IF_ERROR(map_node_table(total));
     pages_.resize(layout_.page_count);
     RAYLOD_RETURN_IF_ERROR(pread_all(fd_, pages_.data(), pages_.size() * sizeof(PageInfo), layout_.page_table_offset, path_));
     if (crc32c(pages_.data(), pages_.size() * sizeof(PageInfo)) != layout_.page_table_crc)
@@ -455,72 +399,67 @@ class FileStore final : public OctreeStore {
       // A page of n triangles has at least 24 + 3n/8 bytes (indices take at
       // least one bit) and at most 24 + 3n x (12 + 4 + 4) bytes.
       const uint64_t n = p.triangle_count;
-      if (p.offset != expect || (i > 0 && pages_[i - 1].code >= p.code) || p.bytes > layout_.file_bytes - expect ||
+      const uint64_t data_end = layout_.data_offset + layout_.data_bytes;
+      if (p.offset != expect || (i > 0 && pages_[i - 1].code >= p.code) || p.bytes > data_end - expect ||
           p.bytes < 24 + (3 * n + 7) / 8 || p.bytes > 24 + 60 * n)
         return Status::error(name + ": page table is inconsistent at page " + std::to_string(i));
       expect += p.bytes;
       triangles += p.triangle_count;
     }
-    if (expect != layout_.file_bytes || triangles != header_.triangle_count)
+    if (expect != layout_.data_offset + layout_.data_bytes || triangles != header_.triangle_count)
       return Status::error(name + ": page table does not cover the page data (corrupt)");
-    for (int l = 0; l <= header_.quadric_depth; ++l) {
+    const int depth = header_.quadric_depth;
+    for (int l = 0; l <= depth; ++l) {
       auto lv = level(l);
       for (size_t i = 1; i < lv.size(); ++i)
         if (lv[i - 1].code >= lv[i].code)
           return Status::error(name + ": level " + std::to_string(l) + " of the node table is not sorted (corrupt)");
+      // Level l has 8^l cells (l <= 21: a shift of at most 63).
+      if (!lv.empty() && (lv.back().code >> (3 * l)) != 0)
+        return Status::error(name + ": level " + std::to_string(l) + " of the node table has a code out of range (corrupt)");
+      if (l > 0 && !parents_match(level(l - 1), lv))
+        return Status::error(name + ": level " + std::to_string(l - 1) +
+                             " of the node table is not the parents of level " + std::to_string(l) + " (corrupt)");
+    }
+    boundary_.resize(layout_.boundary_count);
+    RAYLOD_RETURN_IF_ERROR(pread_all(fd_, boundary_.data(), boundary_.size() * 8, layout_.boundary_offset, path_));
+    if (crc32c(boundary_.data(), boundary_.size() * 8) != layout_.boundary_crc)
+      return Status::error(name + ": boundary list checksum mismatch (the store is corrupt; rebuild it)");
+    auto leaves = level(depth);
+    for (size_t i = 0; i < boundary_.size(); ++i) {
+      const bool sorted = i == 0 || boundary_[i - 1] < boundary_[i];
+      if (!sorted || !std::binary_search(leaves.begin(), leaves.end(), boundary_[i],
+                                         [](const auto& a, const auto& b) { return code_of(a) < code_of(b); }))
+        return Status::error(name + ": boundary list is not a sorted list of leaves (corrupt)");
     }
     return {};
   }
 
-  // Decodes the leaves into the last level of nodes_, reading the table in
-  // chunks (it is as large as the leaves themselves).
-  Status read_leaves() {
+  static uint64_t code_of(const NodeRecord& n) { return n.code; }
+  static uint64_t code_of(uint64_t code) { return code; }
+
+  // The node table, mapped read-only where it lies in the file: the pages
+  // come from the page cache, shared by every process that opens the store,
+  // and nothing is decoded or copied. Where the file cannot be mapped it is
+  // read into memory instead. Either way its checksum is checked.
+  Status map_node_table(uint64_t nodes) {
     const std::string name = path_.string();
-    const int depth = header_.quadric_depth;
-    const uint64_t first = level_begin_[size_t(depth)], count = level_begin_[size_t(depth) + 1] - first;
-    std::string buffer;
-    size_t at = 0;                  // decode position in buffer
-    uint64_t read = 0, crc = 0, previous = 0;
-    for (uint64_t i = 0; i < count; ++i) {
-      if (buffer.size() - at < kLeafMaxBytes && read < layout_.node_table_bytes) {
-        buffer.erase(0, at);
-        at = 0;
-        const size_t take = size_t(std::min<uint64_t>(layout_.node_table_bytes - read, 4u << 20));
-        const size_t old = buffer.size();
-        buffer.resize(old + take);
-        RAYLOD_RETURN_IF_ERROR(pread_all(fd_, buffer.data() + old, take, layout_.node_table_offset + read, path_));
-        crc = crc32c(buffer.data() + old, take, uint32_t(crc));
-        read += take;
-      }
-      uint64_t delta = 0, corners = 0;
-      const size_t a = get_varint(buffer.data() + at, buffer.size() - at, delta);
-      const size_t b = a ? get_varint(buffer.data() + at + a, buffer.size() - at - a, corners) : 0;
-      const bool code_ok = (i == 0 || delta > 0) && delta <= UINT64_MAX - previous &&
-                           ((previous + delta) >> (3 * depth)) == 0;  // depth <= 21: a shift of at most 63
-      if (!b || buffer.size() - at - a - b < kLeafFixedBytes || !code_ok) {
-        // A checksum mismatch is the better diagnosis, if there is one.
-        while (read < layout_.node_table_bytes) {
-          const size_t take = size_t(std::min<uint64_t>(layout_.node_table_bytes - read, 4u << 20));
-          buffer.resize(take);
-          RAYLOD_RETURN_IF_ERROR(pread_all(fd_, buffer.data(), take, layout_.node_table_offset + read, path_));
-          crc = crc32c(buffer.data(), take, uint32_t(crc));
-          read += take;
-        }
-        if (uint32_t(crc) != layout_.node_table_crc)
-          return Status::error(name + ": node table checksum mismatch (the store is corrupt; rebuild it)");
-        return Status::error(name + ": node table is malformed at leaf " + std::to_string(i) + " (corrupt)");
-      }
-      NodeRecord& n = nodes_[first + i];
-      n.code = previous + delta;
-      n.corner_count = corners >> 1;
-      if (corners & 1) boundary_.push_back(n.code);
-      std::memcpy(reinterpret_cast<char*>(&n) + offsetof(NodeRecord, quadric), buffer.data() + at + a + b, kLeafFixedBytes);
-      previous = n.code;
-      at += a + b + kLeafFixedBytes;
+    const uint64_t bytes = layout_.node_table_bytes;  // nodes * sizeof(NodeRecord) (read_header)
+    if (bytes == 0) return {};
+    const uint64_t page = uint64_t(::sysconf(_SC_PAGESIZE));
+    const uint64_t start = layout_.node_table_offset / page * page;
+    void* mapped = ::mmap(nullptr, size_t(layout_.node_table_offset - start + bytes), PROT_READ,
+                          MAP_SHARED | MAP_POPULATE, fd_, off_t(start));
+    if (mapped != MAP_FAILED) {
+      mapping_ = mapped;
+      mapping_bytes_ = size_t(layout_.node_table_offset - start + bytes);
+      nodes_ = reinterpret_cast<const NodeRecord*>(static_cast<const char*>(mapped) + (layout_.node_table_offset - start));
+    } else {
+      read_nodes_.resize(size_t(nodes));
+      RAYLOD_RETURN_IF_ERROR(pread_all(fd_, read_nodes_.data(), size_t(bytes), layout_.node_table_offset, path_));
+      nodes_ = read_nodes_.data();
     }
-    if (read != layout_.node_table_bytes || at != buffer.size())
-      return Status::error(name + ": node table has bytes past its leaves (corrupt)");
-    if (uint32_t(crc) != layout_.node_table_crc)
+    if (crc32c(nodes_, size_t(bytes)) != layout_.node_table_crc)
       return Status::error(name + ": node table checksum mismatch (the store is corrupt; rebuild it)");
     return {};
   }
@@ -529,7 +468,10 @@ class FileStore final : public OctreeStore {
   int fd_ = -1;
   StoreHeader header_;
   Layout layout_;
-  std::vector<NodeRecord> nodes_;
+  const NodeRecord* nodes_ = nullptr;   // every level in turn: mapped (mapping_), or read_nodes_
+  void* mapping_ = nullptr;
+  size_t mapping_bytes_ = 0;
+  std::vector<NodeRecord> read_nodes_;
   std::vector<uint64_t> boundary_;  // codes of the leaves holding an open boundary's vertex, sorted
   std::vector<uint64_t> level_begin_;
   std::vector<PageInfo> pages_;
@@ -688,10 +630,9 @@ Status print_store_info(const std::filesystem::path& path, std::FILE* out) {
   if (!counts.empty())
     std::fprintf(out, "  pages         %zu, triangles per page min %u / median %u / max %u\n", counts.size(),
                  counts.front(), counts[counts.size() / 2], counts.back());
-  std::fprintf(out, "  bytes         %s total: node table %s (its leaves; %s in memory with the levels above), "
+  std::fprintf(out, "  bytes         %s total: node table %s (every level, mapped on open), "
                     "page table %s, page data %s\n",
-               format_bytes(h.file_bytes).c_str(), format_bytes(h.node_table_file_bytes).c_str(),
-               format_bytes(h.node_table_bytes).c_str(),
+               format_bytes(h.file_bytes).c_str(), format_bytes(h.node_table_bytes).c_str(),
                format_bytes(pages.size() * sizeof(PageInfo)).c_str(), format_bytes(h.page_data_bytes).c_str());
   if (h.triangle_count > 0)
     std::fprintf(out, "  page data     %.1f bytes per triangle; positions on a grid of %.6g (2^-%d of the root side, "

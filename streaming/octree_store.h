@@ -125,8 +125,7 @@ struct StoreHeader {
   Bbox bounds;                // mesh bounds (store coordinates)
   // Layout facts filled in by OctreeStore::open (not needed to build).
   uint64_t file_bytes = 0;        // whole store file
-  uint64_t node_table_bytes = 0;  // all levels' NodeRecords (in memory)
-  uint64_t node_table_file_bytes = 0;  // the node table in the file (the leaves, encoded)
+  uint64_t node_table_bytes = 0;  // all levels' NodeRecords (in the file, mapped on open)
   uint64_t page_data_bytes = 0;   // all pages
   bool coarsened = false;         // quadric_depth was lowered during the build to fit memory_limit
   // The memory limits under which a fresh build of the same mesh and options

@@ -3,7 +3,7 @@
 // is the store file:
 //   even: the bytes as they are (the magic, version and CRCs are checked first);
 //   odd:  the checksums are repaired before opening (the header CRC, and, if
-//         the header then reads, the node and page table CRCs and every page's
+//         the header then reads, the node table, page table and boundary list CRCs and every page's
 //         CRC), so that mutations reach the checks behind the checksums.
 #include <cstring>
 #include <string>
@@ -37,9 +37,11 @@ void repair_checksums(std::string& bytes) {
     fuzz::MemFile file(reinterpret_cast<const uint8_t*>(bytes.data()), bytes.size());
     if (!store_format::read_header(file.fd(), file.path(), h, l)) return;
   }
-  // Only the leaves are on disk: the node table is l.node_table_bytes long.
-  if (l.node_table_bytes > bytes.size() || l.page_count > bytes.size() / sizeof(PageInfo)) return;
+  if (l.node_table_bytes > bytes.size() || l.page_count > bytes.size() / sizeof(PageInfo) ||
+      l.boundary_count > bytes.size() / 8)
+    return;
   l.node_table_crc = crc_of(bytes, l.node_table_offset, l.node_table_bytes);
+  l.boundary_crc = crc_of(bytes, l.boundary_offset, l.boundary_count * 8);
   const uint64_t page_table_bytes = l.page_count * sizeof(PageInfo);
   if (l.page_table_offset <= bytes.size() && page_table_bytes <= bytes.size() - l.page_table_offset) {
     for (uint64_t i = 0; i < l.page_count; ++i) {

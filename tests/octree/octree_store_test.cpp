@@ -208,6 +208,82 @@ TEST(OctreeStore, RefusesAHeaderWhoseCountsWrapAroundWithAValidChecksum) {
   ::close(fd);
 }
 
+
+// The node table is used in place, as mapped: damage that a valid checksum
+// hides (a crafted file) must still be refused, not followed. Each case
+// rewrites some bytes, then repairs the table checksums the header records.
+TEST(OctreeStore, RefusesANodeTableOrBoundaryListWhoseStructureIsWrong) {
+  auto m = testing::soup(3000, 2, true);  // a soup: every edge open, so boundary leaves abound
+  auto dir = testing::scratch_dir("structure");
+  const auto good = dir / "good.raylod";
+  ASSERT_TRUE(build_memory(m, good).is_ok());
+  StoreHeader h;
+  store_format::Layout l;
+  {
+    const int fd = ::open(good.c_str(), O_RDONLY | O_CLOEXEC);
+    ASSERT_GE(fd, 0);
+    ASSERT_TRUE(store_format::read_header(fd, good, h, l).is_ok());
+    ::close(fd);
+  }
+  ASSERT_GE(l.level_counts.size(), 3u);
+  ASSERT_GT(l.boundary_count, 1u);
+  auto damaged = [&](const std::string& name, uint64_t offset, uint64_t value) {
+    const auto p = dir / name;
+    std::filesystem::copy_file(good, p, std::filesystem::copy_options::overwrite_existing);
+    const int fd = ::open(p.c_str(), O_RDWR | O_CLOEXEC);
+    EXPECT_TRUE(store_format::pwrite_all(fd, &value, 8, offset, p).is_ok());
+    std::string table(l.node_table_bytes, '\0'), list(l.boundary_count * 8, '\0');
+    EXPECT_TRUE(store_format::pread_all(fd, table.data(), table.size(), l.node_table_offset, p).is_ok());
+    EXPECT_TRUE(store_format::pread_all(fd, list.data(), list.size(), l.boundary_offset, p).is_ok());
+    store_format::Layout repaired = l;
+    repaired.node_table_crc = crc32c(table.data(), table.size());
+    repaired.boundary_crc = crc32c(list.data(), list.size());
+    const std::string header = store_format::encode_header(h, repaired);
+    EXPECT_TRUE(store_format::pwrite_all(fd, header.data(), header.size(), 0, p).is_ok());
+    ::close(fd);
+    return p;
+  };
+  const uint64_t level2 = l.node_table_offset + (l.level_counts[0] + l.level_counts[1]) * sizeof(NodeRecord);
+  {  // The checksum repair alone changes nothing.
+    const auto p = damaged("same.raylod", l.boundary_offset, [&] {
+      uint64_t first = 0;
+      const int fd = ::open(good.c_str(), O_RDONLY | O_CLOEXEC);
+      EXPECT_TRUE(store_format::pread_all(fd, &first, 8, l.boundary_offset, good).is_ok());
+      ::close(fd);
+      return first;
+    }());
+    auto s = OctreeStore::open(p);
+    ASSERT_TRUE(s.is_ok()) << s.status().message();
+    EXPECT_EQ((*s)->boundary_leaves(), l.boundary_count);
+  }
+  {  // A node of the level above the leaves moved to a free code between its
+     // neighbours: still sorted and in range, but no longer its children's parent.
+    auto opened = OctreeStore::open(good);
+    ASSERT_TRUE(opened.is_ok());
+    const int above = (*opened)->header().quadric_depth - 1;
+    ASSERT_GE(above, 2);
+    auto nodes = (*opened)->level(above);
+    uint64_t before = 0;
+    for (int i = 0; i < above; ++i) before += l.level_counts[size_t(i)];
+    size_t gap = 0;
+    while (gap + 1 < nodes.size() && nodes[gap].code + 1 == nodes[gap + 1].code) ++gap;
+    ASSERT_LT(gap + 1, nodes.size()) << "no free code between two nodes of level " << above;
+    const uint64_t code = nodes[gap].code + 1;
+    opened.value().reset();
+    expect_error_contains(
+        OctreeStore::open(damaged("orphan.raylod", l.node_table_offset + (before + gap) * sizeof(NodeRecord), code)).status(),
+        {"level " + std::to_string(above), "parents", "corrupt"});
+  }
+  // Level 2's last node moved out of level 2's range (8^2 cells).
+  const uint64_t last2 = level2 + (l.level_counts[2] - 1) * sizeof(NodeRecord);
+  expect_error_contains(OctreeStore::open(damaged("range.raylod", last2, 1000)).status(),
+                        {"level 2", "out of range", "corrupt"});
+  // A boundary code that is no leaf, and one out of order.
+  expect_error_contains(OctreeStore::open(damaged("foreign.raylod", l.boundary_offset, ~uint64_t(0))).status(),
+                        {"boundary list", "corrupt"});
+  expect_error_contains(OctreeStore::open(damaged("order.raylod", l.boundary_offset + 8, 0)).status(),
+                        {"boundary list", "corrupt"});
+}
 TEST(OctreeStore, FailedBuildLeavesTheOldStoreAndNoTemporaries) {
   auto m = testing::soup(5000, 4, false);
   auto dir = testing::scratch_dir("atomic");
@@ -424,7 +500,7 @@ TEST(OctreeStore, OldFormatStoreIsRebuiltWithAMessage) {
   auto rebuilt = build_store(mesh, store, opt);
   ASSERT_TRUE(rebuilt.is_ok()) << rebuilt.status().message();
   EXPECT_FALSE(rebuilt->reused);
-  for (const char* part : {"format version 2", "reads version 5", store.c_str()})
+  for (const char* part : {"format version 2", "reads version 6", store.c_str()})
     EXPECT_NE(rebuilt->reason.find(part), std::string::npos) << rebuilt->reason << " lacks " << part;
   EXPECT_TRUE(store_is_current(mesh, store, opt, &why)) << why;
 }
