@@ -16,6 +16,7 @@
 #include "pipeline/noise_floor.h"
 #include "pipeline/pipeline.h"
 #include "pipeline/views.h"
+#include "render/image_codec.h"
 #include "render/renderer.h"
 #include "scene/orbit.h"
 
@@ -134,7 +135,11 @@ Status run_run(int argc, char** argv, bool& help) {
   if (sequence && args.has("--export-mesh")) return Status::error("--export-mesh takes one view, not --views or --orbit");
   if (cluster::active() && args.has("--compare"))
     return Status::error("--compare runs in one process: run it without mpirun");
-  RAYLOD_RETURN_IF_ERROR(check_output_image(sequence ? numbered_image_path(output, 0) : output));
+  const std::filesystem::path first_image = sequence ? numbered_image_path(output, 0) : output;
+  RAYLOD_RETURN_IF_ERROR(check_output_image_path(first_image));
+  // OpenImageIO's 0.4 s of loading overlaps the store stage, which then
+  // checks that the image has a writer (RunOptions::output_image).
+  start_loading_image_codec();
   RAYLOD_RETURN_IF_ERROR(check_stats_json_path(args));
   if (args.has("--export-mesh")) RAYLOD_RETURN_IF_ERROR(check_output_file(args.get("--export-mesh"), "--export-mesh"));
   if (args.has("--compare")) {
@@ -144,6 +149,7 @@ Status run_run(int argc, char** argv, bool& help) {
   }
 
   RunOptions opts;
+  opts.output_image = first_image;
   RAYLOD_ASSIGN_OR_RETURN(const MemoryBudget budget, memory_budget_from_args(args));
   opts.memory_limit = budget.total;
   RAYLOD_ASSIGN_OR_RETURN(int64_t rays, args.get_int("--rays", 5000, 1, 100000000));

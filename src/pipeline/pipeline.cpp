@@ -512,6 +512,7 @@ StatusOr<RunSession> open_run_session(Scene& scene, const RunOptions& options, c
             "(check with --compare)");
         break;
       }
+  if (!options.output_image.empty()) RAYLOD_RETURN_IF_ERROR(cluster::agree(check_output_image(options.output_image)));
   say(log, "stores ready: " + std::to_string(session.stores.triangles) + " triangles in " +
                std::to_string(session.stores.stores.size()) + " store(s), " + fmt("%.2f s", session.stores.seconds));
   if (options.use_cache) {

@@ -80,6 +80,10 @@ struct RunOptions {
   // an 8-bit output that nothing compares: the result's render.srgb, or the
   // views' images, instead of linear colors.
   bool srgb_color = false;
+  // An image the run will write: its writer is checked once the stores are
+  // ready (the image codec loads meanwhile, start_loading_image_codec), on
+  // every rank, before any probe. Empty: not checked here.
+  std::filesystem::path output_image;
 };
 
 struct StageTimes {

@@ -5,6 +5,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <mutex>
+#include <thread>
 
 namespace raylod {
 namespace {
@@ -60,6 +61,18 @@ StatusOr<const ImageCodec*> image_codec() {
   static StatusOr<const ImageCodec*> codec = Status::error("not loaded");
   std::call_once(once, [] { codec = load(); });
   return codec;
+}
+
+void start_loading_image_codec() {
+  // A static owner joins the thread at exit, so the process never ends
+  // while it is inside the dynamic loader.
+  struct Loader {
+    std::thread thread{[] { (void)image_codec(); }};
+    ~Loader() {
+      if (thread.joinable()) thread.join();
+    }
+  };
+  static Loader loader;
 }
 
 }  // namespace raylod

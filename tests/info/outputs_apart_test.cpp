@@ -186,6 +186,19 @@ TEST(OutputsApart, UnwritableOutputsFailBeforeRendering) {
   const test::CommandResult r = test::run_command("cd '" + dir.string() + "' && '" + std::string(RAYLOD_EXE) +
                                                   "' render scene.json -o noext -q");
   EXPECT_NE(r.out.find("noext: no file extension to choose the image format from"), std::string::npos) << r.out;
+  // A format without a writer: `render` refuses at once; `run` loads the
+  // image codec beside its store stage and refuses once the stores are
+  // ready, before any probe (the store stays, for the next run).
+  for (const Case& c : {Case{"render scene.json -o o.xyz -q", "o.xyz: no image writer for '.xyz' files"},
+                        Case{"run scene.json --no-cache -o o.xyz -q", "o.xyz: no image writer for '.xyz' files"},
+                        Case{"run scene.json --no-cache --orbit 2 -o v_#.xyz -q", "v_0.xyz: no image writer"}}) {
+    const test::CommandResult x =
+        test::run_command("cd '" + dir.string() + "' && '" + std::string(RAYLOD_EXE) + "' " + c.args);
+    EXPECT_NE(x.status, 0) << c.args << "\n" << x.out;
+    EXPECT_NE(x.out.find(c.expect), std::string::npos) << c.args << "\n" << x.out;
+    EXPECT_EQ(x.out.find("probe"), std::string::npos) << c.args << "\n" << x.out;
+  }
+  for (const char* name : {"o.xyz", "v_0.xyz", "v_1.xyz"}) EXPECT_FALSE(std::filesystem::exists(dir / name)) << name;
   std::filesystem::remove_all(dir);
 }
 
