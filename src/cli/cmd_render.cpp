@@ -6,6 +6,7 @@
 #include "core/cluster.h"
 #include "core/system.h"
 #include "gen/generate.h"
+#include "render/image_codec.h"
 #include "render/renderer.h"
 #include "scene/scene.h"
 
@@ -41,12 +42,16 @@ Status run_render(int argc, char** argv, bool& help) {
   if (!args.has("--output")) return Status::error("missing -o IMAGE (see raylod render --help)");
   const std::filesystem::path output = args.get("--output");
   // Only rank 0 writes images, so only it loads the image codec (0.4 s of
-  // OpenImageIO's libraries at a process's start, render/image_codec.h); a
-  // failure there meets the other ranks at their first agreement.
-  auto check_image = [](const std::filesystem::path& p) {
-    return cluster::is_root() ? check_output_image(p) : check_output_image_path(p);
+  // OpenImageIO's libraries, render/image_codec.h): on a thread of its own
+  // while the scene loads and its BVH is built, after which the images'
+  // writers are checked, before any ray (RenderOptions::before_trace).
+  std::vector<std::filesystem::path> images;
+  auto check_image = [&images](const std::filesystem::path& p) {
+    images.push_back(p);
+    return check_output_image_path(p);
   };
   RAYLOD_RETURN_IF_ERROR(check_image(output));
+  if (cluster::is_root()) start_loading_image_codec();
   RAYLOD_RETURN_IF_ERROR(check_stats_json_path(args));
 
   RenderOptions opts;
@@ -96,6 +101,11 @@ Status run_render(int argc, char** argv, bool& help) {
   }
   RAYLOD_RETURN_IF_ERROR(cluster::rank0_first([&] { return resolve_generated_meshes(scene, default_cache_dir()); }));
 
+  opts.before_trace = [&images]() -> Status {
+    if (cluster::is_root())
+      for (const auto& p : images) RAYLOD_RETURN_IF_ERROR(check_output_image(p));
+    return {};
+  };
   opts.split_across_ranks = true;
   // An 8-bit output needs only the 8-bit frame: encoded tile by tile where
   // it is rendered (RenderOptions::srgb_color).

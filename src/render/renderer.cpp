@@ -605,6 +605,7 @@ StatusOr<RenderResult> render(const Scene& scene, const RenderOptions& options) 
     for (const auto& m : geometry->meshes()) used.push_back(m.material);
     log("effects on: " + effects_for(scene, used).describe());
   }
+  if (options.before_trace) RAYLOD_RETURN_IF_ERROR(agreed(options.before_trace()));
   RenderOptions tiles = options;
   std::optional<cluster::WorkQueue> queue;
   std::optional<Progress> progress;

@@ -78,6 +78,12 @@ struct RenderOptions {
   // rank rendered them. Every rank calls render() with the same scene.
   bool split_across_ranks = false;
   bool progress = true;         // progress bars on stderr
+  // Called once the scene is loaded and its BVH built, before any ray is
+  // traced (and agreed across the ranks when split_across_ranks): a check
+  // that could not be made sooner without waiting, such as whether the
+  // output has an image writer while the image codec loaded meanwhile
+  // (start_loading_image_codec). Its error ends the render. Null: none.
+  std::function<Status()> before_trace;
   // Informational messages (effects on, BVH quality, ...); null = silent.
   std::function<void(const std::string&)> log;
   BvhConfig bvh;
