@@ -58,9 +58,12 @@ StatusOr<const ImageCodec*> load() {
 
 StatusOr<const ImageCodec*> image_codec() {
   static std::once_flag once;
-  static StatusOr<const ImageCodec*> codec = Status::error("not loaded");
-  std::call_once(once, [] { codec = load(); });
-  return codec;
+  // Never destroyed: start_loading_image_codec's thread may still be
+  // assigning it while the process exits (it is joined after the statics
+  // constructed after it are gone).
+  static StatusOr<const ImageCodec*>* codec = new StatusOr<const ImageCodec*>(Status::error("not loaded"));
+  std::call_once(once, [] { *codec = load(); });
+  return *codec;
 }
 
 void start_loading_image_codec() {
