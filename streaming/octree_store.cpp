@@ -209,7 +209,8 @@ Status read_header(int fd, const std::filesystem::path& path, StoreHeader& h, La
   }
   ok = ok && r.get(l.node_table_offset) && r.get(l.node_table_crc) && r.get(l.node_table_bytes) && r.get(l.page_count) &&
        r.get(l.page_table_offset) && r.get(l.page_table_crc) && r.get(l.data_offset) && r.get(l.data_bytes) &&
-       r.get(l.boundary_offset) && r.get(l.boundary_count) && r.get(l.boundary_crc) && r.get(l.file_bytes) && r.get(h.reuse_limit_lo) && r.get(h.reuse_limit_hi) && r.get(grid_bits) && r.get_vec(h.mesh_origin) && r.at_end();
+       r.get(l.boundary_offset) && r.get(l.boundary_count) && r.get(l.boundary_crc) && r.get(l.file_bytes) &&
+       r.get(h.reuse_limit_lo) && r.get(h.reuse_limit_hi) && r.get(grid_bits) && r.get_vec(h.mesh_origin) && r.at_end();
   if (!ok || pl < 0 || pl > int(kMaxLevel) || !(h.root_size > 0) || grid_bits < 1 || grid_bits > 30 ||
       !is_finite(h.mesh_origin))
     return Status::error(name + ": malformed store header");
@@ -441,15 +442,21 @@ class FileStore final : public OctreeStore {
   // The node table, mapped read-only where it lies in the file: the pages
   // come from the page cache, shared by every process that opens the store,
   // and nothing is decoded or copied. Where the file cannot be mapped it is
-  // read into memory instead. Either way its checksum is checked.
+  // read into memory instead. Either way its checksum is checked. Stores are
+  // replaced by rename, never rewritten in place, so a mapping stays valid
+  // (on the file it was made from) while the store is open.
   Status map_node_table(uint64_t nodes) {
     const std::string name = path_.string();
     const uint64_t bytes = layout_.node_table_bytes;  // nodes * sizeof(NodeRecord) (read_header)
     if (bytes == 0) return {};
     const uint64_t page = uint64_t(::sysconf(_SC_PAGESIZE));
     const uint64_t start = layout_.node_table_offset / page * page;
-    void* mapped = ::mmap(nullptr, size_t(layout_.node_table_offset - start + bytes), PROT_READ,
-                          MAP_SHARED | MAP_POPULATE, fd_, off_t(start));
+#ifdef MAP_POPULATE
+    const int flags = MAP_SHARED | MAP_POPULATE;  // the checksum reads it all at once anyway
+#else
+    const int flags = MAP_SHARED;
+#endif
+    void* mapped = ::mmap(nullptr, size_t(layout_.node_table_offset - start + bytes), PROT_READ, flags, fd_, off_t(start));
     if (mapped != MAP_FAILED) {
       mapping_ = mapped;
       mapping_bytes_ = size_t(layout_.node_table_offset - start + bytes);
