@@ -299,7 +299,7 @@ class FileStore final : public OctreeStore {
   const StoreHeader& header() const override { return header_; }
 
   std::span<const NodeRecord> level(int level) const override {
-    if (level < 0 || level > header_.quadric_depth) return {};
+    if (level < 0 || level > header_.quadric_depth || !nodes_) return {};
     return std::span<const NodeRecord>(nodes_ + level_begin_[size_t(level)], nodes_ + level_begin_[size_t(level) + 1]);
   }
 
