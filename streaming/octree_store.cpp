@@ -426,18 +426,13 @@ class FileStore final : public OctreeStore {
     RAYLOD_RETURN_IF_ERROR(pread_all(fd_, boundary_.data(), boundary_.size() * 8, layout_.boundary_offset, path_));
     if (crc32c(boundary_.data(), boundary_.size() * 8) != layout_.boundary_crc)
       return Status::error(name + ": boundary list checksum mismatch (the store is corrupt; rebuild it)");
-    auto leaves = level(depth);
     for (size_t i = 0; i < boundary_.size(); ++i) {
       const bool sorted = i == 0 || boundary_[i - 1] < boundary_[i];
-      if (!sorted || !std::binary_search(leaves.begin(), leaves.end(), boundary_[i],
-                                         [](const auto& a, const auto& b) { return code_of(a) < code_of(b); }))
+      if (!sorted || !find(CellKey{uint32_t(depth), boundary_[i]}))
         return Status::error(name + ": boundary list is not a sorted list of leaves (corrupt)");
     }
     return {};
   }
-
-  static uint64_t code_of(const NodeRecord& n) { return n.code; }
-  static uint64_t code_of(uint64_t code) { return code; }
 
   // The node table, mapped read-only where it lies in the file: the pages
   // come from the page cache, shared by every process that opens the store,
