@@ -1226,14 +1226,18 @@ StatusOr<BuildReport> build_store_from_stream(const MeshStreamOpener& open, cons
   runs_owner.reset();
   {
     // The node table, the leaves first, then each level above summed from
-    // the one below it (held only while the next is summed); the CRC runs
-    // over the table in file order, so it is taken once all is written.
+    // the one below it (held only while the next is summed). The CRC runs
+    // over the table in file order, root level first: each level's CRC is
+    // taken as it is written and the levels' CRCs are combined in file
+    // order afterwards (crc32c_combine), instead of reading the table back.
     std::vector<uint64_t> level_begin(1, 0);
     for (uint64_t c : level_counts) level_begin.push_back(level_begin.back() + c);
+    std::vector<uint32_t> level_crc(level_counts.size(), 0);
     auto write_level = [&](int level, std::span<const NodeRecord> records) -> Status {
       if (records.size() != level_counts[size_t(level)])
         return Status::error(store_path.string() + ": internal error: level " + std::to_string(level) + " has " +
                              std::to_string(records.size()) + " nodes, not " + std::to_string(level_counts[size_t(level)]));
+      level_crc[size_t(level)] = crc32c(records.data(), records.size_bytes());
       return pwrite_all(fd, records.data(), records.size_bytes(),
                         layout.node_table_offset + level_begin[size_t(level)] * sizeof(NodeRecord), tmp);
     };
@@ -1246,14 +1250,9 @@ StatusOr<BuildReport> build_store_from_stream(const MeshStreamOpener& open, cons
       below = std::move(above);
     }
     below = {};
-    uint32_t crc = 0;
-    std::string chunk(4u << 20, '\0');
-    for (uint64_t done = 0; done < layout.node_table_bytes;) {
-      const size_t n = size_t(std::min<uint64_t>(chunk.size(), layout.node_table_bytes - done));
-      RAYLOD_RETURN_IF_ERROR(pread_all(fd, chunk.data(), n, layout.node_table_offset + done, tmp));
-      crc = crc32c(chunk.data(), n, crc);
-      done += n;
-    }
+    uint32_t crc = 0;  // of no bytes
+    for (size_t level = 0; level < level_counts.size(); ++level)
+      crc = crc32c_combine(crc, level_crc[level], level_counts[level] * sizeof(NodeRecord));
     layout.node_table_crc = crc;
   }
   {  // The boundary list: the flagged leaves' codes, after the page data.
