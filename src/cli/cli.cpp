@@ -135,7 +135,7 @@ StatusOr<double> crease_angle_from_args(const Args& args, double fallback) {
 }
 
 std::vector<Args::Option> cut_options() {
-  char k[256], tol[200], angle[400];
+  char k[256], tol[200], angle[400], outline[300];
   std::snprintf(k, sizeof k, "K: cells may collapse while their diagonal < K x footprint\n"
                 "                              (default %g; %g with --criterion diagonal)",
                 kDefaultFootprintScale, kDefaultDiagonalFootprintScale);
@@ -147,10 +147,15 @@ std::vector<Args::Option> cut_options() {
                 "                              or refracted ray, in pixel angles, where test rays measured it\n"
                 "                              (default %g; %g times it where none reached; less above 4 spp)",
                 kDefaultAngleTolerancePx, kDefaultUnreachedAngleAllowance);
+  std::snprintf(outline, sizeof outline,
+                "deviation criterion where an outline may run: this fraction of\n"
+                "                              --tolerance, 0 to 1 (default %g; 1: the same as elsewhere)",
+                kDefaultOutlineTolerance);
   return {{"--criterion", "", "which cells collapse: deviation (default; bounded surface and\n"
                               "                              mirror-normal error) or diagonal (the paper's K test alone)", true, "NAME"},
           {"--tolerance", "", tol, true, "PX"},
           {"--angle-tolerance", "", angle, true, "PX"},
+          {"--outline-tolerance", "", outline, true, "F"},
           {"--footprint-scale", "", k, true, "K"},
           {"--balance", "", "grade the cut (no cell beside one two levels coarser): specular\n"
                             "                              (objects on mirrors and glass under the deviation criterion;\n"
@@ -171,8 +176,14 @@ StatusOr<CutOptions> cut_options_from_args(const Args& args) {
   if (!(o.tolerance_px > 0)) return Status::error("--tolerance must be > 0 (pixels)");
   RAYLOD_ASSIGN_OR_RETURN(o.angle_tolerance_px, args.get_double("--angle-tolerance", kDefaultAngleTolerancePx));
   if (!(o.angle_tolerance_px > 0)) return Status::error("--angle-tolerance must be > 0 (pixel angles)");
-  if (o.criterion == CutCriterion::Diagonal && (o.tolerance_given || o.angle_tolerance_given))
-    return Status::error(std::string(o.tolerance_given ? "--tolerance" : "--angle-tolerance") +
+  RAYLOD_ASSIGN_OR_RETURN(o.outline_tolerance, args.get_double("--outline-tolerance", kDefaultOutlineTolerance));
+  if (!(o.outline_tolerance > 0 && o.outline_tolerance <= 1))
+    return Status::error("--outline-tolerance must be a fraction of --tolerance, greater than 0 and at most 1");
+  const bool outline_given = args.has("--outline-tolerance");
+  if (o.criterion == CutCriterion::Diagonal && (o.tolerance_given || o.angle_tolerance_given || outline_given))
+    return Status::error(std::string(o.tolerance_given         ? "--tolerance"
+                                     : o.angle_tolerance_given ? "--angle-tolerance"
+                                                               : "--outline-tolerance") +
                          " bounds the deviation criterion; --criterion diagonal compares cell diagonals with K "
                          "footprints alone (--footprint-scale)");
   const double default_k =

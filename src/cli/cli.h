@@ -77,6 +77,7 @@ struct CutOptions {
   CutCriterion criterion = CutCriterion::Deviation;
   double tolerance_px = kDefaultTolerancePx;
   double angle_tolerance_px = kDefaultAngleTolerancePx;
+  double outline_tolerance = kDefaultOutlineTolerance;  // a fraction of tolerance_px
   double footprint_scale = kDefaultFootprintScale;
   CutBalance balance = CutBalance::Specular;
   bool tolerance_given = false, angle_tolerance_given = false;

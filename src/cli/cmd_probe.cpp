@@ -96,6 +96,7 @@ int cmd_probe(int argc, char** argv) {
   config.criterion = cut_opts->criterion;
   config.tolerance_px = cut_opts->tolerance_px;
   config.angle_tolerance_px = cut_opts->angle_tolerance_px;
+  config.outline_tolerance = cut_opts->outline_tolerance;
   config.balance = cut_opts->balance;
 
   auto traced = trace_probe_across_ranks(scene, stores, objects, config);

@@ -188,6 +188,7 @@ Status run_run(int argc, char** argv, bool& help) {
   cut.fit_defaults_to(render_spp);  // the tolerances, once the render's spp is known
   opts.tolerance_px = cut.tolerance_px;
   opts.angle_tolerance_px = cut.angle_tolerance_px;
+  opts.outline_tolerance = cut.outline_tolerance;
   opts.balance = cut.balance;
   {
     std::vector<FileRole> outputs = {{sequence ? numbered_image_path(output, 0) : output, "the image (-o)"}};

@@ -531,6 +531,7 @@ StatusOr<ProbeConfig> run_probe_config(const RunSession& session, const Scene& s
   probe.criterion = options.criterion;
   probe.tolerance_px = options.tolerance_px;
   probe.angle_tolerance_px = options.angle_tolerance_px;
+  probe.outline_tolerance = options.outline_tolerance;
   probe.balance = options.balance;
   probe.selection_cache = session.selection_cache.get();
   return probe;

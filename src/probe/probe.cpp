@@ -8,7 +8,9 @@
 #include <array>
 #include <chrono>
 #include <cmath>
+#include <cstdlib>
 #include <cstring>
+#include <numbers>
 #include <optional>
 #include <unordered_map>
 #include <unordered_set>
@@ -534,6 +536,7 @@ std::string probe_key(const Scene& scene, const OctreeStore& store, std::span<co
   mix(config.criterion);
   mix(config.tolerance_px);
   mix(config.angle_tolerance_px);
+  mix(config.outline_tolerance);
   mix(config.balance);
   mix(config.calibration_quantile);
   mix(config.curved_unreached_tilt);
@@ -561,6 +564,8 @@ Status check_probe_inputs(const Scene& scene, std::span<const ProbeStore> stores
   if (!(config.footprint_scale > 0)) return Status::error("probe: footprint scale must be > 0");
   if (!(config.tolerance_px > 0)) return Status::error("probe: tolerance must be > 0 pixels");
   if (!(config.angle_tolerance_px > 0)) return Status::error("probe: angle tolerance must be > 0 pixels");
+  if (!(config.outline_tolerance > 0 && config.outline_tolerance <= 1))
+    return Status::error("probe: the outline tolerance must be a fraction of the tolerance, in (0, 1]");
   if (!(config.unreached_angle_allowance > 0))
     return Status::error("probe: the unreached cells' angle allowance must be > 0");
   if (!(config.calibration_quantile >= 0 && config.calibration_quantile <= 1))
@@ -825,6 +830,10 @@ struct StoreNeeds {
   // which the deviation criterion's tests take (float: 4 bytes a node more).
   std::vector<std::vector<double>> need, tilt;
   std::vector<std::vector<float>> shift_need;
+  // The same over the finest cells an outline may run through in a view
+  // (their normals reach across the direction from the eye; probe.h,
+  // "Outlines"); +inf where none does.
+  std::vector<std::vector<float>> contour_need;
   // The nodes' codes and collapse deviations (SelectionCache): a shared
   // cache's entry, or own.
   SelectionCache::Store* kept = nullptr;
@@ -1095,14 +1104,17 @@ StatusOr<CutSelection> CutSelection::make(std::span<const ProbeView> views, cons
     // views of each view's measured or estimated need, min over children above.
     std::vector<std::vector<double>>& need = n.need;
     std::vector<std::vector<float>>& shift_need = n.shift_need;
+    std::vector<std::vector<float>>& contour_need = n.contour_need;
     std::vector<std::vector<double>>& tilt = n.tilt;
     need.resize(size_t(Q) + 1);
     shift_need.resize(size_t(Q) + 1);
+    contour_need.resize(size_t(Q) + 1);
     tilt.resize(size_t(Q) + 1);
     {
       const std::vector<uint64_t>& nodes = codes_at[size_t(Q)];
       need[size_t(Q)].assign(nodes.size(), kInf);
       shift_need[size_t(Q)].assign(nodes.size(), std::numeric_limits<float>::infinity());
+      contour_need[size_t(Q)].assign(nodes.size(), std::numeric_limits<float>::infinity());
       if (n.specular) tilt[size_t(Q)].assign(nodes.size(), kInf);
       const bool store_specular = n.specular;
       const double unreached_allowance = config.unreached_angle_allowance;
@@ -1115,9 +1127,24 @@ StatusOr<CutSelection> CutSelection::make(std::span<const ProbeView> views, cons
                          sorted_measured[v].begin());
         for (size_t i = r.begin(); i != r.end(); ++i) {
           const uint64_t code = nodes[i];
-          double f = kInf, fs = kInf, a = kInf;
+          double f = kInf, fs = kInf, a = kInf, cs = kInf;
           std::optional<Bbox> box;
-          const double kappa = store_specular ? normal_spread_angle(nodes_q[i]) / side_q : 0.0;
+          const double spread = normal_spread_angle(nodes_q[i]);
+          const double kappa = store_specular ? spread / side_q : 0.0;
+          // An outline may run through the cell where its normals, a cap of
+          // half-angle `spread` around their mean, reach across the
+          // direction from the eye: |mean . d| <= sin(spread).
+          const double reach = spread >= 0.5 * std::numbers::pi ? 1.0 : std::sin(spread);
+          auto outline = [&](const ViewFacts& view) {
+            for (const ObjectXf* xp : on_store) {
+              const Vec3d centre = Vec3d(xp->m * glm::dvec4(0.5 * (box->lo + box->hi), 1.0));
+              const Vec3d mean = xp->normal * nodes_q[i].normal_sum;
+              const double ml = glm::length(mean), dl = glm::length(centre - view.cam.eye);
+              if (!(ml > 0) || !(dl > 0)) return true;
+              if (std::abs(glm::dot(mean, centre - view.cam.eye)) <= reach * ml * dl) return true;
+            }
+            return false;
+          };
           for (size_t v = 0; v < views.size(); ++v) {
             const std::vector<MeasuredCell>& sm = sorted_measured[v];
             while (at[v] < sm.size() && sm[at[v]].code < code) ++at[v];
@@ -1130,6 +1157,7 @@ StatusOr<CutSelection> CutSelection::make(std::span<const ProbeView> views, cons
             // too; a hit's shift footprint is at most its footprint, so f
             // adds only the shadows' bound.
             fs = std::min({fs, hit ? hit->shift : seen, f});
+            if (outline(facts[v])) cs = std::min(cs, hit ? hit->shift : seen);
             // Unreached mirror or glass cells: the pixel angle, as magnified
             // as the most magnified measured paths, over a mirror's gain of
             // 2; on a curved surface at least c kappa f (above).
@@ -1147,6 +1175,9 @@ StatusOr<CutSelection> CutSelection::make(std::span<const ProbeView> views, cons
           float fs32 = float(fs);
           if (double(fs32) > fs) fs32 = std::nextafter(fs32, 0.0f);
           shift_need[size_t(Q)][i] = fs32;
+          float cs32 = float(cs);
+          if (double(cs32) > cs) cs32 = std::nextafter(cs32, 0.0f);
+          contour_need[size_t(Q)][i] = cs32;
           if (store_specular) tilt[size_t(Q)][i] = a;
         }
       });
@@ -1155,6 +1186,7 @@ StatusOr<CutSelection> CutSelection::make(std::span<const ProbeView> views, cons
       const std::vector<uint64_t>&parents = codes_at[size_t(L)], &children = codes_at[size_t(L) + 1];
       need[size_t(L)].assign(parents.size(), kInf);
       shift_need[size_t(L)].assign(parents.size(), std::numeric_limits<float>::infinity());
+      contour_need[size_t(L)].assign(parents.size(), std::numeric_limits<float>::infinity());
       if (n.specular) tilt[size_t(L)].assign(parents.size(), kInf);
       size_t j = 0;
       for (size_t i = 0; i < parents.size(); ++i) {
@@ -1162,6 +1194,7 @@ StatusOr<CutSelection> CutSelection::make(std::span<const ProbeView> views, cons
         for (; j < children.size() && (children[j] >> 3) == parents[i]; ++j) {
           need[size_t(L)][i] = std::min(need[size_t(L)][i], need[size_t(L) + 1][j]);
           shift_need[size_t(L)][i] = std::min(shift_need[size_t(L)][i], shift_need[size_t(L) + 1][j]);
+          contour_need[size_t(L)][i] = std::min(contour_need[size_t(L)][i], contour_need[size_t(L) + 1][j]);
           if (n.specular) tilt[size_t(L)][i] = std::min(tilt[size_t(L)][i], tilt[size_t(L) + 1][j]);
         }
       }
@@ -1300,7 +1333,10 @@ StatusOr<ProbeResult> CutSelection::select(const ProbeConfig& config) {
           if (!deviation) { verdict[i] = 1; continue; }
           // The deviation tests compare what moves the surface in the image
           // with the shift footprint (ProbeHit::shift_footprint).
-          const double fs = double(n.shift_need[size_t(L)][i]);
+          // Where an outline may run, a fraction of the tolerance
+          // (ProbeConfig::outline_tolerance).
+          const double fs = std::min(double(n.shift_need[size_t(L)][i]),
+                                     config.outline_tolerance * double(n.contour_need[size_t(L)][i]));
           const CollapseDeviation& dev = kept.deviation(L, i);
           if (dev.position > config.tolerance_px * fs) { verdict[i] = 2; continue; }
           // What a quadric cannot bound (rims, folds, creases on mirrors

@@ -195,6 +195,23 @@ StatusOr<CutBalance> parse_cut_balance(const std::string& name);
 inline constexpr double kDefaultFootprintScale = 64.0;
 inline constexpr double kDefaultDiagonalFootprintScale = 10.0;
 inline constexpr double kDefaultTolerancePx = 0.5;
+// Outlines. Where a surface's outline runs against what lies behind it, a
+// shift of the outline by s pixels flips about s of each edge pixel's
+// samples between the surface and its background, where the renderer's own
+// noise there is the variance of a pixel's coverage over its samples: at a
+// few samples per pixel about a third of a pixel of shift, on average along
+// the outline, costs as much as the noise (an estimate: the tests below
+// decide). The deviation tests bound the largest shift, which the average
+// sits well under on curved surfaces but not everywhere: a close-up of the
+// pump cover's rounded edge against a dark wall (README, "Close-ups at
+// random triangles", p_2) stayed 1.21 dB below its floor at 0.5 px, every
+// difference on the outline. So in the finest cells an outline may run
+// through in a view -- the cap of the cell's normals (normal_spread_angle
+// around their mean) reaches across the direction from the eye, |mean . d|
+// <= sin(spread) -- the tests take outline_tolerance times the tolerance,
+// and so does every coarser cell holding one (through the min over its
+// subtree). Outlines are lines in the image, so this costs few triangles.
+inline constexpr double kDefaultOutlineTolerance = 0.5;
 // On mirror and glass objects a collapse may turn a ray leaving the surface
 // by at most this many pixels' angular spread ||dD|| (ProbeHit::tilt).
 // Measured on data/glass_scene.json and the paper bottle (README, "Accuracy
@@ -290,6 +307,9 @@ struct ProbeConfig {
   double footprint_scale = kDefaultFootprintScale;  // K: collapse cells with diagonal < K * footprint
   double tolerance_px = kDefaultTolerancePx;        // deviation criterion: surface deviation, in pixels
   double angle_tolerance_px = kDefaultAngleTolerancePx;  // and a mirror or glass ray's turn, in pixel angles
+  // The fraction of tolerance_px the deviation tests allow where an outline
+  // may run (kDefaultOutlineTolerance), in (0, 1]; 1: no difference.
+  double outline_tolerance = kDefaultOutlineTolerance;
   CutBalance balance = CutBalance::Specular;             // which cuts are graded
   uint64_t cache_bytes = uint64_t(256) << 20;  // page cache budget; 0 = no limit
   // A page cache that outlives the trace (a view sequence's, so that a view

@@ -11,6 +11,7 @@
 #include <iterator>
 #include <limits>
 #include <map>
+#include <numbers>
 #include <random>
 #include <optional>
 #include <set>
@@ -1299,6 +1300,66 @@ StatusOr<ProbeResult> probe_teapot(MaterialType type, double angle, CutBalance b
   return run_probe(make_scene(type, kEye, kLook), one.stores(), one.objects(), c);
 }
 
+// Where an outline may run, the deviation tests take outline_tolerance times
+// the tolerance (probe.h, "Outlines"): on the teapot, the cut at 0.5 is at
+// least as fine as at 1 in every cell, finer in some, and each cell the
+// looser cut collapses and the stricter one splits holds a finest cell
+// whose normals reach across the direction from the eye (checked here from
+// the store's nodes, not through the probe's code); the fraction is part
+// of the cut's key, and one outside (0, 1] is refused.
+TEST(ProbeDeviation, OutlinesTakeAFractionOfTheTolerance) {
+  const Built& b = teapot();
+  const OneObject one(b);
+  const OctreeStore& st = *b.store;
+  const Scene scene = make_scene(MaterialType::Diffuse, kEye, kLook);
+  const int Q = st.header().quadric_depth;
+  ProbeConfig c;
+  c.rays = 4000;
+  c.seed = 7;
+  auto t = trace_probe(scene, one.stores(), one.objects(), c);
+  ASSERT_TRUE(t) << t.status().message();
+  c.outline_tolerance = 1;
+  auto loose = select_cuts(*t, scene, one.stores(), one.objects(), c);
+  c.outline_tolerance = 0.5;
+  auto strict = select_cuts(*t, scene, one.stores(), one.objects(), c);
+  ASSERT_TRUE(loose && strict);
+  const Cut &l = loose->cuts[0], &s = strict->cuts[0];
+  EXPECT_NE(l.key, s.key);
+  for (const CollapsedCell& cell : s.cells) EXPECT_TRUE(collapsed_by(l, cell.key)) << "level " << cell.key.level;
+
+  // Brute force: whether a finest node under `key` may hold an outline.
+  const auto finest = st.level(Q);
+  auto holds_outline = [&](const CellKey& key) {
+    const int shift = 3 * (Q - int(key.level));
+    for (const NodeRecord& node : finest) {
+      if ((node.code >> shift) != key.code) continue;
+      const double spread = normal_spread_angle(node);
+      const Bbox box = st.cell_bounds(CellKey{uint32_t(Q), node.code});
+      const Vec3d d = 0.5 * (box.lo + box.hi) + st.header().mesh_origin - scene.camera.eye;
+      const Vec3d n = node.normal_sum;
+      const double reach = spread >= 0.5 * std::numbers::pi ? 1.0 : std::sin(spread);
+      if (std::abs(glm::dot(n, d)) <= reach * glm::length(n) * glm::length(d) * (1 + 1e-9)) return true;
+    }
+    return false;
+  };
+  size_t split = 0;
+  for (const CollapsedCell& cell : l.cells) {
+    if (std::binary_search(s.cells.begin(), s.cells.end(), cell,
+                           [](const CollapsedCell& x, const CollapsedCell& y) { return x.key < y.key; }))
+      continue;
+    ++split;
+    EXPECT_TRUE(holds_outline(cell.key)) << "level " << cell.key.level << " code " << cell.key.code;
+  }
+  EXPECT_GT(split, 0u) << "the stricter outline tolerance should split some cells";
+
+  for (double bad : {0.0, -0.5, 1.5}) {
+    c.outline_tolerance = bad;
+    auto rejected = select_cuts(*t, scene, one.stores(), one.objects(), c);
+    ASSERT_FALSE(rejected) << bad;
+    EXPECT_NE(rejected.status().message().find("outline tolerance"), std::string::npos) << rejected.status().message();
+  }
+}
+
 TEST(ProbeDeviation, AngleToleranceLoosensOnlyMirrorAndGlass) {
   const Built& b = teapot();
   auto with_angle = [&](MaterialType type, double angle) { return probe_teapot(type, angle); };
@@ -1344,6 +1405,10 @@ TEST(ProbeDeviation, UnreachedAllowanceLoosensOnlyWhereNoRayHit) {
     c.angle_tolerance_px = angle;
     c.balance = CutBalance::Off;
     c.unreached_angle_allowance = allowance;
+    // The position bound at outlines (OutlinesTakeAFractionOfTheTolerance)
+    // would decide the few measured cells of this small teapot that the
+    // angle bound decides without it: here the angle bounds alone are tested.
+    c.outline_tolerance = 1;
     return run_probe(make_scene(type, kEye, kLook), one.stores(), one.objects(), c);
   };
   auto strict = probe(MaterialType::Mirror, 1), loose = probe(MaterialType::Mirror, 4);
