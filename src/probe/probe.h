@@ -210,7 +210,12 @@ inline constexpr double kDefaultTolerancePx = 0.5;
 // around their mean) reaches across the direction from the eye, |mean . d|
 // <= sin(spread) -- the tests take outline_tolerance times the tolerance,
 // and so does every coarser cell holding one (through the min over its
-// subtree). Outlines are lines in the image, so this costs few triangles.
+// subtree). Outlines are lines in the image, so this costs few triangles
+// (1 to 11% on the CAD close-ups, 3% on the default view). The direction is
+// the camera's: outlines seen only in a mirror or through glass are not
+// singled out (their cells keep the normal bound, above). Tested on the
+// teapot against a brute-force search of the store's finest nodes
+// (ProbeDeviation.OutlinesTakeAFractionOfTheTolerance).
 inline constexpr double kDefaultOutlineTolerance = 0.5;
 // On mirror and glass objects a collapse may turn a ray leaving the surface
 // by at most this many pixels' angular spread ||dD|| (ProbeHit::tilt).

@@ -1014,18 +1014,31 @@ TEST(ProbeDeviation, CurvedCellsKeepTheirDeviationBelowTheTolerance) {
 // tolerance in pixels across each of those rays: its deviation is within
 // the tolerance times the smallest shift footprint of its hits, which near
 // the teapot's silhouettes is far below the footprint on the surface.
-TEST(ProbeDeviation, CollapsedCellsShiftTheImageByAtMostTheTolerance) {
+// The diffuse teapot's default view traced once (4000 test rays, seed 7),
+// for tests that select cuts from that trace.
+struct TracedTeapot {
   const Built& b = teapot();
-  const OneObject one(b);
-  const OctreeStore& st = *b.store;
-  const Scene scene = make_scene(MaterialType::Diffuse, kEye, kLook);
+  OneObject one{b};
+  Scene scene = make_scene(MaterialType::Diffuse, kEye, kLook);
+  ProbeConfig config = [] {
+    ProbeConfig c;
+    c.rays = 4000;
+    c.seed = 7;
+    return c;
+  }();
+  StatusOr<ProbeTrace> trace = trace_probe(scene, one.stores(), one.objects(), config);
+};
+
+TEST(ProbeDeviation, CollapsedCellsShiftTheImageByAtMostTheTolerance) {
+  const TracedTeapot tt;
+  ASSERT_TRUE(tt.trace) << tt.trace.status().message();
+  const OneObject& one = tt.one;
+  const OctreeStore& st = *tt.b.store;
+  const Scene& scene = tt.scene;
   const Vec3d origin = st.header().origin;
   const int Q = st.header().quadric_depth;
-  ProbeConfig c;
-  c.rays = 4000;
-  c.seed = 7;
-  auto t = trace_probe(scene, one.stores(), one.objects(), c);
-  ASSERT_TRUE(t) << t.status().message();
+  const ProbeConfig& c = tt.config;
+  const ProbeTrace* t = &tt.trace.value();
   auto r = select_cuts(*t, scene, one.stores(), one.objects(), c);
   ASSERT_TRUE(r) << r.status().message();
   const Cut& cut = r->cuts[0];
@@ -1308,21 +1321,17 @@ StatusOr<ProbeResult> probe_teapot(MaterialType type, double angle, CutBalance b
 // the store's nodes, not through the probe's code); the fraction is part
 // of the cut's key, and one outside (0, 1] is refused.
 TEST(ProbeDeviation, OutlinesTakeAFractionOfTheTolerance) {
-  const Built& b = teapot();
-  const OneObject one(b);
-  const OctreeStore& st = *b.store;
-  const Scene scene = make_scene(MaterialType::Diffuse, kEye, kLook);
-  const int Q = st.header().quadric_depth;
-  ProbeConfig c;
-  c.rays = 4000;
-  c.seed = 7;
-  auto t = trace_probe(scene, one.stores(), one.objects(), c);
-  ASSERT_TRUE(t) << t.status().message();
-  c.outline_tolerance = 1;
-  auto loose = select_cuts(*t, scene, one.stores(), one.objects(), c);
-  c.outline_tolerance = 0.5;
-  auto strict = select_cuts(*t, scene, one.stores(), one.objects(), c);
+  const TracedTeapot tt;
+  ASSERT_TRUE(tt.trace) << tt.trace.status().message();
+  auto select_at = [&](double outline) {
+    ProbeConfig c = tt.config;
+    c.outline_tolerance = outline;
+    return select_cuts(tt.trace.value(), tt.scene, tt.one.stores(), tt.one.objects(), c);
+  };
+  auto loose = select_at(1), strict = select_at(0.5);
   ASSERT_TRUE(loose && strict);
+  const OctreeStore& st = *tt.b.store;
+  const int Q = st.header().quadric_depth;
   const Cut &l = loose->cuts[0], &s = strict->cuts[0];
   EXPECT_NE(l.key, s.key);
   for (const CollapsedCell& cell : s.cells) EXPECT_TRUE(collapsed_by(l, cell.key)) << "level " << cell.key.level;
@@ -1335,7 +1344,7 @@ TEST(ProbeDeviation, OutlinesTakeAFractionOfTheTolerance) {
       if ((node.code >> shift) != key.code) continue;
       const double spread = normal_spread_angle(node);
       const Bbox box = st.cell_bounds(CellKey{uint32_t(Q), node.code});
-      const Vec3d d = 0.5 * (box.lo + box.hi) + st.header().mesh_origin - scene.camera.eye;
+      const Vec3d d = 0.5 * (box.lo + box.hi) + st.header().mesh_origin - tt.scene.camera.eye;
       const Vec3d n = node.normal_sum;
       const double reach = spread >= 0.5 * std::numbers::pi ? 1.0 : std::sin(spread);
       if (std::abs(glm::dot(n, d)) <= reach * glm::length(n) * glm::length(d) * (1 + 1e-9)) return true;
@@ -1353,8 +1362,7 @@ TEST(ProbeDeviation, OutlinesTakeAFractionOfTheTolerance) {
   EXPECT_GT(split, 0u) << "the stricter outline tolerance should split some cells";
 
   for (double bad : {0.0, -0.5, 1.5}) {
-    c.outline_tolerance = bad;
-    auto rejected = select_cuts(*t, scene, one.stores(), one.objects(), c);
+    auto rejected = select_at(bad);
     ASSERT_FALSE(rejected) << bad;
     EXPECT_NE(rejected.status().message().find("outline tolerance"), std::string::npos) << rejected.status().message();
   }
