@@ -433,6 +433,18 @@ SelectionCache::Store SelectionCache::make_entry(const OctreeStore& store) {
     e.slot[size_t(L)].assign(nodes.size(), 0);
     nodes_total += nodes.size();
   }
+  const auto finest = store.level(Q);
+  e.finest_cones.resize(finest.size());
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, finest.size(), 4096), [&](const tbb::blocked_range<size_t>& r) {
+    for (size_t i = r.begin(); i != r.end(); ++i) {
+      Store::NormalCone& c = e.finest_cones[i];
+      const double spread = normal_spread_angle(finest[i]);
+      c.reach = spread >= 0.5 * std::numbers::pi ? 1.0f : float(std::sin(spread));
+      const double len = glm::length(finest[i].normal_sum);
+      if (len > 0)
+        for (int k = 0; k < 3; ++k) c.mean[k] = float(finest[i].normal_sum[k] / len);
+    }
+  });
   e.max_computed = size_t(most_computed(nodes_total));
   return e;
 }
@@ -452,6 +464,7 @@ uint64_t SelectionCache::bytes_for(std::span<const OctreeStore* const> stores) {
     uint64_t nodes = 0;
     for (int L = 0; L <= st->header().quadric_depth; ++L) nodes += st->level(L).size();
     b += nodes * (sizeof(uint64_t) + sizeof(uint32_t)) +
+         st->level(st->header().quadric_depth).size() * sizeof(Store::NormalCone) +
          most_computed(nodes) * sizeof(CollapseDeviation);
   }
   return b;
@@ -1118,6 +1131,24 @@ StatusOr<CutSelection> CutSelection::make(std::span<const ProbeView> views, cons
       if (n.specular) tilt[size_t(Q)].assign(nodes.size(), kInf);
       const bool store_specular = n.specular;
       const double unreached_allowance = config.unreached_angle_allowance;
+      // The outline test in the store's frame where an object's transform
+      // keeps angles (a rotation, uniform scale, translation: the common
+      // case): there mean . d and the ratio of |mean . d| to |mean| |d| are
+      // those of the world, and each view's eye is moved into the store's
+      // frame once. Per view, per object on the store: that eye, or NaN
+      // where the transform shears or scales unevenly (tested in the world).
+      std::vector<std::vector<Vec3d>> eye_in_store(views.size());
+      for (size_t v = 0; v < views.size(); ++v)
+        for (const ObjectXf* xp : on_store) {
+          const Mat3d l(xp->m);
+          const double s2 = glm::dot(l[0], l[0]);
+          bool conformal = s2 > 0;
+          for (int a = 0; a < 3 && conformal; ++a)
+            for (int b = 0; b < 3 && conformal; ++b)
+              conformal = std::abs(glm::dot(l[a], l[b]) - (a == b ? s2 : 0.0)) <= 1e-12 * s2;
+          eye_in_store[v].push_back(conformal ? Vec3d(xp->minv * glm::dvec4(facts[v].cam.eye, 1.0))
+                                              : Vec3d(std::numeric_limits<double>::quiet_NaN()));
+        }
       tbb::parallel_for(tbb::blocked_range<size_t>(0, nodes.size(), 1024), [&](const tbb::blocked_range<size_t>& r) {
         // Per view, the first measured cell at or after the range's first node.
         std::vector<size_t> at(views.size());
@@ -1129,19 +1160,27 @@ StatusOr<CutSelection> CutSelection::make(std::span<const ProbeView> views, cons
           const uint64_t code = nodes[i];
           double f = kInf, fs = kInf, a = kInf, cs = kInf;
           std::optional<Bbox> box;
-          const double spread = normal_spread_angle(nodes_q[i]);
-          const double kappa = store_specular ? spread / side_q : 0.0;
+          const double kappa = store_specular ? normal_spread_angle(nodes_q[i]) / side_q : 0.0;
           // An outline may run through the cell where its normals, a cap of
           // half-angle `spread` around their mean, reach across the
-          // direction from the eye: |mean . d| <= sin(spread).
-          const double reach = spread >= 0.5 * std::numbers::pi ? 1.0 : std::sin(spread);
-          auto outline = [&](const ViewFacts& view) {
-            for (const ObjectXf* xp : on_store) {
-              const Vec3d centre = Vec3d(xp->m * glm::dvec4(0.5 * (box->lo + box->hi), 1.0));
-              const Vec3d mean = xp->normal * nodes_q[i].normal_sum;
-              const double ml = glm::length(mean), dl = glm::length(centre - view.cam.eye);
-              if (!(ml > 0) || !(dl > 0)) return true;
-              if (std::abs(glm::dot(mean, centre - view.cam.eye)) <= reach * ml * dl) return true;
+          // direction from the eye: |mean . d| <= sin(spread) (the cone as
+          // the selection cache keeps it).
+          const SelectionCache::Store::NormalCone& cone = n.kept->finest_cones[i];
+          const Vec3d cone_mean(cone.mean[0], cone.mean[1], cone.mean[2]);
+          auto outline = [&](size_t v) {
+            const Vec3d centre = 0.5 * (box->lo + box->hi);
+            const double reach2 = double(cone.reach) * double(cone.reach);
+            for (size_t o = 0; o < on_store.size(); ++o) {
+              Vec3d mean = cone_mean, d;
+              if (const Vec3d& eye = eye_in_store[v][o]; !std::isnan(eye.x)) {
+                d = centre - eye;
+              } else {
+                const ObjectXf* xp = on_store[o];
+                d = Vec3d(xp->m * glm::dvec4(centre, 1.0)) - facts[v].cam.eye;
+                mean = xp->normal * cone_mean;
+              }
+              const double md = glm::dot(mean, d), m2 = glm::dot(mean, mean), d2 = glm::dot(d, d);
+              if (!(m2 > 0) || !(d2 > 0) || md * md <= reach2 * m2 * d2) return true;
             }
             return false;
           };
@@ -1157,7 +1196,7 @@ StatusOr<CutSelection> CutSelection::make(std::span<const ProbeView> views, cons
             // too; a hit's shift footprint is at most its footprint, so f
             // adds only the shadows' bound.
             fs = std::min({fs, hit ? hit->shift : seen, f});
-            if (outline(facts[v])) cs = std::min(cs, hit ? hit->shift : seen);
+            if (outline(v)) cs = std::min(cs, hit ? hit->shift : seen);
             // Unreached mirror or glass cells: the pixel angle, as magnified
             // as the most magnified measured paths, over a mirror's gain of
             // 2; on a curved surface at least c kappa f (above).

@@ -290,13 +290,23 @@ class SelectionCache {
     // starts with more clears them first, so the memory stays bounded.
     size_t max_computed = 0;
     const CollapseDeviation& deviation(int level, size_t i) const { return computed[slot[size_t(level)][i] - 1]; }
+    // Per finest node, what the outline test reads (probe.h, "Outlines"):
+    // the unit mean of its normals (0 if they cancel) and the sine of their
+    // spread (1 from a right angle on), 16 bytes where the test otherwise
+    // reads the node's 144 for every view.
+    struct NormalCone {
+      float mean[3] = {0, 0, 0};
+      float reach = 1;
+    };
+    std::vector<NormalCone> finest_cones;
   };
   static constexpr size_t kComputedShare = 4;
   // The most deviations kept for a store of `nodes` nodes.
   static uint64_t most_computed(uint64_t nodes) { return std::max<uint64_t>(nodes / kComputedShare, 1); }
   Store& of(const OctreeStore& store);
   // What a cache for these stores holds at most: 12 bytes a node (a code and
-  // a slot), and a deviation for every kComputedShare-th.
+  // a slot), 16 more for each finest node (its normal cone), and a deviation
+  // for every kComputedShare-th.
   static uint64_t bytes_for(std::span<const OctreeStore* const> stores);
   // A cache's entry for one selection alone (none shared).
   static Store make_entry(const OctreeStore& store);

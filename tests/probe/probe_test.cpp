@@ -1274,7 +1274,10 @@ TEST(CutSelection, ASharedSelectionCacheChangesNoCut) {
   uint64_t nodes = 0;
   for (int L = 0; L <= store->header().quadric_depth; ++L) nodes += store->level(L).size();
   const OctreeStore* list[] = {store};
+  const size_t finest = store->level(store->header().quadric_depth).size();
+  EXPECT_EQ(entry.finest_cones.size(), finest);
   EXPECT_EQ(SelectionCache::bytes_for(list), nodes * (sizeof(uint64_t) + sizeof(uint32_t)) +
+                                                 finest * sizeof(SelectionCache::Store::NormalCone) +
                                                  nodes / SelectionCache::kComputedShare * sizeof(CollapseDeviation));
 
   // A cache holding more deviations than its bound lets them go before the
