@@ -4,7 +4,6 @@
 #include <algorithm>
 
 #include <tbb/global_control.h>
-#include <tbb/parallel_for.h>
 #include <tbb/task_arena.h>
 
 namespace raylod {
@@ -13,13 +12,6 @@ int ambient_parallelism() {
   const size_t global = tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism);
   const int arena = tbb::this_task_arena::max_concurrency();
   return std::max(1, std::min(int(std::min<size_t>(global, 1u << 20)), arena));
-}
-
-void start_task_scheduler() {
-  // Any parallel algorithm initializes the calling thread's implicit arena,
-  // which lives as long as the thread: the pool is not torn down and made
-  // again (with another dlopen) at the next loop.
-  tbb::parallel_for(0, 1, [](int) {});
 }
 
 }  // namespace raylod

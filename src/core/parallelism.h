@@ -12,13 +12,4 @@ namespace raylod {
 // concurrency of the task arena the caller runs in.
 int ambient_parallelism();
 
-// Creates the task scheduler's worker pool now, for the calling thread's
-// own arena, instead of at the first parallel loop. Creating it dlopens
-// TBB's optional libraries (libirml, libiomp5), and dlopen takes the dynamic
-// loader's lock: started after a thread that is loading a large module
-// (start_loading_image_codec), the first parallel loop waited on that lock
-// until the module was loaded, 0.4 s on this machine. Call it before such a
-// thread starts. Cheap when the pool exists.
-void start_task_scheduler();
-
 }  // namespace raylod

@@ -7,8 +7,6 @@
 #include <mutex>
 #include <thread>
 
-#include "core/parallelism.h"
-
 namespace raylod {
 namespace {
 
@@ -69,10 +67,6 @@ StatusOr<const ImageCodec*> image_codec() {
 }
 
 void start_loading_image_codec() {
-  // The loader thread holds the dynamic loader's lock for most of its
-  // 0.4 s; the task scheduler, which dlopens libraries of its own when its
-  // pool is made, is made first so that the caller's work does not wait.
-  start_task_scheduler();
   // A static owner joins the thread at exit, so the process never ends
   // while it is inside the dynamic loader.
   struct Loader {
