@@ -8,7 +8,6 @@
 #include <array>
 #include <chrono>
 #include <cmath>
-#include <cstdlib>
 #include <cstring>
 #include <numbers>
 #include <optional>
@@ -1137,18 +1136,20 @@ StatusOr<CutSelection> CutSelection::make(std::span<const ProbeView> views, cons
       // those of the world, and each view's eye is moved into the store's
       // frame once. Per view, per object on the store: that eye, or NaN
       // where the transform shears or scales unevenly (tested in the world).
+      std::vector<bool> conformal;
+      for (const ObjectXf* xp : on_store) {
+        const Mat3d l(xp->m);
+        const double s2 = glm::dot(l[0], l[0]);
+        bool c = s2 > 0;
+        for (int a = 0; a < 3 && c; ++a)
+          for (int b = 0; b < 3 && c; ++b) c = std::abs(glm::dot(l[a], l[b]) - (a == b ? s2 : 0.0)) <= 1e-12 * s2;
+        conformal.push_back(c);
+      }
       std::vector<std::vector<Vec3d>> eye_in_store(views.size());
       for (size_t v = 0; v < views.size(); ++v)
-        for (const ObjectXf* xp : on_store) {
-          const Mat3d l(xp->m);
-          const double s2 = glm::dot(l[0], l[0]);
-          bool conformal = s2 > 0;
-          for (int a = 0; a < 3 && conformal; ++a)
-            for (int b = 0; b < 3 && conformal; ++b)
-              conformal = std::abs(glm::dot(l[a], l[b]) - (a == b ? s2 : 0.0)) <= 1e-12 * s2;
-          eye_in_store[v].push_back(conformal ? Vec3d(xp->minv * glm::dvec4(facts[v].cam.eye, 1.0))
-                                              : Vec3d(std::numeric_limits<double>::quiet_NaN()));
-        }
+        for (size_t o = 0; o < on_store.size(); ++o)
+          eye_in_store[v].push_back(conformal[o] ? Vec3d(on_store[o]->minv * glm::dvec4(facts[v].cam.eye, 1.0))
+                                                 : Vec3d(std::numeric_limits<double>::quiet_NaN()));
       tbb::parallel_for(tbb::blocked_range<size_t>(0, nodes.size(), 1024), [&](const tbb::blocked_range<size_t>& r) {
         // Per view, the first measured cell at or after the range's first node.
         std::vector<size_t> at(views.size());
@@ -1210,13 +1211,13 @@ StatusOr<CutSelection> CutSelection::make(std::span<const ProbeView> views, cons
             }
           }
           need[size_t(Q)][i] = f;
-          // Rounded down to a float, so that the tests stay at least as strict.
-          float fs32 = float(fs);
-          if (double(fs32) > fs) fs32 = std::nextafter(fs32, 0.0f);
-          shift_need[size_t(Q)][i] = fs32;
-          float cs32 = float(cs);
-          if (double(cs32) > cs) cs32 = std::nextafter(cs32, 0.0f);
-          contour_need[size_t(Q)][i] = cs32;
+          // Rounded down to floats, so that the tests stay at least as strict.
+          auto float_at_most = [](double x) {
+            float y = float(x);
+            return double(y) > x ? std::nextafter(y, 0.0f) : y;
+          };
+          shift_need[size_t(Q)][i] = float_at_most(fs);
+          contour_need[size_t(Q)][i] = float_at_most(cs);
           if (store_specular) tilt[size_t(Q)][i] = a;
         }
       });
