@@ -576,7 +576,8 @@ std::string pack_trace(const ProbeTrace& t) {
                   cluster::to_bytes(t.rays) + cluster::to_bytes(t.seed) + cluster::to_bytes(t.magnification);
   b.append(reinterpret_cast<const char*>(t.hits.data()), t.hits.size() * sizeof(ProbeHit));
   b += cluster::to_bytes(uint64_t(t.ground_hits.size()));
-  b.append(reinterpret_cast<const char*>(t.ground_hits.data()), t.ground_hits.size() * sizeof(Vec3d));
+  static_assert(std::is_trivially_copyable_v<GroundHit>);
+  b.append(reinterpret_cast<const char*>(t.ground_hits.data()), t.ground_hits.size() * sizeof(GroundHit));
   for (const auto& [name, value] : t.counters)
     b += cluster::to_bytes(uint64_t(name.size())) + name + cluster::to_bytes(value);
   return b;
@@ -599,8 +600,8 @@ ProbeTrace unpack_trace(const std::string& b) {
   const uint64_t ground = cluster::from_bytes<uint64_t>(b, at);
   at += 8;
   t.ground_hits.resize(ground);
-  std::memcpy(t.ground_hits.data(), b.data() + at, ground * sizeof(Vec3d));
-  at += ground * sizeof(Vec3d);
+  std::memcpy(t.ground_hits.data(), b.data() + at, ground * sizeof(GroundHit));
+  at += ground * sizeof(GroundHit);
   while (at + 8 <= b.size()) {
     const uint64_t n = cluster::from_bytes<uint64_t>(b, at);
     std::string name = b.substr(at + 8, n);

@@ -2,10 +2,12 @@
 // differentials; the policy for unreached cells is documented in probe.h.
 #include "probe/probe.h"
 
+#include "probe/cell_visibility.h"
 #include "probe/cut_balance.h"
 
 #include <algorithm>
 #include <array>
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <cstring>
@@ -89,17 +91,20 @@ enum Kind { kPrimary, kReflection, kRefraction };
 using HitRecord = ProbeHit;
 
 struct ProbeRayCounters {
-  static constexpr int kCount = 11;
+  static constexpr int kCount = 12;
   uint64_t v[kCount] = {};
-  enum { primary, reflection, refraction, tir, hits, hits_ground, misses, dropped, page_visits, triangle_tests, pruned };
+  enum {
+    primary, reflection, refraction, tir, hits, hits_ground, misses, dropped, page_visits, triangle_tests, pruned,
+    ground_shadow
+  };
 };
 const char* const kCounterNames[ProbeRayCounters::kCount] = {
     "rays_primary", "rays_reflection", "rays_refraction", "total_internal_reflections", "hits", "hits_ground",
-    "misses", "differentials_dropped", "page_visits", "triangle_tests", "rays_pruned"};
+    "misses", "differentials_dropped", "page_visits", "triangle_tests", "rays_pruned", "rays_ground_shadow"};
 
 struct RayOutcome {
   std::vector<HitRecord> hits;
-  std::vector<Vec3d> ground;  // where the ray's path met the ground (world)
+  std::vector<GroundHit> ground;  // where the ray's path met the ground
   ProbeRayCounters counters;
   Status status;
 };
@@ -225,7 +230,10 @@ class ProbeTracer {
 
       if (wh.object == kGround) {
         ++out.counters.v[ProbeRayCounters::hits_ground];
-        out.ground.push_back(sp.point);
+        GroundHit& g = out.ground.emplace_back();
+        g.point = sp.point;
+        out.status = light_ground(g, out.counters);
+        if (!out.status) return out;
       } else {
         ++out.counters.v[ProbeRayCounters::hits];
         const ObjectXf& x = xf_[size_t(wh.object)];
@@ -251,6 +259,7 @@ class ProbeTracer {
           ++out.counters.v[ProbeRayCounters::dropped];
         }
         h.parent = pr.parent;
+        h.back_facing = glm::dot(sp.geometric_normal, r.ray.direction) > 0;
         out.hits.push_back(h);
         branches.emplace_back().from = pr.branch;
       }
@@ -377,40 +386,41 @@ class ProbeTracer {
   std::vector<StoreTracer> tracers_;
   std::vector<ObjectXf> xf_;
   double tmin_scale_ = 0, tmin_abs_ = 0;
-};
 
-// The four side planes of the view frustum (inward normals through the eye).
-struct Frustum {
-  Vec3d eye{0}, forward{0};
-  std::array<Vec3d, 4> normals{};
-  bool outside(const std::array<Vec3d, 8>& c) const {
-    auto all_below = [&](const Vec3d& n) {
-      for (const Vec3d& p : c)
-        if (glm::dot(n, p - eye) >= 0) return false;
-      return true;
-    };
-    if (all_below(forward)) return true;  // wholly behind the eye
-    for (const Vec3d& n : normals)
-      if (all_below(n)) return true;
-    return false;
+  // Which lights reach a ground point past the meshes (GroundHit::lit): a
+  // shadow ray to each light, as the renderer's (a light below the ground
+  // reaches none of it). Only where the ground shows shadows.
+  Status light_ground(GroundHit& g, ProbeRayCounters& counters) const {
+    if (scene_.lights.empty() || scene_.materials[size_t(scene_.ground->material)].reflects()) return {};
+    const size_t n = std::min<size_t>(scene_.lights.size(), 32);
+    for (size_t l = 0; l < n; ++l) {
+      const Light& light = scene_.lights[l];
+      Vec3d d = light.type == LightType::Directional ? -light.direction : light.position - g.point;
+      const double len = glm::length(d);
+      bool reaches = d.y > 0 && len > 0;
+      if (reaches) {
+        d /= len;
+        WorldHit wh;
+        wh.t = light.type == LightType::Directional ? kInf : len;
+        ++counters.v[ProbeRayCounters::ground_shadow];
+        RAYLOD_RETURN_IF_ERROR(intersect(g.point, d, tmin_scale_ + tmin_abs_, kGround, TriangleRef{}, wh, counters));
+        reaches = wh.object == kNoObject;
+      }
+      if (!reaches) g.lit &= ~(uint32_t(1) << l);
+    }
+    return {};
   }
 };
 
-Frustum make_frustum(const PinholeCamera& cam) {
-  Frustum f;
-  f.eye = cam.eye;
-  f.forward = cam.forward;
-  const double w = cam.width, h = cam.height;
-  const Vec3d tl = cam.direction_unnormalized(0, 0), tr = cam.direction_unnormalized(w, 0);
-  const Vec3d bl = cam.direction_unnormalized(0, h), br = cam.direction_unnormalized(w, h);
-  const std::array<std::pair<Vec3d, Vec3d>, 4> edges{{{tl, bl}, {tr, br}, {tl, tr}, {bl, br}}};
-  for (int i = 0; i < 4; ++i) {
-    Vec3d n = glm::normalize(glm::cross(edges[i].first, edges[i].second));
-    if (glm::dot(n, cam.forward) < 0) n = -n;
-    f.normals[i] = n;
-  }
-  return f;
+// x rounded down to a float, so that tests against it stay at least as strict.
+float float_at_most(double x) {
+  const float y = float(x);
+  return double(y) > x ? std::nextafter(y, 0.0f) : y;
 }
+
+// The mean resultant length R of a node's normals from their spread
+// (collapse_deviation.h: normal_spread_angle = 2 sqrt(1 - R)).
+double resultant_from_spread(double spread) { return 1.0 - 0.25 * spread * spread; }
 
 double distance_to_box(const Vec3d& p, const Bbox& b) {
   const Vec3d q = glm::max(b.lo - p, glm::max(Vec3d(0), p - b.hi));
@@ -549,6 +559,7 @@ std::string probe_key(const Scene& scene, const OctreeStore& store, std::span<co
   mix(config.tolerance_px);
   mix(config.angle_tolerance_px);
   mix(config.outline_tolerance);
+  mix(config.unseen_cells);
   mix(config.balance);
   mix(config.calibration_quantile);
   mix(config.curved_unreached_tilt);
@@ -734,26 +745,30 @@ StatusOr<ProbeResult> select_cuts(const ProbeTrace& trace, const Scene& scene, s
 
 namespace {
 
-// Where a view's test rays met the ground: a grid over the (x, z) box of
-// those points (about one point a cell, at most 128 x 128), a cell marked
-// if a point lies in it or next to it, with its summed-area table to count
-// marked cells in a box at once.
+// Where a view's test rays met the ground (those a light reaches, for one
+// light): a grid over the (x, z) box of those points (about one point a
+// cell, at most 128 x 128), a cell marked if a point lies in it or next to
+// it, with its summed-area table to count marked cells in a box at once.
 class GroundSeen {
  public:
-  explicit GroundSeen(std::span<const Vec3d> points) {
-    if (points.empty()) return;
-    for (const Vec3d& p : points) {
-      lo_ = glm::min(lo_, Vec2d(p.x, p.z));
-      hi_ = glm::max(hi_, Vec2d(p.x, p.z));
+  // `light`: only the points that light reaches (GroundHit::lit) are marked,
+  // on the grid all the points give (so the cells marked are a subset of
+  // those marked for all); -1: all.
+  explicit GroundSeen(std::span<const GroundHit> hits, int light = -1) {
+    if (hits.empty()) return;
+    for (const GroundHit& g : hits) {
+      lo_ = glm::min(lo_, Vec2d(g.point.x, g.point.z));
+      hi_ = glm::max(hi_, Vec2d(g.point.x, g.point.z));
     }
     // About one point a cell where they cover the box evenly: finer, and
     // the gaps between a few thousand points would read as unseen ground.
-    side_ = std::clamp(int(std::sqrt(double(points.size()))), 4, 128);
+    side_ = std::clamp(int(std::sqrt(double(hits.size()))), 4, 128);
     const int side = side_;
     cell_ = glm::max((hi_ - lo_) / double(side), Vec2d(1e-12 * (1 + glm::length(hi_) + glm::length(lo_))));
     std::vector<uint8_t> hit(size_t(side) * side, 0), marked(hit.size(), 0);
-    for (const Vec3d& p : points) {
-      const auto [i, j] = index(p.x, p.z);
+    for (const GroundHit& g : hits) {
+      if (light >= 0 && light < 32 && !(g.lit >> light & 1u)) continue;
+      const auto [i, j] = index(g.point.x, g.point.z);
       hit[size_t(j) * side + size_t(i)] = 1;
     }
     for (int j = 0; j < side; ++j)
@@ -804,9 +819,10 @@ struct ViewFacts {
   double a_min = kInf;  // smallest angle between neighbouring pixels' rays (at the image corners)
   double m = 1;         // the trace's magnification
   GroundSeen ground{{}};  // where its test rays met the ground
+  std::vector<GroundSeen> lit_ground;  // per light, where they met ground it reaches
 };
 
-ViewFacts make_view_facts(const ProbeView& v) {
+ViewFacts make_view_facts(const ProbeView& v, size_t lights) {
   ViewFacts f;
   f.trace = v.trace;
   f.cam = make_pinhole_camera(v.camera);
@@ -818,6 +834,7 @@ ViewFacts make_view_facts(const ProbeView& v) {
     }
   f.m = v.trace->magnification;
   f.ground = GroundSeen(v.trace->ground_hits);
+  for (size_t l = 0; l < lights; ++l) f.lit_ground.emplace_back(v.trace->ground_hits, int(l));
   return f;
 }
 
@@ -868,6 +885,10 @@ struct StoreNeeds {
     float weight = 0;  // the corner's barycentric weight at the hit
   };
   std::vector<Reach> reach;
+  // Finest cells no test ray reached that faced away from the eye in every
+  // view, and that no view could see nor, with lights, see the shadow of
+  // (probe.h, "Unseen cells"); counted per store.
+  uint64_t back_facing_cells = 0, unseen_cells = 0;
   // The largest weight of a corner in `cell` (level L) at a hit more than
   // `distance` from it; 0 if none.
   double far_weight(int L, int Q, uint64_t cell, double distance) const;
@@ -891,6 +912,7 @@ struct CutSelection::State {
   std::span<const ProbeStore> stores;
   std::span<const ProbeObject> objects;
   double shadow_factor = 0;
+  bool unseen_cells = true;
   // What the unreached curved cells' calibration (make()) read of the config.
   bool curved_unreached_tilt = true;
   double calibration_quantile = 0;
@@ -920,12 +942,13 @@ StatusOr<CutSelection> CutSelection::make(std::span<const ProbeView> views, cons
   state.stores = stores;
   state.objects = objects;
   state.shadow_factor = config.shadow_factor;
+  state.unseen_cells = config.unseen_cells;
   state.curved_unreached_tilt = config.curved_unreached_tilt;
   state.calibration_quantile = config.calibration_quantile;
   state.unreached_angle_allowance = config.unreached_angle_allowance;
   state.needs.resize(stores.size());
   std::vector<ViewFacts> facts;
-  for (const ProbeView& v : views) facts.push_back(make_view_facts(v));
+  for (const ProbeView& v : views) facts.push_back(make_view_facts(v, config.unseen_cells ? scene.lights.size() : 0));
   std::vector<ObjectXf> xf;
   for (const ProbeObject& o : objects) xf.push_back(make_object_xf(o, stores));
 
@@ -950,9 +973,17 @@ StatusOr<CutSelection> CutSelection::make(std::span<const ProbeView> views, cons
     struct Measured { double f = kInf; double shift = kInf; double tilt = kInf; uint32_t hits = 0; };
     std::vector<std::unordered_map<uint64_t, Measured>> measured(views.size());
     double min_fp = kInf;
+    // Per view: camera rays that met the store, and whether any met a back
+    // face (probe.h, "Unseen cells").
+    std::vector<uint64_t> camera_hits(views.size(), 0);
+    std::vector<bool> saw_back(views.size(), false);
     for (size_t v = 0; v < views.size(); ++v)
       for (const HitRecord& h : views[v].trace->hits) {
         if (xf[h.object].store != s) continue;
+        if (h.parent < 0) {
+          ++camera_hits[v];
+          if (h.back_facing) saw_back[v] = true;
+        }
         const double f = h.estimated ? h.footprint * facts[v].m : h.footprint;
         min_fp = std::min(min_fp, h.estimated ? f : h.width);
         StoreNeeds::Hit& hit = n.hits.emplace_back();
@@ -981,7 +1012,11 @@ StatusOr<CutSelection> CutSelection::make(std::span<const ProbeView> views, cons
       if (x.store == s) on_store.push_back(&x);
     const bool spec = specular, lit = lights;
     const double shadow_factor = config.shadow_factor;
-    auto estimate = [&](const ViewFacts& view, const Bbox& b) {
+    const bool unseen_cells = config.unseen_cells;
+    // `back`: the cell faces away from the eye (probe.h, "Unseen cells").
+    // `unseen` (if given) is set where an object's placement of the cell
+    // took the unseen cells' bound.
+    auto estimate = [&](const ViewFacts& view, const Bbox& b, bool back, bool* unseen = nullptr) {
       const PinholeCamera& cam = view.cam;
       const double m = view.m;
       double need = kInf;
@@ -993,13 +1028,27 @@ StatusOr<CutSelection> CutSelection::make(std::span<const ProbeView> views, cons
         double e = view.a_min * d;
         if (spec) e *= m;
         // Seen directly only: the pixels it covers bound it.
-        else if (!view.frustum.outside(c)) e = pixel_angle_over(view, wb) * d * m;
-        else if (lit) e *= shadow_factor;
-        else e = kInf;
+        else if (!back && !view.frustum.outside(c)) e = pixel_angle_over(view, wb) * d * m;
+        else {
+          // Unseen: only its shadows on what the camera sees.
+          if (unseen) *unseen = true;
+          if (lit && (!unseen_cells || !std::all_of(scene.lights.begin(), scene.lights.end(), [&](const Light& l) {
+                        return view.frustum.shadow_outside(c, l);
+                      })))
+            e *= shadow_factor;
+          else
+            e = kInf;
+        }
         need = std::min(need, e);
       }
       return need;
     };
+    // Per view: whether its back-facing cells are unseen, a closed mesh
+    // whose normals point outwards as far as its camera rays tell.
+    std::vector<bool> backs_unseen(views.size(), false);
+    for (size_t v = 0; v < views.size(); ++v)
+      backs_unseen[v] = unseen_cells && !spec && st.boundary_leaves() == 0 && camera_hits[v] > 0 && !saw_back[v];
+    std::atomic<uint64_t> back_facing_cells{0}, unseen_cells_count{0};
     // Shadows on the ground (probe.h): for each light, the cell's shadow
     // on the ground plane (its corners moved along the light onto y =
     // height; corners at or below it stay). If that lands in the view, the
@@ -1041,7 +1090,8 @@ StatusOr<CutSelection> CutSelection::make(std::span<const ProbeView> views, cons
       const double h = scene.ground->height;
       for (const ObjectXf* xp : on_store) {
         const std::array<Vec3d, 8> c = world_corners(xp->m, b);
-        for (const ShadowLight& l : shadow_lights) {
+        for (size_t li = 0; li < shadow_lights.size(); ++li) {
+          const ShadowLight& l = shadow_lights[li];
           if (!l.casts) continue;
           Bbox pb;  // the shadow's box on the ground
           double sin_alpha = l.directional ? l.sin_alpha : 1.0, ratio = 1;
@@ -1062,8 +1112,10 @@ StatusOr<CutSelection> CutSelection::make(std::span<const ProbeView> views, cons
           }
           // Ground the view's test rays met, directly or through mirrors and
           // glass; elsewhere (outside the view, hidden behind the object) no
-          // shadow shows.
-          if (!lands || !view.ground.seen(pb)) continue;
+          // shadow shows. Nor where all the ground around lies in the
+          // shadow of other parts (probe.h, "Shadows on the ground").
+          const GroundSeen& where = unseen_cells ? view.lit_ground[li] : view.ground;
+          if (!lands || !where.seen(pb)) continue;
           // Seen directly only (no mirror or glass): the pixels it covers,
           // whose angle is at least a_min (so only when that could bind).
           const double base = view.m * distance_to_box(view.cam.eye, pb) * sin_alpha * ratio / xp->sigma;
@@ -1122,6 +1174,37 @@ StatusOr<CutSelection> CutSelection::make(std::span<const ProbeView> views, cons
     shift_need.resize(size_t(Q) + 1);
     contour_need.resize(size_t(Q) + 1);
     tilt.resize(size_t(Q) + 1);
+    // The outline test in the store's frame where an object's transform
+    // keeps angles (a rotation, uniform scale, translation: the common
+    // case): there mean . d and the ratio of |mean . d| to |mean| |d| are
+    // those of the world, and each view's eye is moved into the store's
+    // frame once. Per view, per object on the store: that eye, or NaN
+    // where the transform shears or scales unevenly (tested in the world).
+    std::vector<bool> conformal;
+    for (const ObjectXf* xp : on_store) {
+      const Mat3d l(xp->m);
+      const double s2 = glm::dot(l[0], l[0]);
+      bool c = s2 > 0;
+      for (int a = 0; a < 3 && c; ++a)
+        for (int b = 0; b < 3 && c; ++b) c = std::abs(glm::dot(l[a], l[b]) - (a == b ? s2 : 0.0)) <= 1e-12 * s2;
+      conformal.push_back(c);
+    }
+    std::vector<std::vector<Vec3d>> eye_in_store(views.size());
+    for (size_t v = 0; v < views.size(); ++v)
+      for (size_t o = 0; o < on_store.size(); ++o)
+        eye_in_store[v].push_back(conformal[o] ? Vec3d(on_store[o]->minv * glm::dvec4(facts[v].cam.eye, 1.0))
+                                               : Vec3d(std::numeric_limits<double>::quiet_NaN()));
+    // Whether a cell (its box, the unit mean of its normals and their mean
+    // resultant length R) faces away from view v's eye for every object on
+    // the store (cell_visibility.h).
+    auto faces_away_all = [&](size_t v, const Bbox& box, const Vec3d& mean, double R) {
+      for (const Vec3d& eye : eye_in_store[v])
+        if (std::isnan(eye.x) || !faces_away(eye, box, mean, R, kUnseenFrontShare)) return false;
+      return true;
+    };
+    // Per level, per node: whether some finest cell in it took the unseen
+    // cells' bound in some view (then the node's own box is checked too).
+    std::vector<std::vector<uint8_t>> unseen_below;
     {
       const std::vector<uint64_t>& nodes = codes_at[size_t(Q)];
       need[size_t(Q)].assign(nodes.size(), kInf);
@@ -1130,26 +1213,9 @@ StatusOr<CutSelection> CutSelection::make(std::span<const ProbeView> views, cons
       if (n.specular) tilt[size_t(Q)].assign(nodes.size(), kInf);
       const bool store_specular = n.specular;
       const double unreached_allowance = config.unreached_angle_allowance;
-      // The outline test in the store's frame where an object's transform
-      // keeps angles (a rotation, uniform scale, translation: the common
-      // case): there mean . d and the ratio of |mean . d| to |mean| |d| are
-      // those of the world, and each view's eye is moved into the store's
-      // frame once. Per view, per object on the store: that eye, or NaN
-      // where the transform shears or scales unevenly (tested in the world).
-      std::vector<bool> conformal;
-      for (const ObjectXf* xp : on_store) {
-        const Mat3d l(xp->m);
-        const double s2 = glm::dot(l[0], l[0]);
-        bool c = s2 > 0;
-        for (int a = 0; a < 3 && c; ++a)
-          for (int b = 0; b < 3 && c; ++b) c = std::abs(glm::dot(l[a], l[b]) - (a == b ? s2 : 0.0)) <= 1e-12 * s2;
-        conformal.push_back(c);
-      }
-      std::vector<std::vector<Vec3d>> eye_in_store(views.size());
-      for (size_t v = 0; v < views.size(); ++v)
-        for (size_t o = 0; o < on_store.size(); ++o)
-          eye_in_store[v].push_back(conformal[o] ? Vec3d(on_store[o]->minv * glm::dvec4(facts[v].cam.eye, 1.0))
-                                                 : Vec3d(std::numeric_limits<double>::quiet_NaN()));
+
+      unseen_below.assign(size_t(Q) + 1, {});
+      unseen_below[size_t(Q)].assign(nodes.size(), 0);
       tbb::parallel_for(tbb::blocked_range<size_t>(0, nodes.size(), 1024), [&](const tbb::blocked_range<size_t>& r) {
         // Per view, the first measured cell at or after the range's first node.
         std::vector<size_t> at(views.size());
@@ -1185,12 +1251,22 @@ StatusOr<CutSelection> CutSelection::make(std::span<const ProbeView> views, cons
             }
             return false;
           };
+          bool all_back = true, all_unseen = true;  // in every view (the counters)
+          bool any_unseen = false;  // in some view (the check of coarser cells)
           for (size_t v = 0; v < views.size(); ++v) {
             const std::vector<MeasuredCell>& sm = sorted_measured[v];
             while (at[v] < sm.size() && sm[at[v]].code < code) ++at[v];
             const Measured* hit = at[v] < sm.size() && sm[at[v]].code == code ? &sm[at[v]].m : nullptr;
             if (!box) box = st.cell_bounds(CellKey{uint32_t(Q), code});
-            const double seen = hit ? hit->f : estimate(facts[v], *box);
+            // Unreached and facing away from the eye from all of its box
+            // (probe.h, "Unseen cells"), for every object on the store.
+            const bool back = !hit && backs_unseen[v] && cone.reach < 1 &&
+                              faces_away_all(v, *box, cone_mean, resultant_from_spread(std::asin(double(cone.reach))));
+            bool unseen = false;
+            const double seen = hit ? hit->f : estimate(facts[v], *box, back, &unseen);
+            any_unseen = any_unseen || (unseen && unseen_cells);
+            all_back = all_back && back;
+            all_unseen = all_unseen && !hit && lit && std::isinf(seen);
             f = std::min(f, seen);
             f = shadow_estimate(facts[v], *box, f);
             // The estimate bounds the beam's width, so the shift footprint
@@ -1210,33 +1286,55 @@ StatusOr<CutSelection> CutSelection::make(std::span<const ProbeView> views, cons
               a = std::min(a, hit ? hit->tilt : unreached_allowance * unreached);
             }
           }
+          unseen_below[size_t(Q)][i] = any_unseen;
+          if (all_back) back_facing_cells.fetch_add(1, std::memory_order_relaxed);
+          if (all_unseen) unseen_cells_count.fetch_add(1, std::memory_order_relaxed);
           need[size_t(Q)][i] = f;
-          // Rounded down to floats, so that the tests stay at least as strict.
-          auto float_at_most = [](double x) {
-            float y = float(x);
-            return double(y) > x ? std::nextafter(y, 0.0f) : y;
-          };
           shift_need[size_t(Q)][i] = float_at_most(fs);
           contour_need[size_t(Q)][i] = float_at_most(cs);
           if (store_specular) tilt[size_t(Q)][i] = a;
         }
       });
+      n.back_facing_cells = back_facing_cells.load();
+      n.unseen_cells = unseen_cells_count.load();
     }
     for (int L = Q - 1; L >= 0; --L) {
       const std::vector<uint64_t>&parents = codes_at[size_t(L)], &children = codes_at[size_t(L) + 1];
       need[size_t(L)].assign(parents.size(), kInf);
+      unseen_below[size_t(L)].assign(parents.size(), 0);
       shift_need[size_t(L)].assign(parents.size(), std::numeric_limits<float>::infinity());
       contour_need[size_t(L)].assign(parents.size(), std::numeric_limits<float>::infinity());
       if (n.specular) tilt[size_t(L)].assign(parents.size(), kInf);
       size_t j = 0;
       for (size_t i = 0; i < parents.size(); ++i) {
         while (j < children.size() && (children[j] >> 3) < parents[i]) ++j;
+        bool unseen = false;
         for (; j < children.size() && (children[j] >> 3) == parents[i]; ++j) {
           need[size_t(L)][i] = std::min(need[size_t(L)][i], need[size_t(L) + 1][j]);
           shift_need[size_t(L)][i] = std::min(shift_need[size_t(L)][i], shift_need[size_t(L) + 1][j]);
           contour_need[size_t(L)][i] = std::min(contour_need[size_t(L)][i], contour_need[size_t(L) + 1][j]);
           if (n.specular) tilt[size_t(L)][i] = std::min(tilt[size_t(L)][i], tilt[size_t(L) + 1][j]);
+          unseen = unseen || unseen_below[size_t(L) + 1][j];
         }
+        unseen_below[size_t(L)][i] = unseen;
+        if (!unseen) continue;
+        // Some of it took the unseen cells' bound: its collapse puts a
+        // vertex anywhere in its own box, which may be in view, facing the
+        // eye or casting a shadow into view where its parts did not. So the
+        // cell's own box takes the policy too.
+        const Bbox box = st.cell_bounds(CellKey{uint32_t(L), parents[i]});
+        const NodeRecord& node = st.level(L)[i];
+        const double len = glm::length(node.normal_sum);
+        const Vec3d mean = len > 0 ? node.normal_sum / len : Vec3d(0);
+        const double spread = normal_spread_angle(node);
+        double f = kInf;
+        for (size_t v = 0; v < views.size(); ++v) {
+          const bool back = backs_unseen[v] && len > 0 && spread < 0.5 * std::numbers::pi &&
+                            faces_away_all(v, box, mean, resultant_from_spread(spread));
+          f = shadow_estimate(facts[v], box, std::min(f, estimate(facts[v], box, back)));
+        }
+        need[size_t(L)][i] = std::min(need[size_t(L)][i], f);
+        shift_need[size_t(L)][i] = std::min(shift_need[size_t(L)][i], float_at_most(f));
       }
     }
   }
@@ -1256,8 +1354,8 @@ StatusOr<ProbeResult> CutSelection::select(const ProbeConfig& config) {
       config.calibration_quantile != state.calibration_quantile ||
       config.unreached_angle_allowance != state.unreached_angle_allowance)
     return Status::error("probe: a cut selection was prepared for another bound on unreached mirror and glass cells");
-  if (config.shadow_factor != state.shadow_factor)
-    return Status::error("probe: a cut selection was prepared for another shadow factor");
+  if (config.shadow_factor != state.shadow_factor || config.unseen_cells != state.unseen_cells)
+    return Status::error("probe: a cut selection was prepared for another shadow factor or rule for unseen cells");
   const auto t_select = std::chrono::steady_clock::now();
   ProbeResult result;
   // Counters add up over the views; the magnification is the smallest.
@@ -1291,6 +1389,8 @@ StatusOr<ProbeResult> CutSelection::select(const ProbeConfig& config) {
       if (!is_page_cache_counter(name)) cut.counters[name] = value;
     cut.min_footprint = n.min_footprint;
     cut.counters["store_hits"] = n.hits.size();
+    cut.counters["finest_cells_back_facing"] = n.back_facing_cells;
+    cut.counters["finest_cells_unseen"] = n.unseen_cells;
     // c of the view that calibrated the least (0 if any view had too few
     // measured curved cells), where it bounds anything.
     if (bound_normals && config.curved_unreached_tilt)

@@ -122,11 +122,28 @@
 //     holds the far end to what the near one is held to. K then only caps
 //     how large a cell may get relative to the footprint.
 //
-// Cells that no ray path can reach -- outside the view frustum in a scene
-// with no mirror or glass (so no secondary ray can turn towards them) -- only
-// matter for shadows: with lights they get shadow_factor times the estimate
-// (their silhouette keeps shadows within a few pixels), without lights they
-// are collapsed hard (need = infinity).
+// Unseen cells. Cells that no ray path can reach -- in a scene with no
+// mirror or glass (so no secondary ray can turn towards them), those outside
+// the view frustum, and on a closed mesh (no open boundary) whose normals
+// point outwards those facing away from the eye -- only matter for shadows.
+// A cell faces away if, from every point of its box, at most
+// kUnseenFrontShare of its triangles' area may face the eye: with x = n . u
+// (u the unit direction from the eye to the cell's centre, n the area's
+// normals, their mean resultant length R from the node's sums), x exceeds
+// 2 sin(beta / 2) (beta: the box's angular radius from the eye, how far u
+// turns over the box) on all but a share Var / (Var + (E x - 2 sin(beta /
+// 2))^2) of the area (Cantelli's inequality, Var at most 1 - R^2). Front
+// faces of a closed surface hide its back faces, so a view sees none of
+// them; the mesh is taken to be outward-facing only if none of the view's
+// camera rays met a back face (ProbeHit::back_facing) and some met the
+// store. With lights, an unseen cell whose shadow from some light may reach
+// the view (its box swept away from the light is not wholly outside one of
+// the frustum's planes: a separating plane) gets shadow_factor times the
+// estimate (its silhouette keeps shadows within a few pixels); one whose
+// shadows cannot, or any unseen cell without lights, is collapsed hard (need
+// = infinity) but for the ground's shadows below.
+// (ProbeConfig::unseen_cells = false: only cells outside the view are
+// unseen, and they take shadow_factor wherever there are lights.)
 // Shadows on the ground, for every cell, reached or not: a light casts the
 // cell's shadow onto the ground plane (its corners moved along the light to
 // y = height). Where that shadow lies in a view, a deviation d at the cell
@@ -140,8 +157,21 @@
 // view's test rays met the ground (directly or through mirrors and glass),
 // on a grid over their ground hits (about one a cell, at most 128 x 128), in
 // or next to a cell one of them hit: ground the object hides from the
-// camera shows no shadow. Not for a mirror or glass ground (it shows no
-// shadows), nor for shadows on other objects.
+// camera shows no shadow. And only where the light reaches that ground: each
+// ground hit traces a shadow ray to each light against the full meshes, as
+// the renderer does (GroundHit::lit), and the grid marks, per light, the
+// cells in or next to one of the hits it lights; a cell whose shadow falls
+// only where every hit around lies in the shadow of other parts moves no
+// shadow's edge a test ray saw (ProbeConfig::unseen_cells; the close-ups of
+// the crank arm, whose ground is mostly its own shadow, went from 3.6x to
+// 7.8x to 6.5x to 10.0x, README "Close-ups at random triangles"). Not for a
+// mirror or glass ground (it shows no shadows), nor for shadows on other
+// objects.
+// A coarser cell is checked as a whole where some cell inside it took the
+// unseen cells' bound (need() alone is the minimum over its children): its
+// collapse puts a vertex anywhere in its own box, which may be in view,
+// facing the eye or casting a shadow, so the cell's own box takes the
+// policy too (unseen, facing away or neither, and its ground shadow).
 // Hits whose differentials were dropped (grazing, critical angle, degenerate
 // normals; ray_differential.h) get the same estimate along their own path:
 // m * a_ray * path length.
@@ -217,6 +247,9 @@ inline constexpr double kDefaultTolerancePx = 0.5;
 // teapot against a brute-force search of the store's finest nodes
 // (ProbeDeviation.OutlinesTakeAFractionOfTheTolerance).
 inline constexpr double kDefaultOutlineTolerance = 0.5;
+// Unseen cells (above): the largest share of a cell's triangle area that may
+// face the eye in a cell taken to face away from it.
+inline constexpr double kUnseenFrontShare = 0.01;
 // On mirror and glass objects a collapse may turn a ray leaving the surface
 // by at most this many pixels' angular spread ||dD|| (ProbeHit::tilt).
 // Measured on data/glass_scene.json and the paper bottle (README, "Accuracy
@@ -344,6 +377,13 @@ struct ProbeConfig {
   // angle_tolerance_px (kDefaultUnreachedAngleAllowance).
   double unreached_angle_allowance = kDefaultUnreachedAngleAllowance;
   double shadow_factor = 4.0;          // unreachable cells in scenes with lights
+  // Cells the camera cannot see ("Unseen cells", above): back-facing cells of
+  // a closed mesh whose normals point outwards, and cells outside the view;
+  // where no light's shadow from them can fall in the view either, they
+  // collapse as far as the ground's shadows allow. false: only cells outside
+  // the view count, and they keep shadow_factor wherever there are lights
+  // (the rule before 2026-11-29).
+  bool unseen_cells = true;
   bool progress = false;               // progress bar on stderr
   // Trace only test rays [first_ray, end_ray) of the `rays` (one rank's share
   // under mpirun; merge_traces joins the shares); end_ray 0 = all of them.
@@ -410,13 +450,29 @@ struct ProbeHit {
   double tilt = std::numeric_limits<double>::infinity();
   int32_t parent = -1;             // index in ProbeTrace::hits of the hit whose ray made this one, or -1
   bool estimated = false;          // differentials dropped: footprint from the beam
+  // The ray met the side of the triangle its normal faces away from (the
+  // geometric normal, oriented as the shading normal). A camera ray that
+  // does tells the probe that this view sees inside its object or that its
+  // normals point inwards ("Unseen cells", above).
+  bool back_facing = false;
+};
+
+// Where a test ray's path met the ground plane (world), and which of the
+// scene's lights reach that point past the meshes (bit l for lights[l], as
+// the renderer's shadow rays find it against the full meshes; lights from
+// the 33rd on are taken to reach every point): the ground shadows' bound
+// looks only where a cell's shadow may border lit ground ("Shadows on the
+// ground", above).
+struct GroundHit {
+  Vec3d point{0};
+  uint32_t lit = ~0u;
 };
 
 // The traced test rays (A2, A3): independent of K, the tolerance and the
 // criterion, so sweeps and memory coarsening select cuts from one trace.
 struct ProbeTrace {
   std::vector<ProbeHit> hits;      // every mesh hit, by ray index, then along the path
-  std::vector<Vec3d> ground_hits;  // where paths met the ground plane (world), in the same order
+  std::vector<GroundHit> ground_hits;  // where paths met the ground plane, in the same order
   std::map<std::string, uint64_t> counters;
   double magnification = 1;        // m of the policy
   double trace_seconds = 0;
@@ -503,8 +559,10 @@ uint64_t store_fingerprint(const OctreeStore& store);
 // cut's cells and their normal rule, SimplifiedCache::key_for: a change to
 // the collapse alone must change that rule.) 1: the rules before the
 // version was kept; 2: the deviation tests take the shift footprint
-// (ProbeHit::shift_footprint), 2026-11-28.
-inline constexpr uint32_t kCutRulesVersion = 2;
+// (ProbeHit::shift_footprint), 2026-11-28; 3: cells the camera cannot see
+// and no shadow brings into view collapse (ProbeConfig::unseen_cells),
+// 2026-11-29.
+inline constexpr uint32_t kCutRulesVersion = 3;
 
 // The cut's key: a hash of the store fingerprint, the camera, the scene's
 // specular set-up (materials, max depth, ground), the object's placements,

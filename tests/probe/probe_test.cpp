@@ -464,11 +464,15 @@ TEST(Probe, ProbeFollowsTheRaysTheRendererTraces) {
 // An object outside the view whose shadow falls in it (the camera looks down
 // at the ground beside the teapot, a low light casts the teapot's shadow
 // there): a deviation d at the object moves the shadow's edge by d /
-// sin(elevation), so every cell whose ground shadow is in view stays finer
-// than K times the pixel footprint at that shadow times sin(elevation)
-// (probe.h, "Shadows on the ground"). Before, such cells took the lenient
-// shadow_factor (4) times the pinhole bound at the cell, and the shadow's
-// outline moved by about a pixel (6.7 dB below the noise floor on a CAD part).
+// sin(elevation), so every cell whose ground shadow is in view and reaches
+// ground the light lights stays finer than K times the pixel footprint at
+// that shadow times sin(elevation) (probe.h, "Shadows on the ground";
+// which ground is lit found here by brute force against the triangles).
+// Before, such cells took the lenient shadow_factor (4) times the pinhole
+// bound at the cell, and the shadow's outline moved by about a pixel (6.7 dB
+// below the noise floor on a CAD part). A cell whose shadow falls only
+// inside the shadow of other parts moves no shadow's edge: some are left
+// coarser than that.
 TEST(Probe, CellsWhoseShadowIsInViewAreAsFineAsTheShadowNeeds) {
   const Built& b = teapot();
   Scene scene = make_scene(MaterialType::Diffuse, Vec3d(8, 4, 0), Vec3d(8, 0, 0.01));
@@ -499,9 +503,23 @@ TEST(Probe, CellsWhoseShadowIsInViewAreAsFineAsTheShadowNeeds) {
       const Ray r = cam.generate(px, py);
       view.expand(r.origin + (-r.origin.y / r.direction.y) * r.direction);
     }
+  // Ground points of the view the light reaches past the teapot, brute
+  // force on a grid.
+  std::vector<Vec3d> lit_ground;
+  const test::TestMesh& soup = b.soup;
+  const test::Scene3 teapot_only{test::Prim{test::Prim::Mesh, Vec3d(0), Vec3d(0, 1, 0), 1, test::Mat::Diffuse, 1.5, &soup}};
+  constexpr int kGrid = 32;
+  for (int i = 0; i < kGrid; ++i)
+    for (int j = 0; j < kGrid; ++j) {
+      const Vec3d p(view.lo.x + (i + 0.5) / kGrid * view.extent().x, 0, view.lo.z + (j + 0.5) / kGrid * view.extent().z);
+      if (!test::intersect(teapot_only, p, -light_dir, 1e-9, -1, -1).found()) lit_ground.push_back(p);
+    }
+  ASSERT_FALSE(lit_ground.empty());
+  ASSERT_LT(lit_ground.size(), size_t(kGrid * kGrid));  // the teapot's shadow is in view
   // Per finest cell (the probe's need is theirs, the minimum over them
-  // above): its shadow; if that is in view, its collapsed ancestor (if any)
-  // must be finer than K times the footprint there.
+  // above): its shadow; if that is in view and covers lit ground, its
+  // collapsed ancestor (if any) must be finer than K times the footprint
+  // there.
   const Cut& cut = lit->cuts[0];
   std::set<CellKey> collapsed;
   for (const CollapsedCell& c : cut.cells) {
@@ -514,7 +532,7 @@ TEST(Probe, CellsWhoseShadowIsInViewAreAsFineAsTheShadowNeeds) {
   const Vec3d margin = 0.1 * view.extent();
   view.lo += margin;
   view.hi -= margin;
-  size_t in_view = 0;
+  size_t in_view = 0, in_shade = 0, coarser_in_shade = 0;
   for (const NodeRecord& n : b.store->level(Q)) {
     const CellKey key{uint32_t(Q), n.code};
     std::optional<CellKey> ancestor;
@@ -532,7 +550,6 @@ TEST(Probe, CellsWhoseShadowIsInViewAreAsFineAsTheShadowNeeds) {
     const bool seen = shadow.lo.x <= view.hi.x && shadow.hi.x >= view.lo.x && shadow.lo.z <= view.hi.z &&
                       shadow.hi.z >= view.lo.z;
     if (!seen) continue;
-    ++in_view;
     const Vec3d q = glm::max(shadow.lo - cam.eye, glm::max(Vec3d(0), cam.eye - shadow.hi));
     // The angle of the pixels the shadow covers (no mirror or glass shows
     // it elsewhere; checked against every pixel in the camera's tests), at
@@ -541,10 +558,37 @@ TEST(Probe, CellsWhoseShadowIsInViewAreAsFineAsTheShadowNeeds) {
     for (int i = 0; i < 4; ++i)
       shadow_corners[size_t(i)] = Vec3d(i & 1 ? shadow.hi.x : shadow.lo.x, 0, i & 2 ? shadow.hi.z : shadow.lo.z);
     const double a = std::max(a_min, smallest_pixel_angle_over(cam, shadow_corners));
-    EXPECT_LT(b.store->cell_diagonal(int(ancestor->level)), K * a * glm::length(q) * sin_elevation * (1 + 1e-9))
-        << "level " << ancestor->level;
+    const double bound = K * a * glm::length(q) * sin_elevation * (1 + 1e-9);
+    const bool on_lit_ground = std::any_of(lit_ground.begin(), lit_ground.end(), [&](const Vec3d& p) {
+      return p.x >= shadow.lo.x && p.x <= shadow.hi.x && p.z >= shadow.lo.z && p.z <= shadow.hi.z;
+    });
+    if (!on_lit_ground) {
+      ++in_shade;
+      if (!(b.store->cell_diagonal(int(ancestor->level)) < bound)) ++coarser_in_shade;
+      continue;
+    }
+    ++in_view;
+    EXPECT_LT(b.store->cell_diagonal(int(ancestor->level)), bound) << "level " << ancestor->level;
   }
   EXPECT_GT(in_view, 0u);
+  EXPECT_GT(in_shade, 0u);
+  EXPECT_GT(coarser_in_shade, 0u);
+  // The same cut without the rule for shadows within shadows (and unseen
+  // cells): those cells keep the bound too.
+  {
+    const OneObject one(b);
+    ProbeConfig c;
+    c.rays = 1000;
+    c.seed = 7;
+    c.footprint_scale = K;
+    c.unseen_cells = false;
+    Scene lit_scene = scene;
+    lit_scene.lights = {sun};
+    StatusOr<ProbeResult> before = Status::error("not run");
+    tbb::task_arena(2).execute([&] { before = run_probe(lit_scene, one.stores(), one.objects(), c); });
+    ASSERT_TRUE(before) << before.status().message();
+    EXPECT_GT(before->cuts[0].cells.size(), lit->cuts[0].cells.size());
+  }
   // Without the light nothing is seen of the teapot: it collapses hard.
   EXPECT_LT(dark->cuts[0].cells.size(), lit->cuts[0].cells.size() / 4);
   // Where the light stands decides the cut, so it is part of the cut's key:
@@ -651,6 +695,75 @@ TEST(Probe, SameCutOnOneOrTwoThreads) {
     EXPECT_EQ(ca.counters.at(k), cb.counters.at(k)) << k;
   EXPECT_EQ(ca.min_footprint, cb.min_footprint);
   EXPECT_EQ(ca.key, cb.key);
+}
+
+// Unseen cells (probe.h): the far side of a closed sphere whose normals
+// point outwards faces away from the eye, so with no light to cast its
+// shadow it collapses; the side the camera sees keeps its cells. The same
+// sphere turned inside out (normals pointing in) shows the camera back
+// faces: it is not taken for closed and outward, and keeps its cut.
+TEST(Probe, BackFacesOfAClosedMeshCollapseUnlessTheViewSeesThem) {
+  const test::TestMesh out = test::uv_sphere(Vec3d(0, 1.5, 0), 1.0, 32, 64);
+  test::TestMesh in = out;
+  for (size_t t = 0; t < in.size(); ++t) {
+    std::swap(in.p[3 * t + 1], in.p[3 * t + 2]);
+    std::swap(in.n[3 * t + 1], in.n[3 * t + 2]);
+  }
+  for (Vec3d& n : in.n) n = -n;
+  static const Built outward = build("sphere_out", out), inward = build("sphere_in", in);
+  ASSERT_EQ(outward.store->boundary_leaves(), 0u);
+  ASSERT_EQ(inward.store->boundary_leaves(), 0u);
+  const Vec3d eye(0.3, 2.0, 6.0);
+  const Scene scene = make_scene(MaterialType::Diffuse, eye, Vec3d(0, 1.5, 0), false, false);
+  auto run = [&](const Built& b, bool unseen) {
+    const OneObject one(b);
+    ProbeConfig c;
+    c.rays = 2000;
+    c.seed = 7;
+    c.unseen_cells = unseen;
+    StatusOr<ProbeResult> r = Status::error("not run");
+    tbb::task_arena(2).execute([&] { r = run_probe(scene, one.stores(), one.objects(), c); });
+    EXPECT_TRUE(r) << r.status().message();
+    return r;
+  };
+  auto with = run(outward, true), without = run(outward, false);
+  ASSERT_TRUE(with && without);
+  const Cut &a = with->cuts[0], &b = without->cuts[0];
+  EXPECT_GT(a.counters.at("finest_cells_back_facing"), 0u);
+  EXPECT_EQ(b.counters.at("finest_cells_back_facing"), 0u);
+  EXPECT_LT(a.cells.size(), b.cells.size());
+  // Where the sphere plainly faces the camera, the same cut cells.
+  auto cut_cell_of = [](const Cut& cut, const OctreeStore& st, const Vec3d& p) {
+    const int Q = st.header().quadric_depth;
+    std::set<CellKey> cells;
+    for (const CollapsedCell& c : cut.cells) cells.insert(c.key);
+    for (CellKey k = st.cell_of(p, Q);; k = k.parent()) {
+      if (cells.count(k)) return std::optional<CellKey>(k);
+      if (k.level == 0) return std::optional<CellKey>();
+    }
+  };
+  size_t facing = 0;
+  for (size_t t = 0; t < outward.soup.size(); ++t) {
+    const Vec3d* p = &outward.soup.p[3 * t];
+    const Vec3d centre = (p[0] + p[1] + p[2]) / 3.0;
+    const Vec3d n = glm::normalize(glm::cross(p[1] - p[0], p[2] - p[0]));
+    if (!(glm::dot(n, glm::normalize(centre - eye)) < -0.5)) continue;
+    ++facing;
+    for (int k = 0; k < 3; ++k)
+      EXPECT_EQ(cut_cell_of(a, *outward.store, p[k]), cut_cell_of(b, *outward.store, p[k])) << "triangle " << t;
+  }
+  EXPECT_GT(facing, 100u);
+  // Inside out: the camera's rays meet back faces.
+  auto in_with = run(inward, true), in_without = run(inward, false);
+  ASSERT_TRUE(in_with && in_without);
+  EXPECT_EQ(in_with->cuts[0].counters.at("finest_cells_back_facing"), 0u);
+  EXPECT_EQ(in_with->cuts[0].cells.size(), in_without->cuts[0].cells.size());
+  // The rule is part of the cut's key.
+  const OneObject one(outward);
+  ProbeConfig on, off;
+  off.unseen_cells = false;
+  EXPECT_NE(probe_key(scene, *outward.store, one.objects(), 0, on),
+            probe_key(scene, *outward.store, one.objects(), 0, off));
 }
 
 TEST(Probe, CameraInsideTheBoundingBox) {

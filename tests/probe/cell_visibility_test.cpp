@@ -1,0 +1,186 @@
+// Whole-cell visibility tests (probe/cell_visibility.h): tiny exact cases,
+// then seeded property tests against brute force (points of the box, of
+// its shadow, and the area that faces the eye).
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+#include <vector>
+
+#include "probe/cell_visibility.h"
+#include "random_unit.h"
+#include "scene/scene_camera.h"
+
+namespace raylod {
+namespace {
+
+Camera camera_at(const Vec3d& eye, const Vec3d& look_at) {
+  Camera c;
+  c.eye = eye;
+  c.look_at = look_at;
+  c.up = Vec3d(0, 1, 0);
+  c.fov_y_deg = 40;
+  c.width = 320;
+  c.height = 240;
+  return c;
+}
+
+std::array<Vec3d, 8> corners(const Bbox& b) {
+  std::array<Vec3d, 8> c;
+  for (int i = 0; i < 8; ++i)
+    c[size_t(i)] = Vec3d(i & 1 ? b.hi.x : b.lo.x, i & 2 ? b.hi.y : b.lo.y, i & 4 ? b.hi.z : b.lo.z);
+  return c;
+}
+
+// Whether the camera could see point q: in front of the eye and inside the
+// image (the pinhole mapping inverted).
+bool in_view(const PinholeCamera& cam, const Vec3d& q) {
+  const Vec3d s = q - cam.eye;
+  const double w = glm::dot(s, cam.forward);
+  if (!(w > 0)) return false;
+  return std::abs(glm::dot(s, cam.right) / w) <= cam.tan_half_x && std::abs(glm::dot(s, cam.up) / w) <= cam.tan_half_y;
+}
+
+Light directional(const Vec3d& d) {
+  Light l;
+  l.type = LightType::Directional;
+  l.direction = glm::normalize(d);
+  return l;
+}
+
+Light point(const Vec3d& p) {
+  Light l;
+  l.type = LightType::Point;
+  l.position = p;
+  return l;
+}
+
+TEST(CellVisibility, BoxesAndShadowsBesideTheView) {
+  const PinholeCamera cam = make_pinhole_camera(camera_at(Vec3d(0, 0, 10), Vec3d(0, 0, 0)));
+  const Frustum f = make_frustum(cam);
+  const Bbox ahead{Vec3d(-1), Vec3d(1)};
+  const Bbox behind{Vec3d(-1, -1, 12), Vec3d(1, 1, 14)};
+  const Bbox left{Vec3d(-40, -1, -1), Vec3d(-38, 1, 1)};
+  EXPECT_FALSE(f.outside(corners(ahead)));
+  EXPECT_TRUE(f.outside(corners(behind)));
+  EXPECT_TRUE(f.outside(corners(left)));
+  // Behind the eye, lit along the view: its shadow runs into the view; lit
+  // from the front it runs further back.
+  EXPECT_FALSE(f.shadow_outside(corners(behind), directional(Vec3d(0, 0, -1))));
+  EXPECT_TRUE(f.shadow_outside(corners(behind), directional(Vec3d(0, 0, 1))));
+  // Left of the view: a light from the left throws it across the view, one
+  // from the right away from it; a point light between it and the view too.
+  EXPECT_FALSE(f.shadow_outside(corners(left), directional(Vec3d(1, 0, 0))));
+  EXPECT_TRUE(f.shadow_outside(corners(left), directional(Vec3d(-1, 0, 0))));
+  EXPECT_TRUE(f.shadow_outside(corners(left), point(Vec3d(-30, 0, 0))));
+  EXPECT_FALSE(f.shadow_outside(corners(left), point(Vec3d(-50, 0, 0))));
+  // In view, any shadow may be seen.
+  EXPECT_FALSE(f.shadow_outside(corners(ahead), directional(Vec3d(0, -1, 0))));
+}
+
+// Boxes and lights at random: whenever the tests say outside, no point of
+// the box (corners and random points), nor of its shadow (those points
+// swept away from the light), projects into the image.
+TEST(CellVisibility, WhatIsOutsideIsNotSeen) {
+  std::mt19937_64 rng(11);
+  std::uniform_real_distribution<double> u(-1, 1), unit(0, 1);
+  int outside = 0, shadow_outside = 0;
+  for (int trial = 0; trial < 400; ++trial) {
+    const Vec3d eye(10 * u(rng), 10 * u(rng), 10 * u(rng));
+    const Vec3d centre(20 * u(rng), 20 * u(rng), 20 * u(rng));
+    const double half = 0.1 + 3 * unit(rng);
+    const Bbox box{centre - Vec3d(half), centre + Vec3d(half)};
+    // Every other camera looks near the box.
+    const Vec3d look = trial % 2 ? centre + 5 * unit(rng) * test::random_unit(rng) : eye + test::random_unit(rng);
+    const PinholeCamera cam = make_pinhole_camera(camera_at(eye, look));
+    const Frustum f = make_frustum(cam);
+    std::vector<Vec3d> points(corners(box).begin(), corners(box).end());
+    for (int k = 0; k < 32; ++k) points.push_back(box.lo + Vec3d(unit(rng), unit(rng), unit(rng)) * (box.hi - box.lo));
+    if (f.outside(corners(box))) {
+      ++outside;
+      for (const Vec3d& p : points) EXPECT_FALSE(in_view(cam, p)) << "trial " << trial;
+    }
+    const Light l = trial % 4 < 2 ? directional(test::random_unit(rng)) : point(Vec3d(20 * u(rng), 20 * u(rng), 20 * u(rng)));
+    if (!f.shadow_outside(corners(box), l)) continue;
+    ++shadow_outside;
+    for (const Vec3d& p : points) {
+      const Vec3d away = l.type == LightType::Directional ? l.direction : p - l.position;
+      for (double t : {0.0, 0.01, 0.1, 0.5, 1.0, 3.0, 10.0, 100.0, 1e4})
+        EXPECT_FALSE(in_view(cam, p + t * away)) << "trial " << trial << " t " << t;
+    }
+  }
+  // Both answers occur.
+  EXPECT_GT(outside, 40);
+  EXPECT_LT(outside, 360);
+  EXPECT_GT(shadow_outside, 20);
+}
+
+TEST(CellVisibility, FlatCellsFacingAwayAndTowardsTheEye) {
+  const Bbox box{Vec3d(-0.5), Vec3d(0.5)};
+  const Vec3d eye(0, 0, 10);  // looking down -z at the box
+  const Vec3d away(0, 0, -1);
+  EXPECT_TRUE(faces_away(eye, box, away, 1.0, 0.01));
+  EXPECT_FALSE(faces_away(eye, box, -away, 1.0, 0.01));
+  // Seen edge on, or from inside its bounding ball: not away.
+  EXPECT_FALSE(faces_away(eye, box, Vec3d(1, 0, 0), 1.0, 0.01));
+  EXPECT_FALSE(faces_away(Vec3d(0, 0, 0.6), box, away, 1.0, 0.01));
+  // Normals spread over a hemisphere (R = 0.5): too much may face the eye.
+  EXPECT_FALSE(faces_away(eye, box, away, 0.5, 0.01));
+  // Tilted until the box's nearest corners see it nearly edge on: a plane
+  // whose normal makes angle a with the view direction faces away from
+  // every point of the box only while a + beta < 90 degrees.
+  const double beta = std::asin(0.5 * std::sqrt(3.0) / 10.0);
+  const double a_in = 0.5 * M_PI - 2.1 * beta, a_out = 0.5 * M_PI - 0.9 * beta;
+  EXPECT_TRUE(faces_away(eye, box, Vec3d(std::sin(a_in), 0, -std::cos(a_in)), 1.0, 0.01));
+  EXPECT_FALSE(faces_away(eye, box, Vec3d(std::sin(a_out), 0, -std::cos(a_out)), 1.0, 0.01));
+}
+
+// Cells of random normals (a cluster around a random axis, with weights as
+// areas, some stray normals among them): whenever faces_away says so, at
+// every sampled point of the box the area whose normal faces that point is
+// at most the share given.
+TEST(CellVisibility, FacingAwayBoundsTheAreaThatFacesTheEye) {
+  std::mt19937_64 rng(5);
+  std::uniform_real_distribution<double> u(-1, 1), unit(0, 1);
+  int away = 0;
+  for (int trial = 0; trial < 2000; ++trial) {
+    const Vec3d centre(5 * u(rng), 5 * u(rng), 5 * u(rng));
+    const double half = 0.05 + unit(rng);
+    const Bbox box{centre - Vec3d(half), centre + Vec3d(half)};
+    const Vec3d eye = centre + (2 + 20 * unit(rng)) * test::random_unit(rng);
+    // Mostly facing away from the eye, so that both answers occur.
+    const Vec3d axis = glm::normalize(glm::normalize(centre - eye) + 0.7 * test::random_unit(rng));
+    const double spread = 0.5 * unit(rng) * unit(rng);
+    const int count = 1 + int(40 * unit(rng));
+    std::vector<Vec3d> normals;
+    std::vector<double> areas;
+    for (int k = 0; k < count; ++k) {
+      const bool stray = unit(rng) < 0.05;
+      normals.push_back(stray ? test::random_unit(rng) : glm::normalize(axis + spread * test::random_unit(rng)));
+      areas.push_back(stray ? 0.05 * unit(rng) : unit(rng));
+    }
+    Vec3d sum(0);
+    double weight = 0;
+    for (size_t k = 0; k < normals.size(); ++k) {
+      sum += areas[k] * normals[k];
+      weight += areas[k];
+    }
+    const double len = glm::length(sum);
+    if (!(len > 0) || !(weight > 0)) continue;
+    const double share = trial % 2 ? 0.01 : 0.1;
+    if (!faces_away(eye, box, sum / len, len / weight, share)) continue;
+    ++away;
+    std::vector<Vec3d> points(corners(box).begin(), corners(box).end());
+    for (int k = 0; k < 24; ++k) points.push_back(box.lo + Vec3d(unit(rng), unit(rng), unit(rng)) * (box.hi - box.lo));
+    for (const Vec3d& p : points) {
+      double facing = 0;
+      for (size_t k = 0; k < normals.size(); ++k)
+        if (glm::dot(normals[k], p - eye) <= 0) facing += areas[k];
+      EXPECT_LE(facing, share * weight * (1 + 1e-12)) << "trial " << trial;
+    }
+  }
+  EXPECT_GT(away, 200);
+}
+
+}  // namespace
+}  // namespace raylod
