@@ -2,8 +2,11 @@
 // on prebuilt stores (raylod build MESH first), the default scene's camera.
 //
 //   bench_probe STORE [STORE...] [--rays 5000,50000] [--repeats 3]
-//               [--memory-limit 1G] [--threads 0] [--json FILE]
+//               [--memory-limit 1G] [--threads 0] [--unseen-cells off]
+//               [--json FILE]
 //
+// --unseen-cells off: the cut's rule before unseen cells
+// (ProbeConfig::unseen_cells), which traces no shadow rays from the ground.
 // Prints, per store x material (diffuse, glass) x ray count, the median probe
 // time over the repeats, rays/s, pages read, bytes read, cache peak, cells
 // marked and peak RSS; --json writes the same rows.
@@ -62,6 +65,7 @@ int main(int argc, char** argv) {
   int repeats = 3, threads = 0;
   uint64_t memory_limit = uint64_t(1) << 30;
   std::string json_path;
+  bool unseen_cells = true;
   for (int i = 1; i < argc; ++i) {
     std::string a = argv[i];
     auto value = [&]() -> std::string {
@@ -72,13 +76,21 @@ int main(int argc, char** argv) {
     else if (a == "--repeats") repeats = std::max(1, std::stoi(value()));
     else if (a == "--threads") threads = std::stoi(value());
     else if (a == "--json") json_path = value();
+    else if (a == "--unseen-cells") {
+      const std::string v = value();
+      if (v != "on" && v != "off") {
+        std::fprintf(stderr, "bench_probe: --unseen-cells takes on or off, not '%s'\n", v.c_str());
+        return 1;
+      }
+      unseen_cells = v == "on";
+    }
     else if (a == "--memory-limit") {
       auto v = parse_size(value());
       if (!v) { std::fprintf(stderr, "bench_probe: %s\n", v.status().message().c_str()); return 2; }
       memory_limit = *v;
     } else if (a == "-h" || a == "--help") {
       std::printf("usage: bench_probe STORE [STORE...] [--rays 5000,50000] [--repeats 3] [--memory-limit 1G] "
-                  "[--threads 0] [--json FILE]\n");
+                  "[--threads 0] [--unseen-cells off] [--json FILE]\n");
       return 0;
     } else stores.push_back(a);
   }
@@ -107,8 +119,8 @@ int main(int argc, char** argv) {
               format_bytes(rss0).c_str(), format_bytes(cache_bytes).c_str());
   std::string json = "[\n";
   bool first = true;
-  std::printf("%-24s %-8s %7s %9s %8s %8s %10s %10s %7s %10s %10s %9s %10s\n", "store", "material", "rays", "median_s",
-              "trace_s", "cut_s", "rays/s", "visits/ray", "pages", "bytes_read", "cache_peak", "cells", "peak_rss");
+  std::printf("%-24s %-8s %7s %9s %8s %8s %10s %8s %10s %7s %10s %10s %9s %10s\n", "store", "material", "rays",
+              "median_s", "trace_s", "cut_s", "rays/s", "gshadow", "visits/ray", "pages", "bytes_read", "cache_peak", "cells", "peak_rss");
   for (size_t si = 0; si < stores.size(); ++si) {
     const std::string& path = stores[si];
     const OctreeStore& store = *opened_stores[si];
@@ -121,6 +133,7 @@ int main(int argc, char** argv) {
         config.rays = rays;
         config.seed = 1;
         config.cache_bytes = cache_bytes;
+        config.unseen_cells = unseen_cells;
         std::vector<double> seconds;
         ProbeResult last;
         for (int r = 0; r < repeats; ++r) {
@@ -137,10 +150,11 @@ int main(int argc, char** argv) {
         const uint64_t all_rays = last.counters["rays_primary"] + last.counters["rays_reflection"] +
                                   last.counters["rays_refraction"];
         const uint64_t peak = peak_rss_bytes();
-        std::printf("%-24s %-8s %7llu %9.3f %8.3f %8.3f %10.0f %10.2f %7llu %10s %10s %9zu %10s\n",
+        std::printf("%-24s %-8s %7llu %9.3f %8.3f %8.3f %10.0f %8llu %10.2f %7llu %10s %10s %9zu %10s\n",
                     std::filesystem::path(path).filename().string().c_str(), to_string(type),
                     static_cast<unsigned long long>(rays), median, last.trace_seconds, last.cut_seconds,
-                    double(all_rays) / last.trace_seconds, double(last.counters["page_visits"]) / double(all_rays),
+                    double(all_rays) / last.trace_seconds,
+                    static_cast<unsigned long long>(last.counters["rays_ground_shadow"]), double(last.counters["page_visits"]) / double(all_rays),
                     static_cast<unsigned long long>(last.counters["pages_read"]),
                     format_bytes(last.counters["bytes_read"]).c_str(),
                     format_bytes(last.counters["cache_peak_bytes"]).c_str(), last.cuts[0].cells.size(),

@@ -125,8 +125,27 @@ case "$mode" in
     # All tests but one: Run.MemoryLimitBelowTheFullMeshCoarsensTheCut sizes the
     # page cache from the process's RSS, which under ASan also holds the shadow
     # memory and the quarantine of freed blocks (479 MiB against 300 MiB).
-    ctest --test-dir "$sanitize_dir" --output-on-failure -j"$(nproc)" --timeout 3000 \
-      -E '^Run\.MemoryLimitBelowTheFullMeshCoarsensTheCut$'
+    #
+    # LeakSanitizer's stop-the-world tracer itself sometimes crashes at a
+    # process's exit on this kind of virtual machine ("Tracer caught signal
+    # 11 ... LeakSanitizer has encountered a fatal error", after the test
+    # passed; google/sanitizers#1353): no leak is reported, the check did not
+    # run. Seen once in each of three sanitizer suites of 633 tests here
+    # (2026-11-29), in a different test each time. So when every
+    # failed test shows that crash, those tests run once more and must pass;
+    # any other failure fails the job at once.
+    sanitize_log="$sanitize_dir/ctest-output.log"
+    if ! ctest --test-dir "$sanitize_dir" --output-on-failure -j"$(nproc)" --timeout 3000 \
+      -E '^Run\.MemoryLimitBelowTheFullMeshCoarsensTheCut$' --output-log "$sanitize_log"; then
+      failed=$(grep -c . "$sanitize_dir/Testing/Temporary/LastTestsFailed.log" || true)
+      crashes=$(grep -c "LeakSanitizer has encountered a fatal error" "$sanitize_log" || true)
+      if [ "$failed" -gt 0 ] && [ "$crashes" -ge "$failed" ]; then
+        echo "setup.sh: $failed test(s) failed with LeakSanitizer's tracer crashing at exit; running them again" >&2
+        ctest --test-dir "$sanitize_dir" --output-on-failure --timeout 3000 --rerun-failed
+      else
+        exit 1
+      fi
+    fi
     smoke_bad_inputs "$sanitize_dir/raylod"
     fuzz_build_and_run
     exit 0

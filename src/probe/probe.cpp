@@ -389,9 +389,11 @@ class ProbeTracer {
 
   // Which lights reach a ground point past the meshes (GroundHit::lit): a
   // shadow ray to each light, as the renderer's (a light below the ground
-  // reaches none of it). Only where the ground shows shadows.
+  // reaches none of it). Only where the ground shows shadows and the cut
+  // looks (ProbeConfig::unseen_cells).
   Status light_ground(GroundHit& g, ProbeRayCounters& counters) const {
-    if (scene_.lights.empty() || scene_.materials[size_t(scene_.ground->material)].reflects()) return {};
+    if (!config_.unseen_cells || scene_.lights.empty() || scene_.materials[size_t(scene_.ground->material)].reflects())
+      return {};
     const size_t n = std::min<size_t>(scene_.lights.size(), 32);
     for (size_t l = 0; l < n; ++l) {
       const Light& light = scene_.lights[l];
