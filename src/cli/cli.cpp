@@ -159,7 +159,11 @@ std::vector<Args::Option> cut_options() {
           {"--footprint-scale", "", k, true, "K"},
           {"--balance", "", "grade the cut (no cell beside one two levels coarser): specular\n"
                             "                              (objects on mirrors and glass under the deviation criterion;\n"
-                            "                              default), all or off", true, "WHICH"}};
+                            "                              default), all or off", true, "WHICH"},
+          {"--unseen-cells", "", "on (default) or off: cells no test ray reached that the camera\n"
+                                 "                              cannot see (back faces of a closed mesh, outside the view)\n"
+                                 "                              and whose shadows cannot show collapse; off: the rule before\n"
+                                 "                              2026-11-29", true, "ON|OFF"}};
 }
 
 std::vector<Args::Option> with_cut_options(std::vector<Args::Option> options) {
@@ -191,6 +195,11 @@ StatusOr<CutOptions> cut_options_from_args(const Args& args) {
   RAYLOD_ASSIGN_OR_RETURN(o.footprint_scale, args.get_double("--footprint-scale", default_k));
   if (!(o.footprint_scale > 0)) return Status::error("--footprint-scale must be > 0");
   if (args.has("--balance")) { RAYLOD_ASSIGN_OR_RETURN(o.balance, parse_cut_balance(args.get("--balance"))); }
+  if (args.has("--unseen-cells")) {
+    const std::string v = args.get("--unseen-cells");
+    if (v != "on" && v != "off") return Status::error("--unseen-cells: unknown value '" + v + "' (on or off)");
+    o.unseen_cells = v == "on";
+  }
   return o;
 }
 

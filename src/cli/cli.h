@@ -80,6 +80,7 @@ struct CutOptions {
   double outline_tolerance = kDefaultOutlineTolerance;  // a fraction of tolerance_px
   double footprint_scale = kDefaultFootprintScale;
   CutBalance balance = CutBalance::Specular;
+  bool unseen_cells = true;  // --unseen-cells
   bool tolerance_given = false, angle_tolerance_given = false;
   // The default tolerances for a render of `spp` samples per pixel
   // (default_tolerance_px), where none was given.

@@ -98,6 +98,7 @@ int cmd_probe(int argc, char** argv) {
   config.angle_tolerance_px = cut_opts->angle_tolerance_px;
   config.outline_tolerance = cut_opts->outline_tolerance;
   config.balance = cut_opts->balance;
+  config.unseen_cells = cut_opts->unseen_cells;
 
   auto traced = trace_probe_across_ranks(scene, stores, objects, config);
   if (!traced) return cli::fail("probe", traced.status());

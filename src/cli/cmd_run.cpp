@@ -190,6 +190,7 @@ Status run_run(int argc, char** argv, bool& help) {
   opts.angle_tolerance_px = cut.angle_tolerance_px;
   opts.outline_tolerance = cut.outline_tolerance;
   opts.balance = cut.balance;
+  opts.unseen_cells = cut.unseen_cells;
   {
     std::vector<FileRole> outputs = {{sequence ? numbered_image_path(output, 0) : output, "the image (-o)"}};
     if (args.has("--compare")) {

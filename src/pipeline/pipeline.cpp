@@ -533,6 +533,7 @@ StatusOr<ProbeConfig> run_probe_config(const RunSession& session, const Scene& s
   probe.angle_tolerance_px = options.angle_tolerance_px;
   probe.outline_tolerance = options.outline_tolerance;
   probe.balance = options.balance;
+  probe.unseen_cells = options.unseen_cells;
   probe.selection_cache = session.selection_cache.get();
   return probe;
 }

@@ -70,6 +70,7 @@ struct RunOptions {
   double angle_tolerance_px = kDefaultAngleTolerancePx;  // its mirror/glass normal bound (probe.h)
   double outline_tolerance = kDefaultOutlineTolerance;   // its fraction where an outline may run (probe.h)
   CutBalance balance = CutBalance::Specular;             // which cuts are graded (probe.h)
+  bool unseen_cells = true;  // cells the camera cannot see collapse as their shadows allow (probe.h)
   std::filesystem::path cache_dir;    // empty = default_cache_dir()
   uint64_t cache_limit = uint64_t(4) << 30;
   bool use_cache = true;

@@ -25,6 +25,8 @@ TEST(OptionRanges, ZeroSizesSamplesAndErrorsAreRefused) {
       {"run --criterion diagonal --angle-tolerance 4 -o unused.png", "--angle-tolerance bounds the deviation criterion"},
       {"run --cache '' -o unused.png", "--cache: an empty folder name"},
       {"report --scales 8,16,8 -o unused-report", "--scales: '8' is given twice"},
+      {"probe --unseen-cells yes -o unused.cut", "--unseen-cells: unknown value 'yes' (on or off)"},
+      {"run --unseen-cells 1 -o unused.png", "--unseen-cells: unknown value '1' (on or off)"},
   };
   for (const Case& c : cases) {
     std::string out;
