@@ -120,21 +120,23 @@ struct OneObject {
   std::span<const ProbeObject> objects() const { return {&object, 1}; }
 };
 
-// The probe in a task arena of `threads`: the probe uses the parallelism of
-// the arena it is called in (core/parallelism.h).
+// The probe with config `c` in a task arena of `threads`: the probe uses the
+// parallelism of the arena it is called in (core/parallelism.h).
+StatusOr<ProbeResult> probe_with_config(const Scene& scene, const Built& b, const ProbeConfig& c, int threads = 2) {
+  const OneObject one(b);
+  StatusOr<ProbeResult> result = Status::error("not run");
+  tbb::task_arena(threads).execute([&] { result = run_probe(scene, one.stores(), one.objects(), c); });
+  return result;
+}
+
 StatusOr<ProbeResult> probe(const Scene& scene, const Built& b, uint64_t rays, int threads = 2, double k = 1.0,
                             uint64_t cache = uint64_t(64) << 20) {
-  const OneObject one(b);
   ProbeConfig c;
   c.rays = rays;
   c.seed = 7;
   c.footprint_scale = k;
   c.cache_bytes = cache;
-  StatusOr<ProbeResult> result = Status::error("not run");
-  tbb::task_arena(threads).execute([&] {
-    result = run_probe(scene, one.stores(), one.objects(), c);
-  });
-  return result;
+  return probe_with_config(scene, b, c, threads);
 }
 
 const Vec3d kEye(6.5, 4.8, 8.5), kLook(0.2, 1.3, 0.0);
@@ -576,7 +578,6 @@ TEST(Probe, CellsWhoseShadowIsInViewAreAsFineAsTheShadowNeeds) {
   // The same cut without the rule for shadows within shadows (and unseen
   // cells): those cells keep the bound too.
   {
-    const OneObject one(b);
     ProbeConfig c;
     c.rays = 1000;
     c.seed = 7;
@@ -584,8 +585,7 @@ TEST(Probe, CellsWhoseShadowIsInViewAreAsFineAsTheShadowNeeds) {
     c.unseen_cells = false;
     Scene lit_scene = scene;
     lit_scene.lights = {sun};
-    StatusOr<ProbeResult> before = Status::error("not run");
-    tbb::task_arena(2).execute([&] { before = run_probe(lit_scene, one.stores(), one.objects(), c); });
+    auto before = probe_with_config(lit_scene, b, c);
     ASSERT_TRUE(before) << before.status().message();
     EXPECT_GT(before->cuts[0].cells.size(), lit->cuts[0].cells.size());
   }
@@ -716,15 +716,11 @@ TEST(Probe, BackFacesOfAClosedMeshCollapseUnlessTheViewSeesThem) {
   const Vec3d eye(0.3, 2.0, 6.0);
   const Scene scene = make_scene(MaterialType::Diffuse, eye, Vec3d(0, 1.5, 0), false, false);
   auto run = [&](const Built& b, bool unseen) {
-    const OneObject one(b);
     ProbeConfig c;
     c.rays = 2000;
     c.seed = 7;
     c.unseen_cells = unseen;
-    StatusOr<ProbeResult> r = Status::error("not run");
-    tbb::task_arena(2).execute([&] { r = run_probe(scene, one.stores(), one.objects(), c); });
-    EXPECT_TRUE(r) << r.status().message();
-    return r;
+    return probe_with_config(scene, b, c);
   };
   auto with = run(outward, true), without = run(outward, false);
   ASSERT_TRUE(with && without);
