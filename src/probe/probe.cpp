@@ -1176,9 +1176,10 @@ StatusOr<CutSelection> CutSelection::make(std::span<const ProbeView> views, cons
     shift_need.resize(size_t(Q) + 1);
     contour_need.resize(size_t(Q) + 1);
     tilt.resize(size_t(Q) + 1);
-    // The outline test in the store's frame where an object's transform
-    // keeps angles (a rotation, uniform scale, translation: the common
-    // case): there mean . d and the ratio of |mean . d| to |mean| |d| are
+    // The outline and facing tests in the store's frame where an object's
+    // transform keeps angles (a rotation, uniform scale, translation: the
+    // common case; a reflection keeps which side faces the eye too): there
+    // mean . d and the ratio of |mean . d| to |mean| |d| are
     // those of the world, and each view's eye is moved into the store's
     // frame once. Per view, per object on the store: that eye, or NaN
     // where the transform shears or scales unevenly (tested in the world).
@@ -1215,7 +1216,6 @@ StatusOr<CutSelection> CutSelection::make(std::span<const ProbeView> views, cons
       if (n.specular) tilt[size_t(Q)].assign(nodes.size(), kInf);
       const bool store_specular = n.specular;
       const double unreached_allowance = config.unreached_angle_allowance;
-
       unseen_below.assign(size_t(Q) + 1, {});
       unseen_below[size_t(Q)].assign(nodes.size(), 0);
       tbb::parallel_for(tbb::blocked_range<size_t>(0, nodes.size(), 1024), [&](const tbb::blocked_range<size_t>& r) {
