@@ -3,6 +3,7 @@
 // its shadow, and the area that faces the eye).
 #include <gtest/gtest.h>
 
+#include <array>
 #include <cmath>
 #include <random>
 #include <vector>
@@ -94,14 +95,15 @@ TEST(CellVisibility, WhatIsOutsideIsNotSeen) {
     const Vec3d look = trial % 2 ? centre + 5 * unit(rng) * test::random_unit(rng) : eye + test::random_unit(rng);
     const PinholeCamera cam = make_pinhole_camera(camera_at(eye, look));
     const Frustum f = make_frustum(cam);
-    std::vector<Vec3d> points(corners(box).begin(), corners(box).end());
+    const std::array<Vec3d, 8> box_corners = corners(box);
+    std::vector<Vec3d> points(box_corners.begin(), box_corners.end());
     for (int k = 0; k < 32; ++k) points.push_back(box.lo + Vec3d(unit(rng), unit(rng), unit(rng)) * (box.hi - box.lo));
-    if (f.outside(corners(box))) {
+    if (f.outside(box_corners)) {
       ++outside;
       for (const Vec3d& p : points) EXPECT_FALSE(in_view(cam, p)) << "trial " << trial;
     }
     const Light l = trial % 4 < 2 ? directional(test::random_unit(rng)) : point(Vec3d(20 * u(rng), 20 * u(rng), 20 * u(rng)));
-    if (!f.shadow_outside(corners(box), l)) continue;
+    if (!f.shadow_outside(box_corners, l)) continue;
     ++shadow_outside;
     for (const Vec3d& p : points) {
       const Vec3d away = l.type == LightType::Directional ? l.direction : p - l.position;
@@ -170,7 +172,8 @@ TEST(CellVisibility, FacingAwayBoundsTheAreaThatFacesTheEye) {
     const double share = trial % 2 ? 0.01 : 0.1;
     if (!faces_away(eye, box, sum / len, len / weight, share)) continue;
     ++away;
-    std::vector<Vec3d> points(corners(box).begin(), corners(box).end());
+    const std::array<Vec3d, 8> box_corners = corners(box);
+    std::vector<Vec3d> points(box_corners.begin(), box_corners.end());
     for (int k = 0; k < 24; ++k) points.push_back(box.lo + Vec3d(unit(rng), unit(rng), unit(rng)) * (box.hi - box.lo));
     for (const Vec3d& p : points) {
       double facing = 0;
