@@ -130,8 +130,8 @@ case "$mode" in
     # process's exit on this kind of virtual machine ("Tracer caught signal
     # 11 ... LeakSanitizer has encountered a fatal error", after the test
     # passed; google/sanitizers#1353): no leak is reported, the check did not
-    # run. Seen once in each of three sanitizer suites of 633 tests here
-    # (2026-11-29), in a different test each time. So when every
+    # run. Seen once in each of six sanitizer suites of 633 to 638 tests
+    # here (2026-11-29), in a different test each time. So when every
     # failed test shows that crash, those tests run once more and must pass;
     # any other failure fails the job at once.
     sanitize_log="$sanitize_dir/ctest-output.log"
