@@ -392,7 +392,7 @@ class ProbeTracer {
   // reaches none of it). Only where the ground shows shadows and the cut
   // looks (ProbeConfig::unseen_cells).
   Status light_ground(GroundHit& g, ProbeRayCounters& counters) const {
-    if (!config_.unseen_cells || scene_.lights.empty() || scene_.materials[size_t(scene_.ground->material)].reflects())
+    if (!config_.unseen_cells || !scene_.ground_shows_shadows())
       return {};
     const size_t n = std::min<size_t>(scene_.lights.size(), 32);
     for (size_t l = 0; l < n; ++l) {
@@ -1061,7 +1061,7 @@ StatusOr<CutSelection> CutSelection::make(std::span<const ProbeView> views, cons
     // shadow's distance d from the eye. Infinite if no shadow reaches the
     // visible ground, or the ground is a mirror or glass (it shows no
     // shadows).
-    const bool ground_shadows = lights && scene.ground && !scene.materials[size_t(scene.ground->material)].reflects();
+    const bool ground_shadows = scene.ground_shows_shadows();
     // Per light, what does not depend on the cell: a directional light's
     // slope (the shadow of (x, y, z) is (x - (y - h) dx/dy, h, z - (y - h)
     // dz/dy)) and its sin(alpha).

@@ -45,6 +45,10 @@ bool Scene::any_refraction() const {
   return false;
 }
 
+bool Scene::ground_shows_shadows() const {
+  return ground && !lights.empty() && !materials[size_t(ground->material)].reflects();
+}
+
 namespace {
 
 constexpr double kMaxEyeDistance = 1e18;

@@ -108,6 +108,10 @@ struct Scene {
 
   bool any_reflection() const;
   bool any_refraction() const;
+  // Whether shadows can show on the ground: there is a ground, it does not
+  // reflect (a mirror floor shows what it reflects, not shadows), and some
+  // light casts them.
+  bool ground_shows_shadows() const;
 };
 
 // A transform's rotate_deg (XYZ Euler angles in degrees) applied to m: m
