@@ -94,7 +94,8 @@ Status run_render(int argc, char** argv, bool& help) {
   if (args.has("--mesh")) {
     const std::filesystem::path mesh = args.get("--mesh");
     std::error_code ec;
-    if (!std::filesystem::is_regular_file(mesh, ec)) return Status::error("--mesh: file not found: " + mesh.string());
+    if (std::filesystem::is_directory(mesh, ec)) return Status::error(mesh.string() + ": is a directory, not a mesh file");
+    if (!std::filesystem::is_regular_file(mesh, ec)) return Status::error(mesh.string() + ": mesh file not found");
     // The replacement is never generated, so clear the generator request.
     scene.objects[0].mesh = mesh;
     scene.objects[0].generate.reset();

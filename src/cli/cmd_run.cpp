@@ -146,6 +146,10 @@ Status run_run(int argc, char** argv, bool& help) {
     if (is_pass_through_output(output))
       return Status::error(output.string() + ": --compare writes its images beside the image (-o), which must then "
                            "be a file, not a device or FIFO");
+    // Its two images are written after the image (-o): checked now, so that
+    // a failure to write them cannot leave the image behind.
+    RAYLOD_RETURN_IF_ERROR(check_output_image_path(compare_image_path(output, "full")));
+    RAYLOD_RETURN_IF_ERROR(check_output_image_path(compare_image_path(output, "diff")));
   }
 
   RunOptions opts;
@@ -220,12 +224,16 @@ Status run_run(int argc, char** argv, bool& help) {
       RAYLOD_ASSIGN_OR_RETURN(int64_t n, args.get_int("--orbit", 0, 1, 100000));
       RAYLOD_ASSIGN_OR_RETURN(cameras, orbit_cameras(scene.camera, int(n)));
     }
-    // Each view's image, now that their number is known, against the
-    // statistics file (view 0's was checked with the others above).
-    if (args.has("--stats-json"))
-      for (size_t i = 1; i < cameras.size(); ++i)
+    // Each view's image, now that their number is known: a path a view
+    // could not be written to (a directory there) would fail the run after
+    // the views before it were written. And against the statistics file
+    // (view 0's was checked with the others above).
+    for (size_t i = 1; i < cameras.size(); ++i) {
+      RAYLOD_RETURN_IF_ERROR(check_output_image_path(numbered_image_path(output, i)));
+      if (args.has("--stats-json"))
         RAYLOD_RETURN_IF_ERROR(check_outputs_apart({{numbered_image_path(output, i), "the image of view " + std::to_string(i)}},
                                                    {{args.get("--stats-json"), "--stats-json"}}));
+    }
     return run_view_sequence(args, std::move(scene), cameras, opts, output, log);
   }
 

@@ -66,13 +66,17 @@ int main(int argc, char** argv) {
     return 1;
   }
   // `raylod help COMMAND` is `raylod COMMAND --help`.
-  if (argc == 3 && !std::strcmp(argv[1], "help"))
-    for (const auto& c : raylod::cli::commands())
-      if (!std::strcmp(c.name, argv[2])) {
-        char help_flag[] = "--help";
-        char* args[] = {argv[2], help_flag, nullptr};
-        return c.run(2, args);
-      }
+  if (argc >= 3 && !std::strcmp(argv[1], "help")) {
+    if (argc == 3)
+      for (const auto& c : raylod::cli::commands())
+        if (!std::strcmp(c.name, argv[2])) {
+          char help_flag[] = "--help";
+          char* args[] = {argv[2], help_flag, nullptr};
+          return c.run(2, args);
+        }
+    std::fprintf(stderr, "raylod: help: unknown command '%s' (see raylod --help)\n", argv[2]);
+    return 2;
+  }
   if (argc < 2 || !std::strcmp(argv[1], "--help") || !std::strcmp(argv[1], "-h") || !std::strcmp(argv[1], "help")) {
     print_help();
     return argc < 2 ? 2 : 0;

@@ -346,13 +346,13 @@ Scene closeup_scene(const Scene& scene) {
 StatusOr<ReportResult> run_report(const Scene& input_scene, const std::optional<fs::path>& mesh_override,
                                   const ReportConfig& cfg, const LogFn& log) {
   auto say = [&](const std::string& m) { if (log) log(m); };
+  if (input_scene.objects.size() != 1)
+    return Status::error("the report compares simplifiers on one mesh; the scene has " +
+                         std::to_string(input_scene.objects.size()) + " objects");
   std::error_code ec;
   fs::create_directories(cfg.out_dir, ec);
   if (ec) return Status::error(cfg.out_dir.string() + ": cannot create report directory: " + ec.message());
   const fs::path cache_dir = cfg.cache_dir.empty() ? default_cache_dir() : cfg.cache_dir;
-  if (input_scene.objects.size() != 1)
-    return Status::error("the report compares simplifiers on one mesh; the scene has " +
-                         std::to_string(input_scene.objects.size()) + " objects");
 
   Scene base = input_scene;
   if (cfg.width > 0) base.camera.width = cfg.width;

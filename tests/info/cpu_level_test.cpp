@@ -32,5 +32,16 @@ TEST(CpuLevel, TheExecutableStarts) {
   EXPECT_NE(out.find("raylod "), std::string::npos) << out;
 }
 
+// `raylod help COMMAND` is the command's help; an unknown one is an error,
+// as `raylod COMMAND` is.
+TEST(Cli, HelpForACommandAndForAnUnknownOne) {
+  std::string out;
+  EXPECT_EQ(test::run_raylod("help probe", out), 0) << out;
+  EXPECT_NE(out.find("usage: raylod probe"), std::string::npos) << out;
+  EXPECT_EQ(test::run_raylod("help nosuch", out), 2) << out;
+  EXPECT_NE(out.find("unknown command 'nosuch'"), std::string::npos) << out;
+  EXPECT_EQ(test::run_raylod("nosuch", out), 2) << out;
+}
+
 }  // namespace
 }  // namespace raylod

@@ -151,6 +151,8 @@ TEST(OutputsApart, UnwritableOutputsFailBeforeRendering) {
        "objects": [{"mesh": "tetra.ply", "material": "m"}], "spp": 1})";
   std::filesystem::create_directories(dir / "d.png");
   std::filesystem::create_directories(dir / "o.normal.exr");
+  std::filesystem::create_directories(dir / "c.full.png");
+  std::filesystem::create_directories(dir / "v_1.png");
   struct Case {
     std::string args, expect;
   };
@@ -164,6 +166,13 @@ TEST(OutputsApart, UnwritableOutputsFailBeforeRendering) {
       {"build tetra.ply -o missing/a/x.raylod -q", "the store (-o): directory missing/a does not exist"},
       {"probe scene.json -o missing/b/x.cut -q", "the cut (-o): directory missing/b does not exist"},
       {"run scene.json --no-cache -o /dev/null --compare -q", "must then be a file, not a device or FIFO"},
+      // Images written after the first one: checked before it is written.
+      {"run scene.json --no-cache -o c.png --compare -q", "c.full.png: is a directory"},
+      {"run scene.json --no-cache --orbit 2 -o v_#.png -q", "v_1.png: is a directory"},
+      {"render scene.json --mesh d.png -o r.png -q", "d.png: is a directory, not a mesh file"},
+      // The report makes its folder, not the folders above it.
+      {"report scene.json -o missing/r -q", "the report folder (-o): directory missing does not exist"},
+      {"report scene.json -o tetra.ply -q", "tetra.ply: the report folder (-o) names a file"},
   };
   for (const Case& c : cases) {
     const test::CommandResult r =
@@ -174,6 +183,9 @@ TEST(OutputsApart, UnwritableOutputsFailBeforeRendering) {
   }
   EXPECT_FALSE(std::filesystem::exists(dir / "o.png"));
   EXPECT_FALSE(std::filesystem::exists(dir / "o.depth.exr"));
+  EXPECT_FALSE(std::filesystem::exists(dir / "c.png"));
+  EXPECT_FALSE(std::filesystem::exists(dir / "v_0.png"));
+  EXPECT_FALSE(std::filesystem::exists(dir / "r.png"));
   EXPECT_FALSE(std::filesystem::exists(dir / "missing"));  // probe made it before
   EXPECT_FALSE(std::filesystem::exists(dir / "tetra.ply.raylod"));  // nothing built for the refused probe
   // A device without an extension takes a PNG (the bytes pass through);
