@@ -135,7 +135,7 @@ StatusOr<double> crease_angle_from_args(const Args& args, double fallback) {
 }
 
 std::vector<Args::Option> cut_options() {
-  char k[256], tol[200], angle[400], outline[300];
+  char k[256], tol[200], angle[400], outline[300], unreached[400];
   std::snprintf(k, sizeof k, "K: cells may collapse while their diagonal < K x footprint\n"
                 "                              (default %g; %g with --criterion diagonal)",
                 kDefaultFootprintScale, kDefaultDiagonalFootprintScale);
@@ -145,8 +145,14 @@ std::vector<Args::Option> cut_options() {
   std::snprintf(angle, sizeof angle,
                 "deviation criterion on mirrors and glass: largest turn of a reflected\n"
                 "                              or refracted ray, in pixel angles, where test rays measured it\n"
-                "                              (default %g; %g times it where none reached; less above 4 spp)",
+                "                              (default %g; %g times it where none reached, --unreached-angle;\n"
+                "                              less above 4 spp)",
                 kDefaultAngleTolerancePx, kDefaultUnreachedAngleAllowance);
+  std::snprintf(unreached, sizeof unreached,
+                "deviation criterion on mirrors and glass, where no test ray reached:\n"
+                "                              this many times --angle-tolerance (default %g; larger trades\n"
+                "                              accuracy for fewer triangles, README \"What accuracy costs\")",
+                kDefaultUnreachedAngleAllowance);
   std::snprintf(outline, sizeof outline,
                 "deviation criterion where an outline may run: this fraction of\n"
                 "                              --tolerance, 0 to 1 (default %g; 1: the same as elsewhere)",
@@ -156,6 +162,7 @@ std::vector<Args::Option> cut_options() {
           {"--tolerance", "", tol, true, "PX"},
           {"--angle-tolerance", "", angle, true, "PX"},
           {"--outline-tolerance", "", outline, true, "F"},
+          {"--unreached-angle", "", unreached, true, "F"},
           {"--footprint-scale", "", k, true, "K"},
           {"--balance", "", "grade the cut (no cell beside one two levels coarser): specular\n"
                             "                              (objects on mirrors and glass under the deviation criterion;\n"
@@ -183,11 +190,18 @@ StatusOr<CutOptions> cut_options_from_args(const Args& args) {
   RAYLOD_ASSIGN_OR_RETURN(o.outline_tolerance, args.get_double("--outline-tolerance", kDefaultOutlineTolerance));
   if (!(o.outline_tolerance > 0 && o.outline_tolerance <= 1))
     return Status::error("--outline-tolerance must be a fraction of --tolerance, greater than 0 and at most 1");
+  RAYLOD_ASSIGN_OR_RETURN(o.unreached_angle_allowance,
+                          args.get_double("--unreached-angle", kDefaultUnreachedAngleAllowance));
+  if (!(o.unreached_angle_allowance > 0) || !std::isfinite(o.unreached_angle_allowance))
+    return Status::error("--unreached-angle must be a finite multiple of --angle-tolerance, greater than 0");
   const bool outline_given = args.has("--outline-tolerance");
-  if (o.criterion == CutCriterion::Diagonal && (o.tolerance_given || o.angle_tolerance_given || outline_given))
+  const bool unreached_given = args.has("--unreached-angle");
+  if (o.criterion == CutCriterion::Diagonal &&
+      (o.tolerance_given || o.angle_tolerance_given || outline_given || unreached_given))
     return Status::error(std::string(o.tolerance_given         ? "--tolerance"
                                      : o.angle_tolerance_given ? "--angle-tolerance"
-                                                               : "--outline-tolerance") +
+                                     : outline_given           ? "--outline-tolerance"
+                                                               : "--unreached-angle") +
                          " bounds the deviation criterion; --criterion diagonal compares cell diagonals with K "
                          "footprints alone (--footprint-scale)");
   const double default_k =

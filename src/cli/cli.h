@@ -78,6 +78,8 @@ struct CutOptions {
   double tolerance_px = kDefaultTolerancePx;
   double angle_tolerance_px = kDefaultAngleTolerancePx;
   double outline_tolerance = kDefaultOutlineTolerance;  // a fraction of tolerance_px
+  // Unreached mirror and glass cells' bound, a multiple of angle_tolerance_px.
+  double unreached_angle_allowance = kDefaultUnreachedAngleAllowance;
   double footprint_scale = kDefaultFootprintScale;
   CutBalance balance = CutBalance::Specular;
   bool unseen_cells = true;  // --unseen-cells

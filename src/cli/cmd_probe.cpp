@@ -97,6 +97,7 @@ int cmd_probe(int argc, char** argv) {
   config.tolerance_px = cut_opts->tolerance_px;
   config.angle_tolerance_px = cut_opts->angle_tolerance_px;
   config.outline_tolerance = cut_opts->outline_tolerance;
+  config.unreached_angle_allowance = cut_opts->unreached_angle_allowance;
   config.balance = cut_opts->balance;
   config.unseen_cells = cut_opts->unseen_cells;
 

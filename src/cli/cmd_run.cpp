@@ -193,6 +193,7 @@ Status run_run(int argc, char** argv, bool& help) {
   opts.tolerance_px = cut.tolerance_px;
   opts.angle_tolerance_px = cut.angle_tolerance_px;
   opts.outline_tolerance = cut.outline_tolerance;
+  opts.unreached_angle_allowance = cut.unreached_angle_allowance;
   opts.balance = cut.balance;
   opts.unseen_cells = cut.unseen_cells;
   {

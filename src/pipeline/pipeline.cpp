@@ -532,6 +532,7 @@ StatusOr<ProbeConfig> run_probe_config(const RunSession& session, const Scene& s
   probe.tolerance_px = options.tolerance_px;
   probe.angle_tolerance_px = options.angle_tolerance_px;
   probe.outline_tolerance = options.outline_tolerance;
+  probe.unreached_angle_allowance = options.unreached_angle_allowance;
   probe.balance = options.balance;
   probe.unseen_cells = options.unseen_cells;
   probe.selection_cache = session.selection_cache.get();

@@ -69,6 +69,8 @@ struct RunOptions {
   double tolerance_px = kDefaultTolerancePx;        // deviation criterion (probe.h)
   double angle_tolerance_px = kDefaultAngleTolerancePx;  // its mirror/glass normal bound (probe.h)
   double outline_tolerance = kDefaultOutlineTolerance;   // its fraction where an outline may run (probe.h)
+  // Unreached mirror and glass cells' bound, times angle_tolerance_px (probe.h).
+  double unreached_angle_allowance = kDefaultUnreachedAngleAllowance;
   CutBalance balance = CutBalance::Specular;             // which cuts are graded (probe.h)
   bool unseen_cells = true;  // cells the camera cannot see collapse as their shadows allow (probe.h)
   std::filesystem::path cache_dir;    // empty = default_cache_dir()

@@ -27,6 +27,9 @@ TEST(OptionRanges, ZeroSizesSamplesAndErrorsAreRefused) {
       {"report --scales 8,16,8 -o unused-report", "--scales: '8' is given twice"},
       {"probe --unseen-cells yes -o unused.cut", "--unseen-cells: unknown value 'yes' (on or off)"},
       {"run --unseen-cells 1 -o unused.png", "--unseen-cells: unknown value '1' (on or off)"},
+      {"probe --unreached-angle 0 -o unused.cut", "--unreached-angle must be a finite multiple of --angle-tolerance"},
+      {"run --unreached-angle -1 -o unused.png", "--unreached-angle must be a finite multiple of --angle-tolerance"},
+      {"run --criterion diagonal --unreached-angle 4 -o unused.png", "--unreached-angle bounds the deviation criterion"},
   };
   for (const Case& c : cases) {
     std::string out;

@@ -584,6 +584,33 @@ TEST(Run, TheDefaultToleranceFollowsTheSamplesPerPixel) {
   EXPECT_NE(out.find("K = 64)"), std::string::npos) << out;  // 0.5 given: the default, not reported
 }
 
+TEST(Run, TheUnreachedAngleLoosensOnlyMirrorsAndGlass) {
+  // --unreached-angle scales the turn that mirror and glass cells no test
+  // ray reached may cause (probe.h): larger, a mirror teapot keeps fewer
+  // triangles; on a glossy one, which bounds no turn, it changes nothing.
+  const fs::path glossy = write_scene("unreached-glossy.json", 1.0, 96, 72);
+  std::string text = read(glossy);
+  const std::string from = R"("material": "p")";
+  text.replace(text.find(from), from.size(), R"("material": "m")");
+  const std::string mats = R"("materials": {)";
+  text.replace(text.find(mats), mats.size(), mats + R"("m": {"type": "mirror", "reflectance": 0.9}, )");
+  const fs::path mirror = work_dir() / "unreached-mirror.json";
+  std::ofstream(mirror) << text;
+  std::string out;
+  auto triangles = [&](const fs::path& scene, const std::string& angle) -> uint64_t {
+    const std::string tag = scene.stem().string() + "-" + angle;
+    const fs::path st = work_dir() / (tag + ".json");
+    EXPECT_EQ(raylod("run '" + scene.string() + "' --no-cache --rays 500 --unreached-angle " + angle + " -o '" +
+                         (work_dir() / (tag + ".png")).string() + "' --stats-json '" + st.string() + "'",
+                     &out),
+              0)
+        << out;
+    return stats(st)["triangles_out"];
+  };
+  EXPECT_LT(triangles(mirror, "64"), triangles(mirror, "2"));
+  EXPECT_EQ(triangles(glossy, "64"), triangles(glossy, "2"));
+}
+
 TEST(Run, BadSceneIsAClearError) {
   fs::path bad = work_dir() / "bad.json";
   std::ofstream(bad) << "{\"camera\": 3}";
