@@ -78,6 +78,18 @@ fs::path write_scene(const std::string& name, double eye_scale, int width = 128,
 
 nlohmann::json stats(const fs::path& p) { return nlohmann::json::parse(read(p)); }
 
+// `raylod run SCENE --no-cache EXTRA` writing TAG.png and TAG.json in the
+// work folder: the simplified triangle count (its output appended to out).
+uint64_t run_triangles(const fs::path& scene, const std::string& extra, const std::string& tag, std::string& out) {
+  const fs::path st = work_dir() / (tag + ".json");
+  EXPECT_EQ(raylod("run '" + scene.string() + "' --no-cache " + extra + " -o '" + (work_dir() / (tag + ".png")).string() +
+                       "' --stats-json '" + st.string() + "'",
+                   &out),
+            0)
+      << out;
+  return stats(st)["triangles_out"];
+}
+
 // A command prefix that runs raylod as a user who cannot write where the
 // test forbids it: root writes anywhere, so as root the command drops to
 // user nobody (setpriv), with HOME in `home` (made writable to all); for
@@ -566,14 +578,8 @@ TEST(Run, TheDefaultToleranceFollowsTheSamplesPerPixel) {
   // explicit --tolerance is taken as given.
   const fs::path scene = write_scene("spp.json", 1.0, 64, 48);
   std::string out;
-  auto triangles = [&](const std::string& extra, const std::string& tag) -> uint64_t {
-    const fs::path st = work_dir() / (tag + ".json");
-    EXPECT_EQ(raylod("run '" + scene.string() + "' --no-cache --rays 1000 " + extra + " -o '" +
-                         (work_dir() / (tag + ".png")).string() + "' --stats-json '" + st.string() + "'",
-                     &out),
-              0)
-        << out;
-    return stats(st)["triangles_out"];
+  auto triangles = [&](const std::string& extra, const std::string& tag) {
+    return run_triangles(scene, "--rays 1000 " + extra, tag, out);
   };
   const uint64_t at4 = triangles("--spp 4", "spp4");
   EXPECT_EQ(out.find("tolerance"), std::string::npos) << out;
@@ -597,15 +603,8 @@ TEST(Run, TheUnreachedAngleLoosensOnlyMirrorsAndGlass) {
   const fs::path mirror = work_dir() / "unreached-mirror.json";
   std::ofstream(mirror) << text;
   std::string out;
-  auto triangles = [&](const fs::path& scene, const std::string& angle) -> uint64_t {
-    const std::string tag = scene.stem().string() + "-" + angle;
-    const fs::path st = work_dir() / (tag + ".json");
-    EXPECT_EQ(raylod("run '" + scene.string() + "' --no-cache --rays 500 --unreached-angle " + angle + " -o '" +
-                         (work_dir() / (tag + ".png")).string() + "' --stats-json '" + st.string() + "'",
-                     &out),
-              0)
-        << out;
-    return stats(st)["triangles_out"];
+  auto triangles = [&](const fs::path& scene, const std::string& angle) {
+    return run_triangles(scene, "--rays 500 --unreached-angle " + angle, scene.stem().string() + "-" + angle, out);
   };
   EXPECT_LT(triangles(mirror, "64"), triangles(mirror, "2"));
   EXPECT_EQ(triangles(glossy, "64"), triangles(glossy, "2"));
