@@ -5,7 +5,9 @@
 // (tests/info/fault_injection_test.cpp).
 //
 // fault_point(name) does nothing unless the environment variable
-// RAYLOD_FAULT_POINT equals `name`. The variable is read once per process and
+// RAYLOD_FAULT_POINT equals `name`, or `name:error`: then it returns true
+// and the caller fails as its I/O there would have failed (the process
+// lives on, to show how a failure is reported and cleaned up). The variable is read once per process and
 // cached, so an unarmed point costs one string compare. Points sit at a
 // handful of coarse moments (once per file written), never in per-triangle or
 // per-ray loops. For testing only: nothing in normal use sets the variable.
@@ -26,12 +28,14 @@
 //   run.render           `run`, after simplify, before rendering: the staged
 //                        simplified meshes are in the cache folder, in use
 //   image.before_rename  an image written to its temporary and read back,
-//                        before the rename
+//                        before the rename (also as image.before_rename:error:
+//                        the rename fails)
 #pragma once
 
 namespace raylod {
 
-// Kills the process with SIGKILL if RAYLOD_FAULT_POINT is `name`.
-void fault_point(const char* name);
+// Kills the process with SIGKILL if RAYLOD_FAULT_POINT is `name`; true if
+// it is `name:error` (the caller then fails), else false.
+bool fault_point(const char* name);
 
 }  // namespace raylod

@@ -113,7 +113,8 @@ Status write_pixels(const std::filesystem::path& path, EncodeRequest request) {
       return Status::error(path.string() + ": the written image reads back with the wrong size (disk full?)");
     if (!back.error.empty()) return Status::error(path.string() + ": the written image is truncated (disk full?): " + back.error);
   }
-  fault_point("image.before_rename");
+  if (fault_point("image.before_rename"))
+    return Status::error(path.string() + ": could not rename into place: failed at fault point image.before_rename");
   return atomic.commit();
 }
 

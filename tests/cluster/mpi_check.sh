@@ -161,7 +161,7 @@ case "$case" in
     done
     # The frame's name is a folder: refused before rendering, once. (A
     # write failing after the render, on whichever rank, is the run --views
-    # case below: only view 0's name is checked before.)
+    # case below.)
     mkdir mpi/g.png
     status=0
     out="$(mpi render scene.json -o mpi/g.png -q 2>&1)" || status=$?
@@ -169,20 +169,26 @@ case "$case" in
     [ -z "$(ls -A mpi/g.png)" ] || fail "something was written into mpi/g.png"
     rmdir mpi/g.png
     no_temporaries
-    # View 1's image cannot be written (a folder of its name) on whichever
-    # rank renders it: the job fails with that rank's error, other views'
-    # images are whole or absent.
+    # View 1's name is a folder: every view's name is checked before any
+    # work, so nothing is rendered or written.
     mkdir mpi/v_01.png
     status=0
     out="$(RAYLOD_CACHE_DIR="$tmp/cache-mpi" mpi run scene.json --views views.json -o mpi/v_##.png --rays 500 -q 2>&1)" ||
       status=$?
-    expect_error "run --views, view 1's write failing" \
-      "raylod run: error: rank [0-9]* of $np: mpi/v_01.png: could not rename into place"
+    expect_error "run --views, view 1's name a folder" "raylod run: error: mpi/v_01.png: is a directory"
     [ -z "$(ls -A mpi/v_01.png)" ] || fail "something was written into mpi/v_01.png"
     rmdir mpi/v_01.png
-    # Every image written is whole: the same bytes as one process's.
-    RAYLOD_CACHE_DIR="$tmp/cache-one" one run scene.json --views views.json -o one/v_##.png --rays 500 -q
-    for f in mpi/v_*.png; do [ -e "$f" ] && same "$f" "one/${f#mpi/}"; done
+    [ -z "$(ls -A mpi)" ] || fail "view 1's name a folder: images were written: $(ls -A mpi)"
+    # An image's write fails after its render, on whichever rank renders
+    # it (the fault point fails it as a failed rename would): the job fails
+    # with that rank's error once, and leaves no image and no temporary.
+    status=0
+    out="$(RAYLOD_CACHE_DIR="$tmp/cache-mpi" "$mpiexec" --allow-run-as-root --oversubscribe -np "$np" \
+           -x RAYLOD_FAULT_POINT=image.before_rename:error \
+           "$raylod" run scene.json --views views.json -o mpi/v_##.png --rays 500 -q --threads 1 2>&1)" || status=$?
+    expect_error "run --views, the writes failing" \
+      "raylod run: error: \(rank [0-9]* of $np: \)\?mpi/v_0[0-2].png: could not rename into place"
+    [ -z "$(ls -A mpi)" ] || fail "the writes failing: images were written: $(ls -A mpi)"
     no_temporaries
     echo "every failure of one rank exited non-zero with that rank's error once and no partial image"
     ;;
