@@ -91,15 +91,7 @@ Status run_render(int argc, char** argv, bool& help) {
   RAYLOD_ASSIGN_OR_RETURN(int64_t height, args.get_int("--height", scene.camera.height, 1, 32768));
   scene.camera.width = int(width);
   scene.camera.height = int(height);
-  if (args.has("--mesh")) {
-    const std::filesystem::path mesh = args.get("--mesh");
-    std::error_code ec;
-    if (std::filesystem::is_directory(mesh, ec)) return Status::error(mesh.string() + ": is a directory, not a mesh file");
-    if (!std::filesystem::is_regular_file(mesh, ec)) return Status::error(mesh.string() + ": mesh file not found");
-    // The replacement is never generated, so clear the generator request.
-    scene.objects[0].mesh = mesh;
-    scene.objects[0].generate.reset();
-  }
+  if (args.has("--mesh")) RAYLOD_RETURN_IF_ERROR(replace_first_mesh(scene, args.get("--mesh")));
   RAYLOD_RETURN_IF_ERROR(cluster::rank0_first([&] { return resolve_generated_meshes(scene, default_cache_dir()); }));
 
   opts.before_trace = [&images]() -> Status {

@@ -258,14 +258,7 @@ StatusOr<SceneStores> prepare_scene_stores(Scene& scene, const std::optional<fs:
                                            const StoreOptions& store_options, const fs::path& cache_dir,
                                            const LogFn& log, bool check_stores) {
   auto t0 = std::chrono::steady_clock::now();
-  if (mesh_override) {
-    // As in `raylod render`: the first object's mesh is replaced.
-    std::error_code ec;
-    if (fs::is_directory(*mesh_override, ec)) return Status::error(mesh_override->string() + ": is a directory, not a mesh file");
-    if (!fs::is_regular_file(*mesh_override, ec)) return Status::error(mesh_override->string() + ": mesh file not found");
-    scene.objects[0].mesh = *mesh_override;
-    scene.objects[0].generate.reset();
-  }
+  if (mesh_override) RAYLOD_RETURN_IF_ERROR(replace_first_mesh(scene, *mesh_override));
   RAYLOD_RETURN_IF_ERROR(resolve_generated_meshes(scene, cache_dir));
 
   SceneStores out;

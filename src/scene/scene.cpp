@@ -49,6 +49,15 @@ bool Scene::ground_shows_shadows() const {
   return ground && !lights.empty() && !materials[size_t(ground->material)].reflects();
 }
 
+Status replace_first_mesh(Scene& scene, const std::filesystem::path& mesh) {
+  std::error_code ec;
+  if (std::filesystem::is_directory(mesh, ec)) return Status::error(mesh.string() + ": is a directory, not a mesh file");
+  if (!std::filesystem::is_regular_file(mesh, ec)) return Status::error(mesh.string() + ": mesh file not found");
+  scene.objects[0].mesh = mesh;
+  scene.objects[0].generate.reset();
+  return {};
+}
+
 namespace {
 
 constexpr double kMaxEyeDistance = 1e18;

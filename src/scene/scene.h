@@ -133,6 +133,9 @@ Vec3d render_origin_for(const Vec3d& look_at);
 StatusOr<Scene> parse_scene(const std::string& json_text, const std::filesystem::path& base_dir,
                             const std::string& source_name, bool first_mesh_replaced = false);
 StatusOr<Scene> load_scene(const std::filesystem::path& path, bool first_mesh_replaced = false);
+// `--mesh FILE` of render and run: FILE (a regular file) in place of the
+// first object's mesh, which is then never generated.
+Status replace_first_mesh(Scene& scene, const std::filesystem::path& mesh);
 // A views file (`raylod run --views`): a JSON array of cameras with the
 // scene's camera fields; the fields an element leaves out (up, fov_y, width,
 // height) are taken from `defaults` (the scene's camera). Errors name the
