@@ -110,20 +110,6 @@ Status run_report_cmd(int argc, char** argv) {
   cfg.closeup = !args.has("--no-closeup");
   cfg.baselines = !args.has("--no-baselines");
   cfg.out_dir = args.get("--output", "raylod-report");
-  {
-    // The report's folder is made if missing, but not its parents: a typo
-    // in them is an error, as for every other command's outputs.
-    std::filesystem::path dir = cfg.out_dir.lexically_normal();
-    if (dir.empty()) return Status::error("--output: no folder name given");
-    if (!dir.has_filename()) dir = dir.parent_path();  // "out/"
-    std::error_code ec;
-    if (std::filesystem::exists(dir, ec) && !std::filesystem::is_directory(dir, ec))
-      return Status::error(cfg.out_dir.string() + ": the report folder (-o) names a file, not a directory");
-    const std::filesystem::path parent = dir.has_parent_path() ? dir.parent_path() : std::filesystem::path(".");
-    if (!std::filesystem::is_directory(parent, ec))
-      return Status::error(cfg.out_dir.string() + ": the report folder (-o): directory " + parent.string() +
-                           " does not exist");
-  }
   if (std::find(cfg.footprint_scales.begin(), cfg.footprint_scales.end(), cfg.default_scale) == cfg.footprint_scales.end())
     cfg.footprint_scales.push_back(cfg.default_scale);
   std::optional<std::filesystem::path> mesh;

@@ -349,8 +349,19 @@ StatusOr<ReportResult> run_report(const Scene& input_scene, const std::optional<
   if (input_scene.objects.size() != 1)
     return Status::error("the report compares simplifiers on one mesh; the scene has " +
                          std::to_string(input_scene.objects.size()) + " objects");
+  // The report's folder is made if missing, but not the folders above it:
+  // a typo there is an error, as for every command's outputs.
+  fs::path dir = cfg.out_dir.lexically_normal();
+  if (dir.empty()) return Status::error("--output: no folder name given");
+  if (!dir.has_filename()) dir = dir.parent_path();  // "out/"
   std::error_code ec;
-  fs::create_directories(cfg.out_dir, ec);
+  if (fs::exists(dir, ec) && !fs::is_directory(dir, ec))
+    return Status::error(cfg.out_dir.string() + ": the report folder (-o) names a file, not a directory");
+  const fs::path parent = dir.has_parent_path() ? dir.parent_path() : fs::path(".");
+  if (!fs::is_directory(parent, ec))
+    return Status::error(cfg.out_dir.string() + ": the report folder (-o): directory " + parent.string() +
+                         " does not exist");
+  fs::create_directory(dir, ec);
   if (ec) return Status::error(cfg.out_dir.string() + ": cannot create report directory: " + ec.message());
   const fs::path cache_dir = cfg.cache_dir.empty() ? default_cache_dir() : cfg.cache_dir;
 
