@@ -54,8 +54,8 @@ export UBSAN_OPTIONS="${UBSAN_OPTIONS:-print_stacktrace=1:halt_on_error=1:exitco
 # in a row in one suite (2026-11-29; the process loads OpenImageIO's
 # libraries, which hold thread-local storage, with dlopen on a thread of its
 # own); with it off, 0 of 10, and the whole suite ran without a rerun.
-# Memory only a dynamic TLS block points to would
-# be reported as a leak; none is.
+# Memory only a dynamic TLS block points to would be reported as a leak;
+# none is.
 export LSAN_OPTIONS="${LSAN_OPTIONS:-intercept_tls_get_addr=0}"
 
 # Runs raylod (the sanitizer build) on bad inputs: each must fail with exit

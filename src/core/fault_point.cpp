@@ -6,6 +6,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <string>
+#include <string_view>
 
 namespace raylod {
 
@@ -14,8 +15,9 @@ bool fault_point(const char* name) {
     const char* v = std::getenv("RAYLOD_FAULT_POINT");
     return std::string(v ? v : "");
   }();
-  if (armed.empty() || armed.compare(0, std::strlen(name), name) != 0) return false;
-  const std::string rest = armed.substr(std::strlen(name));
+  const std::string_view n(name);
+  if (armed.empty() || std::string_view(armed).substr(0, n.size()) != n) return false;
+  const std::string_view rest = std::string_view(armed).substr(n.size());
   if (rest == ":error") return true;
   if (!rest.empty()) return false;
   // One line on stderr (write(2): no buffering to lose), then as kill -9.

@@ -7,8 +7,9 @@
 // fault_point(name) does nothing unless the environment variable
 // RAYLOD_FAULT_POINT equals `name`, or `name:error`: then it returns true
 // and the caller fails as its I/O there would have failed (the process
-// lives on, to show how a failure is reported and cleaned up). The variable is read once per process and
-// cached, so an unarmed point costs one string compare. Points sit at a
+// lives on, to show how a failure is reported and cleaned up). The variable
+// is read once per process and cached, so an unarmed point costs one string
+// compare. Points sit at a
 // handful of coarse moments (once per file written), never in per-triangle or
 // per-ray loops. For testing only: nothing in normal use sets the variable.
 //
