@@ -221,6 +221,12 @@ Status read_header(int fd, const std::filesystem::path& path, StoreHeader& h, La
   h.page_level = pl;
   h.grid_bits = grid_bits;
   h.file_bytes = l.file_bytes;
+  // The header's checksum held, so its file size is the store's: a shorter
+  // file was cut off (a copy or download that stopped), whatever else below
+  // would then look wrong.
+  if (size < l.file_bytes)
+    return Status::error(name + ": truncated store (" + std::to_string(size) + " bytes, header says " +
+                         std::to_string(l.file_bytes) + ")");
   // Counts and offsets are bounded by the file size before any product or
   // sum, so a header with a valid CRC but absurd numbers cannot wrap past the
   // checks below (and then make load_tables allocate from them).
@@ -237,9 +243,6 @@ Status read_header(int fd, const std::filesystem::path& path, StoreHeader& h, La
   }
   h.node_table_bytes = nodes * sizeof(NodeRecord);
   h.page_data_bytes = l.data_bytes;
-  if (size < l.file_bytes)
-    return Status::error(name + ": truncated store (" + std::to_string(size) + " bytes, header says " +
-                         std::to_string(l.file_bytes) + ")");
   if (size > l.file_bytes)
     return Status::error(name + ": store has " + std::to_string(size) + " bytes but its header says " +
                          std::to_string(l.file_bytes) + " (corrupt)");

@@ -156,6 +156,26 @@ TEST(OctreeStore, RefusesCorruptTruncatedAndForeignFiles) {
     std::filesystem::resize_file(p, 30);
     expect_error_contains(OctreeStore::open(p).status(), {p.string(), "truncated"});
   }
+  {  // Cut anywhere after the header (a copy that stopped): said so, with both
+     // sizes, before the node table's counts are checked against the size.
+    const auto full = std::filesystem::file_size(good);
+    uint32_t blob = 0;
+    {
+      std::ifstream in(good, std::ios::binary);
+      in.seekg(12);
+      in.read(reinterpret_cast<char*>(&blob), 4);
+    }
+    const uint64_t header = 16 + uint64_t(blob) + 4;
+    ASSERT_LT(header + 1, full);
+    for (const uint64_t keep : {header, header + 1, full / 2, full - 4096}) {
+      if (keep >= full || keep < header) continue;
+      auto p = copy("cut.raylod");
+      std::filesystem::resize_file(p, keep);
+      expect_error_contains(OctreeStore::open(p).status(),
+                            {p.string(), "truncated store (" + std::to_string(keep) + " bytes, header says " +
+                                             std::to_string(full) + ")"});
+    }
+  }
   {  // Another format version.
     auto p = copy("version.raylod");
     flip_byte(p, 9);
