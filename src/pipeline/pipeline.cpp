@@ -485,6 +485,13 @@ StatusOr<RunSession> open_run_session(Scene& scene, const RunOptions& options, c
                                  " in this scene; `raylod scene " + options.mesh_override->string() +
                                  "` writes a scene that frames it");
   }
+  // An object outside the sizes single-precision rays render faithfully.
+  for (const ProbeObject& obj : session.stores.objects) {
+    const StoreHeader& h = session.stores.stores[obj.store]->header();
+    const Bbox world = world_bounds(obj.transform * glm::translate(glm::dmat4(1.0), h.mesh_origin), h.bounds);
+    if (const std::string problem = size_problem(world); !problem.empty())
+      session.warnings.push_back(session.stores.meshes[obj.store].string() + " " + problem);
+  }
   // What a store build had to say (a position grid made coarse by a few
   // far-away vertices; a memory limit below its minimum).
   for (size_t i = 0; i < session.stores.builds.size(); ++i)

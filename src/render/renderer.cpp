@@ -25,6 +25,7 @@
 #include "core/system.h"
 #include "render/image_codec.h"
 #include "render/srgb.h"
+#include "scene/mesh_framing.h"
 #include "scene/scene_camera.h"
 #include "streaming/mesh_reader.h"
 
@@ -319,6 +320,12 @@ StatusOr<std::vector<TriangleMesh>> load_scene_meshes(const Scene& world_scene, 
     if (options.log && !has_area(*mesh))
       options.log("warning: " + paths[i].string() + ": all " + std::to_string(mesh->triangle_count()) +
                   " triangles are degenerate (zero area or repeated corners); nothing of it is rendered");
+    if (options.log) {
+      Bbox world;
+      for (const Vec3& p : mesh->positions) world.expand(p);
+      if (const std::string problem = size_problem(world); !problem.empty())
+        options.log("warning: " + paths[i].string() + " " + problem);
+    }
     meshes.push_back(std::move(mesh.value()));
   }
   if (progress) progress->finish();

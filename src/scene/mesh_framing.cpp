@@ -125,7 +125,9 @@ StatusOr<MeshFraming> frame_mesh(const Bbox& bounds, const FramingOptions& optio
   // part, but one whose extent rounds away is a point.
   const double where = std::max({std::abs(f.bounds.lo.x), std::abs(f.bounds.lo.y), std::abs(f.bounds.lo.z),
                                  std::abs(f.bounds.hi.x), std::abs(f.bounds.hi.y), std::abs(f.bounds.hi.z)});
-  if (!(diag > 1e-12 * std::max(1.0, where))) return Status::error("the mesh is a single point: nothing to frame");
+  // (Relative alone: a mesh 1e-15 across at the origin is not a point, it
+  // is outside the framed sizes below.)
+  if (!(diag > 1e-12 * where)) return Status::error("the mesh is a single point: nothing to frame");
   // Rays are traced in single precision about the look-at point, with
   // offsets and a ground plane that scale with the scene; outside this range
   // the ground or a light's contribution is lost (measured: a triangle of
@@ -217,6 +219,18 @@ std::string scene_json_for_mesh(const std::string& mesh_path, const MeshFraming&
   std::string out;
   write_json(j, 0, out);
   return out + "\n";
+}
+
+std::string size_problem(const Bbox& bounds) {
+  if (bounds.empty()) return "";
+  const double diag = bounds.diagonal();
+  if (!(diag > 0) || (diag >= kMinFramedDiagonal && diag <= kMaxFramedDiagonal)) return "";
+  char text[256];
+  std::snprintf(text, sizeof text,
+                "is %.3g units across in the world; raylod renders meshes from %.0e to %.0e units across "
+                "(single-precision rays lose the ground or the lights beyond it): scale the scene",
+                diag, kMinFramedDiagonal, kMaxFramedDiagonal);
+  return text;
 }
 
 std::string placement_problem(const Scene& scene, const Bbox& bounds) {

@@ -64,6 +64,12 @@ StatusOr<MaterialPreset> parse_material_preset(std::string_view text);
 std::string scene_json_for_mesh(const std::string& mesh_path, const MeshFraming& framing, MaterialPreset material,
                                 int spp, const std::string& comment);
 
+// Whether a mesh with world bounds `bounds` is of a size raylod renders
+// faithfully (kMinFramedDiagonal to kMaxFramedDiagonal across): empty if it
+// is, or a point (no size), else what is wrong, for a warning ("is 1.73e-15
+// units across in the world; ..."). `render` and `run` warn with it.
+std::string size_problem(const Bbox& bounds);
+
 // Whether a scene shows a mesh placed in it with world bounds `bounds`: empty
 // if it does, else what is wrong, for a warning ("lies at or under the ground
 // plane (its top at y = 0, the ground at y = 0)", "covers at most 12 x 3

@@ -141,6 +141,12 @@ TEST(MeshFraming, NothingToFrameIsAnError) {
       EXPECT_NE(f.status().message().find("units across"), std::string::npos) << f.status().message();
     }
   }
+  // A tiny mesh at the origin is tiny, not a point.
+  const auto tiny = frame_mesh(Bbox{Vec3d(0), Vec3d(1e-15, 1e-15, 1e-15)}, {});
+  ASSERT_FALSE(tiny.is_ok());
+  EXPECT_NE(tiny.status().message().find("is 1.73e-15 units across"), std::string::npos) << tiny.status().message();
+  EXPECT_NE(frame_mesh(Bbox{Vec3d(1e6), Vec3d(1e6 + 1e-7)}, {}).status().message().find("single point"),
+            std::string::npos);
   EXPECT_TRUE(frame_mesh(Bbox{Vec3d(0), Vec3d(1e-8, 1e-8, 0)}, {}).is_ok());
   EXPECT_TRUE(frame_mesh(Bbox{Vec3d(0), Vec3d(5e11, 5e11, 0)}, {}).is_ok());
   FramingOptions o;
@@ -152,6 +158,19 @@ TEST(MeshFraming, NothingToFrameIsAnError) {
   EXPECT_EQ(*z, UpAxis::PosZ);
   EXPECT_EQ(*mx, UpAxis::NegX);
   EXPECT_FALSE(parse_material_preset("chrome").is_ok());
+}
+
+TEST(MeshFraming, ASizeOutsideWhatRaysResolveIsNamed) {
+  EXPECT_EQ(size_problem(Bbox{}), "");
+  EXPECT_EQ(size_problem(Bbox{Vec3d(2), Vec3d(2)}), "");  // a point has no size to judge
+  EXPECT_EQ(size_problem(Bbox{Vec3d(0), Vec3d(1e-8, 0, 0)}), "");
+  EXPECT_EQ(size_problem(Bbox{Vec3d(-5e11, 0, 0), Vec3d(5e11, 0, 0)}), "");
+  for (double side : {1e-15, 1e-9, 2e12, 1e20}) {
+    const std::string p = size_problem(Bbox{Vec3d(0), Vec3d(side, 0, 0)});
+    EXPECT_EQ(p.rfind("is ", 0), 0u) << p;
+    EXPECT_NE(p.find("units across in the world"), std::string::npos) << p;
+    EXPECT_NE(p.find("scale the scene"), std::string::npos) << p;
+  }
 }
 
 TEST(MeshFraming, APlacementProblemIsNamedAndAFramedMeshHasNone) {
@@ -288,6 +307,19 @@ TEST(SceneCommand, RunWithAMeshItsSceneDoesNotShowSaysSoAndPointsHere) {
   EXPECT_NE(tiny.find("covers at most"), std::string::npos) << tiny;
   const std::string fits = run("fits.stl");
   EXPECT_EQ(fits.find("raylod scene"), std::string::npos) << fits;
+  // Far smaller than single-precision rays resolve: said by run and render.
+  write_box_stl(dir / "speck.stl", Vec3d(0, 1e-10, 0), Vec3d(1e-10, 2e-10, 1e-10));
+  const std::string speck = run("speck.stl");
+  EXPECT_NE(speck.find("units across in the world"), std::string::npos) << speck;
+  std::string rendered;
+  EXPECT_EQ(test::run_raylod("render --mesh '" + (dir / "speck.stl").string() + "' --spp 1 -o '" +
+                                 (dir / "speck-full.png").string() + "'",
+                             rendered),
+            0)
+      << rendered;
+  EXPECT_NE(rendered.find("speck.stl is "), std::string::npos) << rendered;
+  EXPECT_NE(rendered.find("units across in the world"), std::string::npos) << rendered;
+  EXPECT_EQ(fits.find("units across"), std::string::npos) << fits;
   // Behind the default camera (eye at +x +z, looking towards the origin).
   write_box_stl(dir / "behind.stl", Vec3d(40, 1, 40), Vec3d(41, 2, 41));
   const std::string behind = run("behind.stl");
