@@ -485,12 +485,22 @@ StatusOr<RunSession> open_run_session(Scene& scene, const RunOptions& options, c
                                  " in this scene; `raylod scene " + options.mesh_override->string() +
                                  "` writes a scene that frames it");
   }
-  // An object outside the sizes single-precision rays render faithfully.
-  for (const ProbeObject& obj : session.stores.objects) {
+  // An object its transform puts beyond the float range cannot be rendered
+  // (the full render refuses it too); one outside the sizes single-precision
+  // rays render faithfully is warned about.
+  for (size_t o = 0; o < session.stores.objects.size(); ++o) {
+    const ProbeObject& obj = session.stores.objects[o];
     const StoreHeader& h = session.stores.stores[obj.store]->header();
     const Bbox world = world_bounds(obj.transform * glm::translate(glm::dmat4(1.0), h.mesh_origin), h.bounds);
+    const std::string& mesh = session.stores.meshes[obj.store].string();
+    double reach = 0;
+    for (int a = 0; a < 3; ++a) reach = std::max({reach, std::abs(world.lo[a]), std::abs(world.hi[a])});
+    if (!(reach <= double(std::numeric_limits<float>::max())))
+      return Status::error((scene.source.empty() ? std::string() : scene.source.string() + ": ") + "objects[" +
+                           std::to_string(o) + "]: the object's transform puts " + mesh +
+                           " beyond the float range (its bounds reach " + fmt("%.3g", reach) + ")");
     if (const std::string problem = size_problem(world); !problem.empty())
-      session.warnings.push_back(session.stores.meshes[obj.store].string() + " " + problem);
+      session.warnings.push_back(mesh + " " + problem);
   }
   // What a store build had to say (a position grid made coarse by a few
   // far-away vertices; a memory limit below its minimum).

@@ -176,7 +176,7 @@ Status place_mesh(TriangleMesh& mesh, const std::filesystem::path& path, const V
   if (mesh.normals.empty()) add_crease_normals(mesh, crease_angle_deg);
   transform_mesh(mesh, origin == Vec3d(0) ? object_to_world : object_to_world * glm::translate(glm::dmat4(1.0), origin));
   for (const Vec3& p : mesh.positions)
-    if (!is_finite(p)) return Status::error(path.string() + ": the object transform maps a vertex to Inf/NaN");
+    if (!is_finite(p)) return Status::error(path.string() + ": the object's transform puts its vertices beyond the float range (Inf or NaN)");
   return {};
 }
 

@@ -316,7 +316,10 @@ StatusOr<std::vector<TriangleMesh>> load_scene_meshes(const Scene& world_scene, 
     }
     auto mesh = load_triangle_mesh(paths[i], scene.objects[i].transform, scene.objects[i].material, scene.crease_angle_deg,
                                    [&](uint64_t n) { if (progress) progress->advance(n); });
-    if (!mesh) return mesh.status();
+    // Which of the scene's objects, where the scene has several.
+    if (!mesh)
+      return Status::error((scene.source.empty() ? std::string() : scene.source.string() + ": ") + "objects[" +
+                           std::to_string(i) + "]: " + mesh.status().message());
     if (options.log && !has_area(*mesh))
       options.log("warning: " + paths[i].string() + ": all " + std::to_string(mesh->triangle_count()) +
                   " triangles are degenerate (zero area or repeated corners); nothing of it is rendered");

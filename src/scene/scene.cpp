@@ -75,6 +75,14 @@ struct Parser {
     if (!std::isfinite(out)) return fail(where, "must be finite");
     return {};
   }
+  // A number the renderer holds as a float (positions, sizes) although it is
+  // parsed as a double.
+  Status number_in_float_range(const json& j, const std::string& where, double& out) const {
+    RAYLOD_RETURN_IF_ERROR(number(j, where, out));
+    if (std::abs(out) > double(std::numeric_limits<float>::max()))
+      return fail(where, "is beyond the float range (about 3.4e38)");
+    return {};
+  }
   Status vec3(const json& j, const std::string& where, Vec3d& out) const {
     if (!j.is_array() || j.size() != 3) return fail(where, "expected an array of 3 numbers");
     for (int i = 0; i < 3; ++i) RAYLOD_RETURN_IF_ERROR(number(j[i], where + "[" + std::to_string(i) + "]", out[i]));
@@ -262,6 +270,12 @@ Status parse_transform(const Parser& p, const json& j, const std::string& where,
     if (j.contains("rotate_deg")) RAYLOD_RETURN_IF_ERROR(p.vec3(j["rotate_deg"], where + ".rotate_deg", rdeg));
     out = glm::scale(rotate_euler_deg(glm::translate(glm::dmat4(1.0), t), rdeg), s);
   }
+  // Rays and vertices are floats in the world: a transform whose numbers are
+  // beyond their range puts every vertex at infinity.
+  for (int c = 0; c < 4; ++c)
+    for (int r = 0; r < 3; ++r)
+      if (std::abs(out[c][r]) > double(std::numeric_limits<float>::max()))
+        return p.fail(where, "is beyond the float range (about 3.4e38)");
   // Singular relative to its own scale (a uniform scale of 1e-6, micrometres
   // to metres, is fine): |det| against the product of the column lengths,
   // which is 1 for a rotation times any scale and 0 for a flat transform.
@@ -469,8 +483,8 @@ StatusOr<Scene> parse_scene(const std::string& text, const std::filesystem::path
     const json& jg = j["ground"];
     RAYLOD_RETURN_IF_ERROR(p.known_keys(jg, "ground", {"height", "size", "material"}));
     Ground g;
-    if (jg.contains("height")) RAYLOD_RETURN_IF_ERROR(p.number(jg["height"], "ground.height", g.height));
-    if (jg.contains("size")) RAYLOD_RETURN_IF_ERROR(p.number(jg["size"], "ground.size", g.size));
+    if (jg.contains("height")) RAYLOD_RETURN_IF_ERROR(p.number_in_float_range(jg["height"], "ground.height", g.height));
+    if (jg.contains("size")) RAYLOD_RETURN_IF_ERROR(p.number_in_float_range(jg["size"], "ground.size", g.size));
     if (!(g.size > 0)) return p.fail("ground.size", "must be > 0");
     if (!jg.contains("material")) return p.fail("ground", "missing 'material'");
     RAYLOD_RETURN_IF_ERROR(lookup_material(jg["material"], "ground.material", g.material));

@@ -326,6 +326,28 @@ TEST(SceneCommand, RunWithAMeshItsSceneDoesNotShowSaysSoAndPointsHere) {
   EXPECT_NE(behind.find("is behind the camera"), std::string::npos) << behind;
 }
 
+TEST(SceneCommand, AnObjectItsTransformPutsBeyondTheFloatRangeIsRefusedByRunAndRender) {
+  // A transform within the float range that puts the mesh beyond it: the
+  // object vanished from `run`'s image while `render` refused it.
+  const fs::path dir = temp_dir() / "overflow";
+  fs::create_directories(dir);
+  write_box_stl(dir / "box.stl", Vec3d(0, 0, 0), Vec3d(4, 4, 4));
+  std::ofstream(dir / "s.json") << R"({"camera": {"eye": [20, 5, 20], "look_at": [0, 0, 0], "width": 32, "height": 24},
+    "materials": {"m": {"type": "diffuse", "color": [0.5, 0.5, 0.5]}},
+    "objects": [{"mesh": "box.stl", "material": "m", "transform": {"scale": 1e38}}]})";
+  for (const std::string command : {"render", "run"}) {
+    std::string out;
+    EXPECT_EQ(test::run_raylod(command + " '" + (dir / "s.json").string() + (command == "run" ? "' --no-cache" : "'") + " -o '" +
+                                   (dir / (command + ".png")).string() + "'",
+                               out),
+              1)
+        << out;
+    EXPECT_NE(out.find("s.json: objects[0]: "), std::string::npos) << out;
+    EXPECT_NE(out.find("beyond the float range"), std::string::npos) << out;
+    EXPECT_FALSE(fs::exists(dir / (command + ".png"))) << command;
+  }
+}
+
 TEST(SceneCommand, AGltfFileIsFramedAsItsNodesPlaceItsMeshes) {
   // One unit square placed twice: at x = 10, and scaled by 2 at the origin.
   const fs::path dir = temp_dir() / "gltf";

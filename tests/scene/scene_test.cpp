@@ -145,6 +145,17 @@ INSTANTIATE_TEST_SUITE_P(
         BadCase{"float_overflow_color", "[0.8, 0.1, 0.1]", "[0.8, 1e39, 0.1]",
                 "bad.json: materials.red.color[1]: is beyond the float range"},
         BadCase{"float_overflow_ior", "\"ior\": 1.5", "\"ior\": -1e39", "materials.glass.ior: is beyond the float range"},
+        // Positions and sizes the renderer holds as floats: a transform or a
+        // ground beyond that range would put the object or the ground at
+        // infinity (it vanished without a word).
+        BadCase{"float_overflow_translate", "\"translate\": [1, 2, 3]", "\"translate\": [1e39, 2, 3]",
+                "bad.json: objects[0].transform: is beyond the float range"},
+        BadCase{"float_overflow_scale", "\"scale\": 2", "\"scale\": 1e39", "objects[0].transform: is beyond the float range"},
+        BadCase{"float_overflow_ground_size", "\"spp\": 2,", "\"ground\": {\"size\": 1e39, \"material\": \"red\"}, \"spp\": 2,",
+                "bad.json: ground.size: is beyond the float range"},
+        BadCase{"float_overflow_ground_height", "\"spp\": 2,",
+                "\"ground\": {\"height\": -4e38, \"material\": \"red\"}, \"spp\": 2,",
+                "bad.json: ground.height: is beyond the float range"},
         // nlohmann keeps the last of two equal keys without a word.
         BadCase{"duplicate_key", "\"spp\": 2,", "\"spp\": 2, \"spp\": 3,", "bad.json: spp: is given twice"},
         BadCase{"duplicate_nested_key", "\"fov_y\": 40", "\"fov_y\": 40, \"fov_y\": 50",
