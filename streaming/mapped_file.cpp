@@ -116,9 +116,7 @@ SpillFile& SpillFile::operator=(SpillFile&& o) noexcept {
 }
 
 StatusOr<SpillFile> SpillFile::create(std::string what) {
-  std::error_code ec;
-  std::filesystem::path dir = std::filesystem::temp_directory_path(ec);
-  if (ec) dir = "/tmp";
+  const std::filesystem::path dir = temporary_folder();
   std::string templ = (dir / "raylod-spill-XXXXXX").string();
   int fd = ::mkstemp(templ.data());
   if (fd < 0) return Status::error(what + ": cannot create a scratch file in " + dir.string() + ": " + errno_text());

@@ -41,6 +41,7 @@ int run_build(int argc, char** argv) {
   }
   if (args.positionals().size() != 1) return fail("build", Status::error("expected one MESH (see raylod build --help)"));
   const std::filesystem::path mesh = args.positionals()[0];
+  if (mesh.empty()) return fail("build", Status::error("the mesh: no file name given"));
   StoreOptions options;
   auto budget = memory_budget_from_args(args);
   if (!budget) return fail("build", budget.status());

@@ -89,6 +89,32 @@ int cmd_probe(int argc, char** argv) {
     if (Status s = cluster::agree(check_outputs_apart({{args.get("--output"), "the cut (-o)"}}, inputs)); !s)
       return cli::fail("probe", s);
   }
+  // Without -o each cut goes beside its store, named after the mesh; where
+  // that folder takes no files (a store reused in a read-only folder), into
+  // the cache's store folder: decided before any ray is traced.
+  std::vector<std::filesystem::path> cut_dirs;
+  if (!args.has("--output")) {
+    Status where = Status::ok();
+    if (cluster::is_root())
+      for (const std::filesystem::path& store : ss.store_paths) {
+        std::filesystem::path dir = std::filesystem::absolute(store).parent_path();
+        if (!folder_is_writable(dir)) {
+          const std::filesystem::path in_cache = default_cache_dir() / "stores";
+          std::error_code ec;
+          std::filesystem::create_directories(in_cache, ec);
+          if (ec || !folder_is_writable(in_cache)) {
+            where = Status::error("neither " + dir.string() + " (beside the store) nor " + in_cache.string() +
+                                  " takes files: give the cut's name with -o CUT");
+            break;
+          }
+          if (!quiet)
+            std::fprintf(stderr, "raylod probe: %s is not writable: the cut goes to %s\n", dir.c_str(), in_cache.c_str());
+          dir = in_cache;
+        }
+        cut_dirs.push_back(dir);
+      }
+    if (Status s = cluster::agree(where); !s) return cli::fail("probe", s);
+  }
   auto config_or = make_probe_config(scene, uint64_t(*rays), cut_opts->footprint_scale, budget, !quiet);
   if (Status s = cluster::agree(config_or.status()); !s) return cli::fail("probe", s);
   ProbeConfig config = *config_or;
@@ -130,7 +156,7 @@ int cmd_probe(int argc, char** argv) {
       record_simplify_settings(cut, scene, objects, s);
       std::filesystem::path out = args.has("--output")
                                       ? std::filesystem::path(args.get("--output"))
-                                      : std::filesystem::path(meshes[s].string() + "." + cut.key + ".cut");
+                                      : cut_dirs[s] / (meshes[s].filename().string() + "." + cut.key + ".cut");
       RAYLOD_RETURN_IF_ERROR(write_cut(out, cut));
       std::map<uint32_t, uint64_t> per_level;
       for (const CollapsedCell& cell : cut.cells) ++per_level[cell.key.level];

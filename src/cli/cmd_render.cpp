@@ -46,12 +46,12 @@ Status run_render(int argc, char** argv, bool& help) {
   // while the scene loads and its BVH is built, after which the images'
   // writers are checked, before any ray (RenderOptions::before_trace).
   std::vector<std::filesystem::path> images;
+  if (cluster::is_root()) start_loading_image_codec();
   auto check_image = [&images](const std::filesystem::path& p) {
     images.push_back(p);
-    return check_output_image_path(p);
+    return cluster::is_root() ? check_output_image_early(p) : check_output_image_path(p);
   };
-  RAYLOD_RETURN_IF_ERROR(check_image(output));
-  if (cluster::is_root()) start_loading_image_codec();
+  RAYLOD_RETURN_IF_ERROR(cluster::agree(check_image(output)));  // the codec checks on rank 0 alone
   RAYLOD_RETURN_IF_ERROR(check_stats_json_path(args));
 
   RenderOptions opts;
@@ -82,7 +82,7 @@ Status run_render(int argc, char** argv, bool& help) {
                                   std::pair{opts.aov_triangle_id, "triangle-id"}}) {
       if (!on) continue;
       // Checked like the image: a path that cannot be written fails before rendering, not after.
-      RAYLOD_RETURN_IF_ERROR(check_image(aov_path(output, aov)));
+      RAYLOD_RETURN_IF_ERROR(cluster::agree(check_image(aov_path(output, aov))));
       outputs.push_back({aov_path(output, aov), std::string("the ") + aov + " AOV"});
     }
     RAYLOD_RETURN_IF_ERROR(check_outputs_apart(outputs, scene_input_files(args, scene)));

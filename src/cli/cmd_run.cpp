@@ -131,15 +131,16 @@ Status run_run(int argc, char** argv, bool& help) {
   if (args.has("--shared-cut") && !sequence) return Status::error("--shared-cut needs --views FILE or --orbit N");
   if (sequence && args.has("--compare"))
     return Status::error("--compare measures one view; with --views or --orbit render the full mesh per view "
-                         "(tools/views_benchmark.sh does)");
+                         "(build/tools/views_benchmark does)");
   if (sequence && args.has("--export-mesh")) return Status::error("--export-mesh takes one view, not --views or --orbit");
   if (cluster::active() && args.has("--compare"))
     return Status::error("--compare runs in one process: run it without mpirun");
   const std::filesystem::path first_image = sequence ? numbered_image_path(output, 0) : output;
-  RAYLOD_RETURN_IF_ERROR(check_output_image_path(first_image));
   // OpenImageIO's 0.4 s of loading overlaps the store stage, which then
-  // checks that the image has a writer (RunOptions::output_image).
+  // checks that the image has a writer (RunOptions::output_image); an
+  // extension no build is sure to write is checked now.
   start_loading_image_codec();
+  RAYLOD_RETURN_IF_ERROR(check_output_image_early(first_image));
   RAYLOD_RETURN_IF_ERROR(check_stats_json_path(args));
   if (args.has("--export-mesh")) RAYLOD_RETURN_IF_ERROR(check_output_file(args.get("--export-mesh"), "--export-mesh"));
   if (args.has("--compare")) {

@@ -387,7 +387,7 @@ AtomicOutput::AtomicOutput(std::filesystem::path destination) : dest_(std::move(
   pass_through_ = is_pass_through_output(dest_);
   target_ = pass_through_ ? dest_ : follow_symlinks(dest_);
   // A device's directory (/dev) is no place for a temporary.
-  const fs::path beside = pass_through_ ? fs::temp_directory_path(ec) / ("raylod-" + dest_.filename().string()) : target_;
+  const fs::path beside = pass_through_ ? temporary_folder() / ("raylod-" + dest_.filename().string()) : target_;
   remove_stale_temporaries(beside);
   static std::atomic<uint64_t> counter{0};
   std::random_device rd;
@@ -455,11 +455,26 @@ Status AtomicOutput::commit() {
   return Status::ok();
 }
 
+bool folder_is_writable(const std::filesystem::path& dir) {
+  const std::filesystem::path probe = dir / (".raylod-write-test-" + std::to_string(::getpid()));
+  const int fd = ::open(probe.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0600);
+  if (fd < 0) return errno == EEXIST;  // a leftover of this pid's: the folder takes files
+  ::close(fd);
+  ::unlink(probe.c_str());
+  return true;
+}
+
+std::filesystem::path temporary_folder() {
+  std::error_code ec;
+  std::filesystem::path dir = std::filesystem::temp_directory_path(ec);
+  return ec || dir.empty() ? std::filesystem::path("/tmp") : dir;
+}
+
 std::filesystem::path default_cache_dir() {
   if (const char* d = std::getenv("RAYLOD_CACHE_DIR"); d && *d) return d;
   if (const char* x = std::getenv("XDG_CACHE_HOME"); x && *x) return std::filesystem::path(x) / "raylod";
   if (const char* h = std::getenv("HOME"); h && *h) return std::filesystem::path(h) / ".cache" / "raylod";
-  return std::filesystem::temp_directory_path() / "raylod-cache";
+  return temporary_folder() / "raylod-cache";
 }
 
 Status write_temporary(const AtomicOutput& out, std::initializer_list<std::string_view> pieces,

@@ -152,8 +152,17 @@ class AtomicOutput {
 };
 
 // raylod's cache directory: $RAYLOD_CACHE_DIR, else $XDG_CACHE_HOME/raylod,
-// else ~/.cache/raylod (created on demand by the callers).
+// else ~/.cache/raylod, else (no HOME) raylod-cache in temporary_folder()
+// (created on demand by the callers).
 std::filesystem::path default_cache_dir();
+// Whether this process can create files in `dir` (a probe file, removed at
+// once): a permission check that also sees read-only mounts and immutable
+// folders.
+bool folder_is_writable(const std::filesystem::path& dir);
+// The folder for scratch files: $TMPDIR where it names an existing folder,
+// else /tmp (std::filesystem::temp_directory_path throws for a TMPDIR that
+// does not exist).
+std::filesystem::path temporary_folder();
 
 // Writes bytes to out's temporary (created or truncated) and closes it; a
 // failure is a write_failed status naming the destination and the system's

@@ -213,20 +213,6 @@ bool staged_write_refused(const Status& status, const fs::path& staged) {
   return status.is_write_failure() && fs::path(status.path()) == staged;
 }
 
-namespace {
-
-// Whether this process can create files in `dir` (a probe file, removed at once).
-bool folder_is_writable(const fs::path& dir) {
-  const fs::path probe = dir / (".raylod-write-test-" + std::to_string(::getpid()));
-  const int fd = ::open(probe.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0600);
-  if (fd < 0) return errno == EEXIST;  // a leftover of this pid's: the folder takes files
-  ::close(fd);
-  ::unlink(probe.c_str());
-  return true;
-}
-
-}  // namespace
-
 fs::path store_path_for(const fs::path& mesh, const fs::path& cache_dir, const StoreOptions& options,
                         std::string* note) {
   const fs::path beside = default_store_path(mesh);
@@ -246,7 +232,7 @@ fs::path store_path_for(const fs::path& mesh, const fs::path& cache_dir, const S
   // Neither the mesh's folder nor the cache takes files (a read-only cache
   // shared by others): the system's temporary folder, per user.
   const fs::path in_temp =
-      fs::temp_directory_path() / ("raylod-stores-" + std::to_string(::getuid())) / name;
+      temporary_folder() / ("raylod-stores-" + std::to_string(::getuid())) / name;
   fs::create_directories(in_temp.parent_path(), ec);
   if (note)
     *note = folder.string() + " and " + in_cache.parent_path().string() + " are not writable: the store goes to " +
@@ -530,8 +516,8 @@ StatusOr<RunSession> open_run_session(Scene& scene, const RunOptions& options, c
     if (c.is_ok()) session.cache.emplace(std::move(c.value()));
     else session.warnings.push_back("cannot use the cache (" + c.status().message() + "); rendering without caching");
   }
-  session.scratch = session.cache ? session.cache->dir() / "simplified" : fs::temp_directory_path();
-  remove_dead_staged_meshes(fs::temp_directory_path());
+  session.scratch = session.cache ? session.cache->dir() / "simplified" : temporary_folder();
+  remove_dead_staged_meshes(temporary_folder());
   return session;
 }
 
@@ -816,13 +802,13 @@ StatusOr<StagedMeshes> simplify_or_reuse(RunSession& session, const Scene& scene
           return cache->checkout(*entry, sm.drc);
         };
         Status checked = checkout_to(session.scratch);
-        if (!checked.is_ok() && checked.is_write_failure() && session.scratch != fs::temp_directory_path()) {
+        if (!checked.is_ok() && checked.is_write_failure() && session.scratch != temporary_folder()) {
           // A cache this user may read but not write (a shared, read-only
           // one): its entries are used from copies in the system's
           // temporary folder, and what this run simplifies is not cached.
           session.warnings.push_back("cannot write into the cache (" + checked.message() +
                                      "); using its entries from the system's temporary folder");
-          session.scratch = fs::temp_directory_path();
+          session.scratch = temporary_folder();
           checked = checkout_to(session.scratch);
         }
         RAYLOD_RETURN_IF_ERROR(checked);
@@ -854,7 +840,7 @@ StatusOr<StagedMeshes> simplify_or_reuse(RunSession& session, const Scene& scene
         session.warnings.push_back("cannot write into the cache (" + simplified.status().message() +
                                    "); rendering without caching");
         cache.reset();
-        session.scratch = fs::temp_directory_path();
+        session.scratch = temporary_folder();
         staged = staged_in(session.scratch);
         simplified = simplify_store();
       }

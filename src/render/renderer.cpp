@@ -719,6 +719,17 @@ Status check_output_image(const std::filesystem::path& path) {
   return {};
 }
 
+Status check_output_image_early(const std::filesystem::path& path) {
+  RAYLOD_RETURN_IF_ERROR(check_output_image_path(path));
+  std::string ext = path.extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char ch) { return char(std::tolower(ch)); });
+  for (const char* common : {".png", ".jpg", ".jpeg", ".exr", ".hdr", ".tif", ".tiff", ".pfm", ".bmp", ".tga", ".ppm",
+                             ".pgm", ".pnm"})
+    if (ext == common) return {};
+  if (is_extensionless_device(path)) return {};
+  return check_output_image(path);
+}
+
 StatusOr<Image> read_image(const std::filesystem::path& path) {
   RAYLOD_ASSIGN_OR_RETURN(const ImageCodec* codec, image_codec());
   Decoded decoded = codec->decode(path.string());

@@ -201,6 +201,12 @@ Status check_output_image(const std::filesystem::path& path);
 // The same without asking the image codec for a writer (it is not loaded):
 // for the ranks of a job that never write the image.
 Status check_output_image_path(const std::filesystem::path& path);
+// check_output_image_path, and where the extension is not one every
+// OpenImageIO build writes (PNG, JPEG, EXR, HDR, TIFF, PFM, BMP, TGA, PNM),
+// check_output_image: an unknown extension fails before any work, waiting
+// for the codec to load, while the common ones keep its loading overlapped
+// with the work (check_output_image before the first ray or write).
+Status check_output_image_early(const std::filesystem::path& path);
 // Reads an image as linear float (the inverse of write_image), for tests and tools.
 StatusOr<Image> read_image(const std::filesystem::path& path);
 // A triangle-id buffer as a one-channel 32-bit unsigned EXR.

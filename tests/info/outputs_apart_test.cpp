@@ -153,6 +153,7 @@ TEST(OutputsApart, UnwritableOutputsFailBeforeRendering) {
   std::filesystem::create_directories(dir / "o.normal.exr");
   std::filesystem::create_directories(dir / "c.full.png");
   std::filesystem::create_directories(dir / "v_1.png");
+  std::filesystem::create_directories(dir / "m.drc");
   struct Case {
     std::string args, expect;
   };
@@ -173,6 +174,15 @@ TEST(OutputsApart, UnwritableOutputsFailBeforeRendering) {
       // The report makes its folder, not the folders above it.
       {"report scene.json -o missing/r -q", "the report folder (-o): directory missing does not exist"},
       {"report scene.json -o tetra.ply -q", "tetra.ply: the report folder (-o) names a file"},
+      // The commands that write meshes and scenes, before any work.
+      {"simplify none.raylod none.cut -o missing/s.drc -q", "the simplified mesh (-o): directory missing does not exist"},
+      {"simplify none.raylod none.cut -o m.drc -q", "m.drc: the simplified mesh (-o) names a directory"},
+      {"gen teapot --triangles 200 -o missing/t.ply -q", "the mesh (-o): directory missing does not exist"},
+      {"gen teapot --triangles 200 -o d.png -q", "d.png: the mesh (-o) names a directory"},
+      {"scene tetra.ply -o d.png -q", "d.png: the scene (-o) names a directory"},
+      // Empty names: said so, not an internal error.
+      {"scene tetra.ply -o '' -q", "the scene (-o): no file name given"},
+      {"build '' -q", "the mesh: no file name given"},
   };
   for (const Case& c : cases) {
     const test::CommandResult r =
@@ -198,9 +208,11 @@ TEST(OutputsApart, UnwritableOutputsFailBeforeRendering) {
   const test::CommandResult r = test::run_command("cd '" + dir.string() + "' && '" + std::string(RAYLOD_EXE) +
                                                   "' render scene.json -o noext -q");
   EXPECT_NE(r.out.find("noext: no file extension to choose the image format from"), std::string::npos) << r.out;
-  // A format without a writer: `render` refuses at once; `run` loads the
-  // image codec beside its store stage and refuses once the stores are
-  // ready, before any probe (the store stays, for the next run).
+  // A format without a writer: refused at once, before any store is built
+  // (`run` loads the image codec beside its store stage, and waits for it
+  // first where the extension is not one every build writes).
+  std::filesystem::remove(dir / "tetra.ply.raylod");
+  std::filesystem::remove(dir / "tetra.ply.raylod.checked");
   for (const Case& c : {Case{"render scene.json -o o.xyz -q", "o.xyz: no image writer for '.xyz' files"},
                         Case{"run scene.json --no-cache -o o.xyz -q", "o.xyz: no image writer for '.xyz' files"},
                         Case{"run scene.json --no-cache --orbit 2 -o v_#.xyz -q", "v_0.xyz: no image writer"}}) {
@@ -211,6 +223,14 @@ TEST(OutputsApart, UnwritableOutputsFailBeforeRendering) {
     EXPECT_EQ(x.out.find("probe"), std::string::npos) << c.args << "\n" << x.out;
   }
   for (const char* name : {"o.xyz", "v_0.xyz", "v_1.xyz"}) EXPECT_FALSE(std::filesystem::exists(dir / name)) << name;
+  EXPECT_FALSE(std::filesystem::exists(dir / "tetra.ply.raylod"));
+  // A TMPDIR that does not exist: the scratch files go to /tmp (run failed
+  // with "internal error: filesystem error: temp_directory_path").
+  const test::CommandResult t = test::run_command("cd '" + dir.string() + "' && TMPDIR='" + (dir / "no-such").string() +
+                                                  "' '" + std::string(RAYLOD_EXE) +
+                                                  "' run scene.json --no-cache -o t.png -q");
+  EXPECT_EQ(t.status, 0) << t.out;
+  EXPECT_TRUE(std::filesystem::exists(dir / "t.png"));
   std::filesystem::remove_all(dir);
 }
 

@@ -444,6 +444,58 @@ TEST(Run, MeshInAReadOnlyFolderGetsItsStoreInTheCache) {
   EXPECT_TRUE(fs::exists(writable / "x.png"));
 }
 
+TEST(Probe, ACutGoesBesideItsStoreOrIntoTheCacheWhereThatFolderIsReadOnly) {
+  // `raylod probe` without -o: the cut beside the store. A mesh in a
+  // read-only folder has its store in the cache, and its cut with it (the
+  // cut used to go beside the mesh, failing after every ray was traced); a
+  // store already beside it (built before the folder became read-only) is
+  // used there, and the cut goes to the cache, said so.
+  const fs::path base = work_dir() / "read-only-probe";
+  const fs::path meshes = base / "meshes", writable = base / "writable";
+  fs::create_directories(meshes);
+  fs::create_directories(writable);
+  std::string out;
+  ASSERT_EQ(raylod("gen teapot --triangles 4000 -q -o '" + (meshes / "t.ply").string() + "'", &out), 0) << out;
+  ASSERT_EQ(raylod("gen teapot --triangles 3000 -q -o '" + (meshes / "built.ply").string() + "'", &out), 0) << out;
+  ASSERT_EQ(raylod("build '" + (meshes / "built.ply").string() + "' -q", &out), 0) << out;
+  const fs::path scene = write_scene("read-only-probe.json", 1.0, 48, 36);
+  std::string why;
+  const std::optional<std::string> unprivileged = as_unprivileged(writable, &why);
+  if (!unprivileged) GTEST_SKIP() << why;
+  const bool root = ::geteuid() == 0;
+  if (!root) fs::permissions(meshes, fs::perms::owner_read | fs::perms::owner_exec);
+  const fs::path cache = writable / "cache";
+  auto probe = [&](const std::string& mesh) {
+    const std::string cmd = *unprivileged + "env RAYLOD_CACHE_DIR='" + cache.string() + "' '" RAYLOD_EXE "' probe '" +
+                            scene.string() + "' --mesh '" + (meshes / mesh).string() + "' --rays 300";
+    const int rc = std::system((cmd + " > '" + (base / "log").string() + "' 2>&1").c_str());
+    out = read(base / "log");
+    return WIFEXITED(rc) ? WEXITSTATUS(rc) : -1;
+  };
+  auto cuts_in = [](const fs::path& dir, const std::string& mesh) {
+    size_t n = 0;
+    if (fs::is_directory(dir))
+      for (const auto& e : fs::directory_iterator(dir))
+        n += e.path().extension() == ".cut" && e.path().filename().string().rfind(mesh + ".", 0) == 0;
+    return n;
+  };
+  const int fresh = probe("t.ply");
+  const std::string fresh_out = out;
+  const int built = probe("built.ply");
+  if (!root) fs::permissions(meshes, fs::perms::owner_all);
+  ASSERT_EQ(fresh, 0) << fresh_out;
+  EXPECT_NE(fresh_out.find("is not writable: the store goes to " + (cache / "stores").string()), std::string::npos)
+      << fresh_out;
+  EXPECT_EQ(fresh_out.find("the cut goes to"), std::string::npos) << fresh_out;  // beside its store, in the cache
+  ASSERT_EQ(built, 0) << out;
+  EXPECT_NE(out.find(meshes.string() + " is not writable: the cut goes to " + (cache / "stores").string()),
+            std::string::npos)
+      << out;
+  EXPECT_EQ(cuts_in(meshes, "t.ply") + cuts_in(meshes, "built.ply"), 0u);
+  EXPECT_EQ(cuts_in(cache / "stores", "built.ply"), 1u);
+  EXPECT_EQ(cuts_in(cache / "stores", "t.ply"), 1u);
+}
+
 TEST(Run, AReadOnlyCacheIsUsedAsItIs) {
   // A cache and a mesh folder this user may read but not write (shared by
   // others): a view the cache holds renders from it (its entry copied to
