@@ -65,14 +65,19 @@ Status check_glb_container(const std::vector<uint8_t>& bytes, const std::string&
 struct FsContext {
   std::string folder;   // absolute, without a trailing slash
   std::string missing;  // the last file looked for and not found
+  std::string outside;  // the last file looked for outside the folder
 };
 
+// Only files in the glTF file's folder or below it: the path as written
+// ("DIR/../x.bin" is outside), not where symbolic links inside it lead.
 bool file_exists(const std::string& path, void* user) {
   auto* fs = static_cast<FsContext*>(user);
-  const bool inside = path.rfind(fs->folder + "/", 0) == 0;
+  const std::string normal = std::filesystem::path(path).lexically_normal().string();
+  const bool inside = path.rfind(fs->folder + "/", 0) == 0 && normal.rfind(fs->folder + "/", 0) == 0;
   struct stat st {};
   if (inside && ::stat(path.c_str(), &st) == 0 && S_ISREG(st.st_mode)) return true;
   if (inside) fs->missing = path;
+  else fs->outside = path;
   return false;
 }
 
@@ -202,6 +207,8 @@ StatusOr<std::shared_ptr<const LoadedModel>> load_uncached(const std::filesystem
     std::string hint;
     if (!context.missing.empty())
       hint = " (external files are looked for only beside the glTF file: " + context.missing + " does not exist)";
+    else if (!context.outside.empty())
+      hint = " (external files are looked for only in the glTF file's folder: " + context.outside + " is outside it)";
     return Status::error(name + ": cannot load glTF: " + err + hint);
   }
   const tinygltf::Model& m = loaded->model;

@@ -359,6 +359,21 @@ TEST(GltfReaderErrors, MissingAccessorBufferAndExternalFile) {
   const auto r = test::read_all(test::write_file("present.gltf", ext.with_buffer("present.bin").dump()));
   EXPECT_TRUE(r.status.is_ok()) << r.status.message();
   EXPECT_EQ(r.triangles(), 1u);
+  // A path that leads out of the glTF file's folder is not followed, though
+  // the file is there (it was read).
+  std::filesystem::create_directories(test::scratch_dir() / "sub");
+  const auto escape = test::write_file("sub/escape.gltf", ext.with_buffer("../present.bin").dump());
+  const auto out = test::read_all(escape);
+  ASSERT_FALSE(out.status.is_ok());
+  EXPECT_NE(out.status.message().find("external files are looked for only in the glTF file's folder"), std::string::npos)
+      << out.status.message();
+  EXPECT_NE(out.status.message().find("present.bin is outside it"), std::string::npos) << out.status.message();
+  // Within it, "./" and a subfolder's "../" are fine.
+  test::write_file("sub/inner.bin", ext.bin);
+  EXPECT_TRUE(test::read_all(test::write_file("sub/dot.gltf", ext.with_buffer("./inner.bin").dump())).status.is_ok());
+  std::filesystem::create_directories(test::scratch_dir() / "sub" / "deeper");
+  EXPECT_TRUE(
+      test::read_all(test::write_file("sub/up.gltf", ext.with_buffer("deeper/../inner.bin").dump())).status.is_ok());
 }
 
 TEST(GltfReaderErrors, NonFiniteAndOutOfRangeCoordinates) {
