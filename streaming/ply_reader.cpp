@@ -475,6 +475,18 @@ std::string PlyReader::vertex_count_hint() const {
   if (fe.count > (file_.size() - std::min<uint64_t>(fixed, file_.size())) / triangle_bytes) return "";
   const uint64_t vertex_bytes = file_.size() - fixed - fe.count * triangle_bytes;
   if (vertex_bytes % ve.record_size != 0 || vertex_bytes / ve.record_size == ve.count) return "";
+  // Only if the face records, read after that many vertices, are polygons
+  // that end exactly where the file does (a face with no corners in a file
+  // whose counts are right fits the size test too).
+  const size_t cs = scalar_size(fe.props[0].count_type), is = scalar_size(fe.props[0].type);
+  size_t pos = size_t(fixed + vertex_bytes);
+  for (uint64_t f = 0; f < fe.count; ++f) {
+    if (pos + cs > file_.size()) return "";
+    const int64_t n = load_integer(file_.data() + pos, fe.props[0].count_type, swap_);
+    if (n < 3 || uint64_t(n) > (file_.size() - pos - cs) / is) return "";
+    pos += cs + size_t(n) * is;
+  }
+  if (pos != file_.size()) return "";
   return "the header declares " + std::to_string(ve.count) + " vertices, but with " + std::to_string(fe.count) +
          " triangles the file's size fits " + std::to_string(vertex_bytes / ve.record_size) +
          ": is the header's vertex count wrong?";

@@ -11,7 +11,7 @@ namespace {
 
 int run_build(int argc, char** argv) {
   Args args("build", "MESH [-o STORE] [--memory-limit SIZE] [--max-depth N] [--threads T]",
-            "Streams MESH (.ply, .stl, .obj, .drc) twice -- bounds, then binning -- into a\n"
+            "Streams MESH (.ply, .stl, .obj, .drc, .gltf, .glb) twice -- bounds, then binning -- into a\n"
             "disk-backed octree store: triangles in checksummed pages on disk, and per-node\n"
             "quadrics (Lindstrom, eq. 4 of the method) for levels 0..quadric_depth in a node\n"
             "table. quadric_depth is the deepest level <= --max-depth whose node table fits\n"

@@ -22,7 +22,7 @@ Status run_render(int argc, char** argv, bool& help) {
             "in the format its extension names (.png, .exr, .jpg, .tif, ... via OpenImageIO).\n"
             "Only the effects the scene's materials and lights call for are simulated.",
             {{"--output", "-o", "output image (format by extension)", true, "IMAGE"},
-             {"--mesh", "", "mesh to render in place of the first object's (.drc, .ply, .stl, .obj)", true, "FILE"},
+             {"--mesh", "", "mesh to render in place of the first object's (.ply, .stl, .obj, .drc, .gltf, .glb)", true, "FILE"},
              {"--spp", "", "samples per pixel (default: the scene's)", true, "N"},
              threads_option(),
              {"--memory-limit", "", "refuse scenes whose mesh + BVH would exceed SIZE, e.g. 4G (default: no limit)", true, "SIZE"},

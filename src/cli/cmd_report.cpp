@@ -69,7 +69,7 @@ Status run_report_cmd(int argc, char** argv) {
              {"--height", "", "image height (default: the scene's)", true, "H"},
              threads_option(),
              {"--memory-limit", "", "memory cap (default: a quarter of physical memory)", true, "SIZE"},
-             {"--quick", "", "a small, fast report (50k-triangle teapot, 160x120, two K, two ray counts)", false, ""},
+             {"--quick", "", "a small, fast report (160x120, 1 spp, two K, two ray counts; a generated mesh at 50k triangles)", false, ""},
              {"--crease-angle", "", crease_angle_help(), true, "DEG"},
              quiet_option()});
   RAYLOD_RETURN_IF_ERROR(args.parse(argc, argv));

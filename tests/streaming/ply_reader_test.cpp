@@ -364,6 +364,9 @@ TEST(PlyReaderErrors, FaceWithTooFewCorners) {
   for (float c : {0.f, 0.f, 0.f, 1.f, 0.f, 0.f, 0.f, 1.f, 0.f}) b.put<float>(c);
   b.put<uint8_t>(0);
   EXPECT_READ_ERROR(write_file("zero_bin.ply", b.data), "face 0: a face has 0 corners");
+  // Its counts fit the file: no hint at a wrong vertex count (the size alone
+  // fitted two vertices and one triangle).
+  EXPECT_EQ(test::read_error(write_file("zero_bin2.ply", b.data)).find("vertex count"), std::string::npos);
 }
 
 // A binary header that declares the wrong number of vertices shifts every
