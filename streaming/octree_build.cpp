@@ -574,7 +574,7 @@ class RunFile {
   }
 
   Status open(const std::filesystem::path& beside) {
-    path_ = beside;
+    path_ = beside.parent_path() / temporary_stem(beside.filename().string());
     path_ += ".runs-" + std::to_string(::getpid());
     fd_ = ::open(path_.c_str(), O_RDWR | O_CREAT | O_EXCL | O_CLOEXEC, 0600);
     if (fd_ < 0) return Status::error(path_.string() + ": cannot create temporary file: " + std::strerror(errno));

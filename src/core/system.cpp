@@ -266,6 +266,14 @@ Status check_outputs_apart(const std::vector<FileRole>& outputs, const std::vect
   return {};
 }
 
+std::string temporary_stem(const std::string& filename) {
+  if (filename.size() <= 127) return filename;
+  char hash[18];
+  std::snprintf(hash, sizeof hash, "~%016llx",
+                static_cast<unsigned long long>(fnv1a64(filename.data(), filename.size())));
+  return filename.substr(0, 110) + hash;
+}
+
 const std::string& process_tag() {
   static const std::string tag = std::to_string(getpid()) + "@" + host_tag();
   return tag;
@@ -279,7 +287,7 @@ bool is_dead_process_temporary(const std::string& filename) {
 size_t remove_stale_temporaries(const std::filesystem::path& destination) {
   // Temporaries are named DEST.tmp-PID@HOST-N-R; one whose process is gone
   // (a kill -9 during a write, a crash) is never renamed and can be removed.
-  const std::string prefix = destination.filename().string() + ".tmp-";
+  const std::string prefix = temporary_stem(destination.filename().string()) + ".tmp-";
   std::filesystem::path dir = destination.parent_path();
   if (dir.empty()) dir = ".";
   std::error_code ec;
@@ -391,7 +399,7 @@ AtomicOutput::AtomicOutput(std::filesystem::path destination) : dest_(std::move(
   remove_stale_temporaries(beside);
   static std::atomic<uint64_t> counter{0};
   std::random_device rd;
-  temp_ = beside;
+  temp_ = beside.parent_path() / temporary_stem(beside.filename().string());
   temp_ += ".tmp-" + process_tag() + "-" + std::to_string(counter++) + "-" + std::to_string(rd() & 0xffff);
   install_temporary_handlers();
   slot_ = register_temporary(temp_);

@@ -107,7 +107,15 @@ Status check_outputs_apart(const std::vector<FileRole>& outputs, const std::vect
 // made '_'), so that processes of several machines writing to one shared
 // folder (raylod under mpirun) never take each other's temporaries for a
 // dead process's.
+// A DEST name too long to take that suffix within a file name's 255 bytes
+// is shortened first (temporary_stem).
 const std::string& process_tag();  // "PID@HOST"
+// The part of a temporary's name before its suffix (".tmp-PID@HOST-N-R",
+// ".runs-PID", up to 127 bytes with a long host name): `filename` itself, or
+// where longer than 127 bytes its first 110 bytes, '~' and 16 hex digits of a
+// hash of the whole name, so that every writer and cleaner of one
+// destination agrees on it.
+std::string temporary_stem(const std::string& filename);
 // Removes DEST.tmp-PID@HOST-* files of this machine left by processes that
 // no longer exist (a kill -9 during an atomic write); returns how many.
 // AtomicOutput calls it for its destination.

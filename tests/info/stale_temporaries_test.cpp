@@ -48,6 +48,40 @@ TEST(StaleTemporaries, DeadProcessesTemporariesAreRemovedLiveOnesKept) {
   std::filesystem::remove_all(dir);
 }
 
+// A destination name too long to take the temporary's suffix within 255
+// bytes (a valid name of 236 bytes and more failed with "File name too
+// long" after all the work): its temporaries take a shortened stem, and
+// those of dead processes are still found and removed.
+TEST(StaleTemporaries, ALongDestinationNameGetsAShortTemporary) {
+  const std::filesystem::path dir = test::scratch_dir("stale-long");
+  for (const size_t length : {size_t(100), size_t(127), size_t(128), size_t(200), size_t(255)}) {
+    const std::string name = std::string(length - 4, 'a') + ".png";
+    const std::filesystem::path dest = dir / name;
+    const std::string stem = temporary_stem(name);
+    EXPECT_EQ(stem == name, length <= 127) << length;
+    EXPECT_LE(stem.size(), 127u);
+    EXPECT_EQ(temporary_stem(name), stem) << "the same for every writer and cleaner";
+    EXPECT_NE(temporary_stem(std::string(length - 4, 'b') + ".png"), stem);
+    const std::string dead = stem + ".tmp-" + std::to_string(dead_pid()) + "@" +
+                             process_tag().substr(process_tag().find('@') + 1) + "-0-1";
+    ASSERT_LE(dead.size(), 255u);
+    std::ofstream(dir / dead) << "partial";
+    ASSERT_TRUE(std::filesystem::exists(dir / dead)) << length;
+    {
+      AtomicOutput out(dest);
+      EXPECT_LE(out.temp_path().filename().string().size(), 255u);
+      std::ofstream(out.temp_path()) << "image";
+      ASSERT_TRUE(out.commit().is_ok()) << length;
+    }
+    EXPECT_TRUE(std::filesystem::exists(dest)) << length;
+    EXPECT_FALSE(std::filesystem::exists(dir / dead)) << length;
+  }
+  size_t left = 0;
+  for (const auto& e : std::filesystem::directory_iterator(dir)) left += e.path().string().find(".tmp-") != std::string::npos;
+  EXPECT_EQ(left, 0u);
+  std::filesystem::remove_all(dir);
+}
+
 // A store build killed while it wrote leaves its temporary, and the store
 // it was to replace stays current: the next check of that store (a run, a
 // `raylod build` that reuses it) removes the dead process's temporary.
