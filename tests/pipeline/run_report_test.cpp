@@ -411,17 +411,33 @@ TEST(Run, OutputDoesNotDependOnTheLimitAnEarlierBuildUsed) {
   EXPECT_NE(out.find("up to date"), std::string::npos) << out;
 }
 
+// A folder of meshes, to be made read-only, and a folder beside it that
+// stays writable; `mesh` generates a teapot in the first.
+struct MeshFolders {
+  fs::path base, meshes, writable;
+  explicit MeshFolders(const std::string& name)
+      : base(work_dir() / name), meshes(base / "meshes"), writable(base / "writable") {
+    fs::create_directories(meshes);
+    fs::create_directories(writable);
+  }
+  void mesh(const std::string& name, int triangles) const {
+    std::string out;
+    ASSERT_EQ(raylod("gen teapot --triangles " + std::to_string(triangles) + " -q -o '" + (meshes / name).string() + "'",
+                     &out),
+              0)
+        << out;
+  }
+};
+
 TEST(Run, MeshInAReadOnlyFolderGetsItsStoreInTheCache) {
   // The store normally sits beside the mesh; a mesh in a folder this user
   // cannot write to gets it under the cache folder instead. Root writes
   // anywhere, so as root the run drops to user nobody (setpriv); otherwise
   // the folder is made read-only.
-  const fs::path base = work_dir() / "read-only";
-  const fs::path meshes = base / "meshes", writable = base / "writable";
-  fs::create_directories(meshes);
-  fs::create_directories(writable);
+  const MeshFolders folders("read-only");
+  const fs::path &base = folders.base, &meshes = folders.meshes, &writable = folders.writable;
   std::string out;
-  ASSERT_EQ(raylod("gen teapot --triangles 4000 -q -o '" + (meshes / "t.ply").string() + "'", &out), 0) << out;
+  folders.mesh("t.ply", 4000);
   const fs::path scene = write_scene("read-only.json", 1.0, 48, 36);
   std::string why;
   const std::optional<std::string> unprivileged = as_unprivileged(writable, &why);
@@ -450,13 +466,11 @@ TEST(Probe, ACutGoesBesideItsStoreOrIntoTheCacheWhereThatFolderIsReadOnly) {
   // cut used to go beside the mesh, failing after every ray was traced); a
   // store already beside it (built before the folder became read-only) is
   // used there, and the cut goes to the cache, said so.
-  const fs::path base = work_dir() / "read-only-probe";
-  const fs::path meshes = base / "meshes", writable = base / "writable";
-  fs::create_directories(meshes);
-  fs::create_directories(writable);
+  const MeshFolders folders("read-only-probe");
+  const fs::path &base = folders.base, &meshes = folders.meshes, &writable = folders.writable;
   std::string out;
-  ASSERT_EQ(raylod("gen teapot --triangles 4000 -q -o '" + (meshes / "t.ply").string() + "'", &out), 0) << out;
-  ASSERT_EQ(raylod("gen teapot --triangles 3000 -q -o '" + (meshes / "built.ply").string() + "'", &out), 0) << out;
+  folders.mesh("t.ply", 4000);
+  folders.mesh("built.ply", 3000);
   ASSERT_EQ(raylod("build '" + (meshes / "built.ply").string() + "' -q", &out), 0) << out;
   const fs::path scene = write_scene("read-only-probe.json", 1.0, 48, 36);
   std::string why;
