@@ -48,7 +48,10 @@ Status run_report_cmd(int argc, char** argv) {
             "then raylod at a sweep of footprint scales K and test-ray counts, and the uniform\n"
             "baselines (meshoptimizer's vertex clustering and quadric edge collapse) at the same\n"
             "triangle counts, on the scene's view and a close-up of it. Writes DIR/REPORT.md with\n"
-            "the table, accuracy-versus-time plots, difference images and pictures of the cut.",
+            "the table, accuracy-versus-time plots, difference images and pictures of the cut.\n"
+            "DIR is written whole or not at all: the report is built in a temporary folder beside it\n"
+            "that replaces DIR once complete. DIR must be missing, empty or an earlier report\n"
+            "(replaced with all its files); a folder of other files is refused.",
             {{"--output", "-o", "report directory (default raylod-report)", true, "DIR"},
              {"--mesh", "", "mesh to use in place of the scene's first object's mesh", true, "FILE"},
              {"--scales", "",

@@ -31,6 +31,10 @@
 //   image.before_rename  an image written to its temporary and read back,
 //                        before the rename (also as image.before_rename:error:
 //                        the rename fails)
+//   report.files         `report`, its pictures and meshes written to the
+//                        report's temporary folder, before report.json and
+//                        REPORT.md (also as report.files:error: the report
+//                        fails there)
 #pragma once
 
 namespace raylod {

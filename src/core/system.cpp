@@ -8,6 +8,7 @@
 #include <sys/stat.h>
 #if defined(__linux__)
 #include <sys/prctl.h>
+#include <sys/syscall.h>
 #endif
 #include <unistd.h>
 
@@ -296,8 +297,12 @@ size_t remove_stale_temporaries(const std::filesystem::path& destination) {
     const std::string name = it->path().filename().string();
     if (name.size() <= prefix.size() || name.compare(0, prefix.size(), prefix) != 0) continue;
     if (!pid_prefix_is_dead(name.substr(prefix.size()))) continue;
+    // AtomicDirectory's temporaries are folders (never followed if a link).
     std::error_code rm;
-    if (std::filesystem::remove(it->path(), rm)) ++removed;
+    if (std::filesystem::is_directory(std::filesystem::symlink_status(it->path(), rm)))
+      removed += std::filesystem::remove_all(it->path(), rm) > 0;
+    else if (std::filesystem::remove(it->path(), rm))
+      ++removed;
   }
   return removed;
 }
@@ -306,18 +311,65 @@ namespace {
 
 // The temporaries being written, for the handler of SIGTERM, SIGINT and
 // SIGHUP: mpirun ends the other ranks with SIGTERM when one fails, and a
-// terminal's Ctrl-C is SIGINT. A slot is free (0), being filled (1) or
-// names a live temporary (2); the handler reads only lock-free atomics and
-// calls only async-signal-safe functions (unlink, raise).
+// terminal's Ctrl-C is SIGINT. A slot is free (kFree), being filled
+// (kFilling), names a live temporary file (kFile) or folder (kFolder, an
+// AtomicDirectory's), a folder its commit() is renaming (kCommitting: the
+// handler leaves it, and if the process dies then, the next run's clean-up
+// removes it), or a folder the handler is removing (kRemoving). The
+// handler reads only lock-free atomics and calls only async-signal-safe
+// functions (unlink, openat, getdents64, unlinkat, raise).
+enum SlotState : int { kFree, kFilling, kFile, kFolder, kCommitting, kRemoving };
 struct TemporarySlot {
-  std::atomic<int> state{0};
+  std::atomic<int> state{kFree};
   char path[4096];
 };
 TemporarySlot g_temporaries[64];
 
+// Removes `name` (relative to dir_fd) and, if it is a folder, what is in it,
+// `depth` levels down at most, with system calls only (async-signal-safe).
+// A file that another thread creates meanwhile can leave the folder behind,
+// as can a system other than Linux (the folder must then be empty): the
+// next run's remove_stale_temporaries takes it.
+void remove_tree_at(int dir_fd, const char* name, int depth) {
+  if (::unlinkat(dir_fd, name, 0) == 0 || errno == ENOENT) return;
+#if defined(__linux__) && defined(SYS_getdents64)
+  if (depth > 0) {
+    const int fd = ::openat(dir_fd, name, O_RDONLY | O_DIRECTORY | O_NOFOLLOW | O_CLOEXEC);
+    if (fd >= 0) {
+      alignas(8) char buf[4096];
+      // Entries removed while the folder is read may hide others: read it
+      // again until a pass finds nothing (a bounded number of times).
+      for (int pass = 0; pass < 8; ++pass) {
+        bool found = false;
+        ::lseek(fd, 0, SEEK_SET);
+        long n;
+        while ((n = ::syscall(SYS_getdents64, fd, buf, sizeof buf)) > 0)
+          for (long at = 0; at < n;) {
+            // struct linux_dirent64: ino (8 bytes), off (8), reclen (2), type (1), name.
+            unsigned short reclen = 0;
+            std::memcpy(&reclen, buf + at + 16, sizeof reclen);
+            const char* entry = buf + at + 19;
+            at += reclen;
+            if (entry[0] == '.' && (entry[1] == 0 || (entry[1] == '.' && entry[2] == 0))) continue;
+            remove_tree_at(fd, entry, depth - 1);
+            found = true;
+          }
+        if (!found) break;
+      }
+      ::close(fd);
+    }
+  }
+#endif
+  ::unlinkat(dir_fd, name, AT_REMOVEDIR);
+}
+
 void remove_temporaries_and_die(int sig) {
-  for (TemporarySlot& slot : g_temporaries)
-    if (slot.state.load(std::memory_order_acquire) == 2) ::unlink(slot.path);
+  for (TemporarySlot& slot : g_temporaries) {
+    int state = slot.state.load(std::memory_order_acquire);
+    if (state == kFile) ::unlink(slot.path);
+    if (state == kFolder && slot.state.compare_exchange_strong(state, kRemoving, std::memory_order_acq_rel))
+      remove_tree_at(AT_FDCWD, slot.path, 8);
+  }
   // SA_RESETHAND restored the default action: the signal, blocked while
   // this runs, ends the process as it would have without the handler.
   ::raise(sig);
@@ -340,25 +392,44 @@ void install_temporary_handlers() {
   });
 }
 
-// A slot for `path`, or -1 if every slot is taken or the path is too long
-// (the temporary is then left to the next run's clean-up, as before).
-int register_temporary(const std::filesystem::path& path) {
+// A slot for `path` (a file, or a folder if `folder`), or -1 if every slot
+// is taken or the path is too long (the temporary is then left to the next
+// run's clean-up, as before).
+int register_temporary(const std::filesystem::path& path, bool folder = false) {
   const std::string& p = path.native();
   if (p.size() >= sizeof(TemporarySlot::path)) return -1;
   for (int i = 0; i < int(std::size(g_temporaries)); ++i) {
-    int expected = 0;
+    int expected = kFree;
     TemporarySlot& slot = g_temporaries[i];
-    if (!slot.state.compare_exchange_strong(expected, 1, std::memory_order_acq_rel)) continue;
+    if (!slot.state.compare_exchange_strong(expected, kFilling, std::memory_order_acq_rel)) continue;
     std::memcpy(slot.path, p.c_str(), p.size() + 1);
-    slot.state.store(2, std::memory_order_release);
+    slot.state.store(folder ? kFolder : kFile, std::memory_order_release);
     return i;
   }
   return -1;
 }
 
 void release_temporary(int& slot) {
-  if (slot >= 0) g_temporaries[slot].state.store(0, std::memory_order_release);
+  if (slot >= 0) g_temporaries[slot].state.store(kFree, std::memory_order_release);
   slot = -1;
+}
+
+// Takes a folder's slot from the handler for commit(): from then on a
+// signal leaves the folder alone. If the handler is removing it already,
+// the process is about to end (the handler re-raises the signal): wait.
+void hold_folder_from_handler(int slot) {
+  if (slot < 0) return;
+  for (;;) {
+    int expected = kFolder;
+    if (g_temporaries[slot].state.compare_exchange_strong(expected, kCommitting, std::memory_order_acq_rel)) return;
+    ::usleep(1000);
+  }
+}
+
+// Gives a folder's slot back to the handler (what is at its path is to be
+// removed).
+void return_folder_to_handler(int slot) {
+  if (slot >= 0) g_temporaries[slot].state.store(kFolder, std::memory_order_release);
 }
 
 }  // namespace
@@ -380,6 +451,25 @@ std::filesystem::path follow_symlinks(std::filesystem::path p) {
   return p;
 }
 
+// A temporary's name for `beside`: BESIDE.tmp-PID@HOST-N-R (N counts this
+// process's temporaries, R is random).
+std::filesystem::path temporary_beside(const std::filesystem::path& beside) {
+  static std::atomic<uint64_t> counter{0};
+  std::random_device rd;
+  std::filesystem::path temp = beside.parent_path() / temporary_stem(beside.filename().string());
+  temp += ".tmp-" + process_tag() + "-" + std::to_string(counter++) + "-" + std::to_string(rd() & 0xffff);
+  return temp;
+}
+
+// fsyncs a folder, so that the renames into it last (best effort).
+void sync_folder(const std::filesystem::path& dir) {
+  const int fd = ::open(dir.empty() ? "." : dir.c_str(), O_RDONLY | O_DIRECTORY);
+  if (fd >= 0) {
+    ::fsync(fd);
+    ::close(fd);
+  }
+}
+
 }  // namespace
 
 bool is_pass_through_output(const std::filesystem::path& path) {
@@ -397,10 +487,7 @@ AtomicOutput::AtomicOutput(std::filesystem::path destination) : dest_(std::move(
   // A device's directory (/dev) is no place for a temporary.
   const fs::path beside = pass_through_ ? temporary_folder() / ("raylod-" + dest_.filename().string()) : target_;
   remove_stale_temporaries(beside);
-  static std::atomic<uint64_t> counter{0};
-  std::random_device rd;
-  temp_ = beside.parent_path() / temporary_stem(beside.filename().string());
-  temp_ += ".tmp-" + process_tag() + "-" + std::to_string(counter++) + "-" + std::to_string(rd() & 0xffff);
+  temp_ = temporary_beside(beside);
   install_temporary_handlers();
   slot_ = register_temporary(temp_);
 }
@@ -476,6 +563,107 @@ std::filesystem::path temporary_folder() {
   std::error_code ec;
   std::filesystem::path dir = std::filesystem::temp_directory_path(ec);
   return ec || dir.empty() ? std::filesystem::path("/tmp") : dir;
+}
+
+AtomicDirectory::AtomicDirectory(std::filesystem::path destination) : dest_(std::move(destination)) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  target_ = dest_;
+  if (fs::is_symlink(fs::symlink_status(dest_, ec))) {
+    const fs::path resolved = fs::canonical(dest_, ec);
+    if (!ec) target_ = resolved;
+  }
+  remove_stale_temporaries(target_);
+  temp_ = temporary_beside(target_);
+}
+
+AtomicDirectory::~AtomicDirectory() {
+  if (created_ && !committed_) {
+    std::error_code ec;
+    std::filesystem::remove_all(temp_, ec);
+  }
+  release_temporary(slot_);
+}
+
+Status AtomicDirectory::create() {
+  const std::string dest = dest_.string();
+  // Registered first: a signal between the two finds nothing to remove.
+  install_temporary_handlers();
+  if (slot_ < 0) slot_ = register_temporary(temp_, true);
+  std::error_code ec;
+  if (!std::filesystem::create_directory(temp_, ec) || ec) {
+    const int err = ec ? ec.value() : EEXIST;
+    return Status::write_failed(dest, dest + ": cannot create the temporary folder " + temp_.string() + ": " +
+                                    (ec ? ec.message() : std::string("it exists")),
+                                err);
+  }
+  created_ = true;
+  return Status::ok();
+}
+
+Status AtomicDirectory::commit() {
+  namespace fs = std::filesystem;
+  const std::string dest = dest_.string();
+  if (!created_ || committed_) return Status::error(dest + ": no temporary folder to rename into place");
+  sync_folder(temp_);
+  // From here a signal leaves the folders alone (the handler could
+  // otherwise be removing the temporary while it is renamed), and this
+  // thread takes none until both renames are done.
+  hold_folder_from_handler(slot_);
+  sigset_t block, previous;
+  sigemptyset(&block);
+  for (int sig : {SIGTERM, SIGINT, SIGHUP}) sigaddset(&block, sig);
+  ::pthread_sigmask(SIG_BLOCK, &block, &previous);
+  std::error_code ec;
+  const bool replace = fs::exists(fs::symlink_status(target_, ec));
+  int err = 0;
+  bool old_at_temp = false;  // the folder replaced is now at temp_
+  fs::path aside;            // ...or there
+  bool done = false;
+#if defined(__linux__) && defined(RENAME_EXCHANGE) && defined(RENAME_NOREPLACE)
+  // One rename: the new folder in place and the old one at the temporary's
+  // name, or (nothing there) the new folder in place unless something came.
+  if (::renameat2(AT_FDCWD, temp_.c_str(), AT_FDCWD, target_.c_str(), replace ? RENAME_EXCHANGE : RENAME_NOREPLACE) == 0) {
+    done = true;
+    old_at_temp = replace;
+  } else if (errno != EINVAL && errno != ENOSYS && errno != ENOTSUP) {
+    err = errno;
+    done = true;
+  }
+#endif
+  if (!done && !replace) {
+    if (::rename(temp_.c_str(), target_.c_str()) != 0) err = errno;
+  } else if (!done) {
+    // Moved aside, the new one renamed in (the old one back on failure).
+    aside = temporary_beside(target_);
+    if (::rename(target_.c_str(), aside.c_str()) != 0) {
+      err = errno;
+      aside.clear();
+    } else if (::rename(temp_.c_str(), target_.c_str()) != 0) {
+      err = errno;
+      ::rename(aside.c_str(), target_.c_str());
+      aside.clear();
+    }
+  }
+  ::pthread_sigmask(SIG_SETMASK, &previous, nullptr);
+  if (err != 0) {
+    return_folder_to_handler(slot_);
+    return Status::write_failed(dest, dest + ": could not rename the finished folder into place: " + std::strerror(err),
+                                err);
+  }
+  committed_ = true;
+  sync_folder(target_.parent_path());
+  // The folder replaced: removed (a signal meanwhile removes the rest).
+  if (old_at_temp) {
+    return_folder_to_handler(slot_);
+    fs::remove_all(temp_, ec);
+  } else if (!aside.empty()) {
+    int aside_slot = register_temporary(aside, true);
+    fs::remove_all(aside, ec);
+    release_temporary(aside_slot);
+  }
+  release_temporary(slot_);
+  return Status::ok();
 }
 
 std::filesystem::path default_cache_dir() {

@@ -117,8 +117,9 @@ const std::string& process_tag();  // "PID@HOST"
 // destination agrees on it.
 std::string temporary_stem(const std::string& filename);
 // Removes DEST.tmp-PID@HOST-* files of this machine left by processes that
-// no longer exist (a kill -9 during an atomic write); returns how many.
-// AtomicOutput calls it for its destination.
+// no longer exist (a kill -9 during an atomic write), and such folders with
+// everything in them (AtomicDirectory's); returns how many. AtomicOutput
+// and AtomicDirectory call it for their destination.
 size_t remove_stale_temporaries(const std::filesystem::path& destination);
 // True if `filename` is an atomic write's temporary (NAME.tmp-PID@HOST-...,
 // nested ones included, or NAME.tmp-PID-... of older versions) whose process,
@@ -156,6 +157,42 @@ class AtomicOutput {
   std::filesystem::path target_;  // the file renamed over: dest_, or the file its symlinks name
   bool pass_through_ = false;     // dest_ is a device, FIFO or socket
   bool committed_ = false;
+  int slot_ = -1;  // in the signal handler's table of live temporaries
+};
+
+// A folder of outputs written whole or not at all, as AtomicOutput writes a
+// file: its files go into a temporary folder beside the destination,
+// DEST.tmp-PID@HOST-N-R (made by create(), not its parents), and commit()
+// puts that folder in the destination's place. A destination that exists,
+// which the caller has judged may be replaced, is exchanged with it in one
+// rename (Linux renameat2 RENAME_EXCHANGE; elsewhere, or on a file system
+// without it, moved aside to a temporary name first) and then removed.
+// Destroying without commit() removes the temporary folder and everything
+// in it; so does SIGTERM, SIGINT or SIGHUP while it lives (the handler
+// AtomicOutput installs), and one left by a process killed outright is
+// removed by the next AtomicDirectory (or remove_stale_temporaries) of the
+// same destination. Symlinks: a destination that is a symlink to a folder
+// is resolved, and the folder it names is replaced (the link stays).
+class AtomicDirectory {
+ public:
+  explicit AtomicDirectory(std::filesystem::path destination);
+  ~AtomicDirectory();
+  AtomicDirectory(const AtomicDirectory&) = delete;
+  AtomicDirectory& operator=(const AtomicDirectory&) = delete;
+
+  // Makes the temporary folder; a failure names the destination.
+  Status create();
+  // The folder to write into (beside the folder replaced).
+  const std::filesystem::path& temp_path() const { return temp_; }
+  // The folder replaced: the destination, or the folder its symlinks name.
+  const std::filesystem::path& target() const { return target_; }
+  // Renames the temporary folder to the destination, exchanging it with
+  // the folder there if there is one, which is then removed.
+  Status commit();
+
+ private:
+  std::filesystem::path dest_, target_, temp_;
+  bool created_ = false, committed_ = false;
   int slot_ = -1;  // in the signal handler's table of live temporaries
 };
 

@@ -11,6 +11,7 @@
 #include <nlohmann/json.hpp>
 #include <glm/gtc/matrix_transform.hpp>
 
+#include "core/fault_point.h"
 #include "core/system.h"
 #include "gen/generate.h"
 #include "pipeline/baselines.h"
@@ -105,10 +106,44 @@ std::string label_number(double v) {
   return buf;
 }
 
+// REPORT.md's first line starts with this: how an earlier report's folder,
+// which a new report may replace, is told from a folder of other files.
+constexpr const char* kReportTitle = "# raylod accuracy report";
+
+// What the report's folder (-o) holds: nothing (missing or empty), an
+// earlier report (REPORT.md with the report's title, and report.json), or
+// anything else.
+enum class FolderHolds { Nothing, Report, Other };
+FolderHolds report_folder_holds(const fs::path& dir) {
+  std::error_code ec;
+  if (!fs::exists(dir, ec) && !ec) return FolderHolds::Nothing;
+  const bool empty = fs::is_empty(dir, ec);
+  if (ec) return FolderHolds::Other;  // unreadable: not replaced
+  if (empty) return FolderHolds::Nothing;
+  std::ifstream md(dir / "REPORT.md");
+  std::string first;
+  std::getline(md, first);
+  if (first.rfind(kReportTitle, 0) == 0 && fs::is_regular_file(dir / "report.json", ec)) return FolderHolds::Report;
+  return FolderHolds::Other;
+}
+
+Status refuse_other_folder(const fs::path& out_dir) {
+  return Status::error(out_dir.string() + ": the report folder (-o) holds files that are not a raylod report (no " +
+                       "REPORT.md and report.json of one); a report replaces its whole folder, so give a new or " +
+                       "empty folder, or an earlier report's");
+}
+
 std::string mib(uint64_t bytes) { return fmt("%.1f", double(bytes) / (1024.0 * 1024.0)); }
 
-// 999 stands for an infinite PSNR (identical images), which JSON cannot hold.
-double psnr_for_json(double psnr) { return std::isfinite(psnr) ? psnr : 999.0; }
+// An image identical to the one it is compared with has an infinite PSNR,
+// which JSON cannot hold: null, as in `run --compare`'s statistics, beside
+// "identical": true (the full mesh's row, the reference itself, has null
+// and no "identical").
+nlohmann::json psnr_for_json(double psnr) { return std::isfinite(psnr) ? nlohmann::json(psnr) : nlohmann::json(nullptr); }
+
+// A PSNR for the text: "51.93 dB", or "identical" for an image that equals
+// the reference pixel for pixel.
+std::string psnr_text(double psnr) { return std::isfinite(psnr) ? fmt("%.2f dB", psnr) : "identical"; }
 
 nlohmann::json row_json(const ReportRow& r, const NoiseFloor* floor) {
   nlohmann::json j = {{"scene", r.scene}, {"method", r.method}, {"footprint_scale", r.footprint_scale}, {"rays", r.rays},
@@ -116,8 +151,28 @@ nlohmann::json row_json(const ReportRow& r, const NoiseFloor* floor) {
           {"render_seconds", r.render_s}, {"total_seconds", r.total_s}, {"drc_bytes", r.drc_bytes},
           {"memory_bytes", r.memory_bytes}, {"psnr", psnr_for_json(r.error.psnr)},
           {"ssim", r.error.ssim}, {"max_diff", r.error.max_diff}, {"image", r.image}, {"diff_image", r.diff_image}};
+  if (r.method != "full mesh") j["identical"] = !std::isfinite(r.error.psnr);
   if (floor && r.method != "full mesh") j["within_noise_floor"] = within_noise_floor(r.error, *floor);
   return j;
+}
+
+// The table's PSNR cell: "reference" for the full mesh's row (the image the
+// others are compared with), "identical" for another row whose image equals
+// it exactly, else the PSNR in dB.
+std::string psnr_cell(const ReportRow& r) {
+  if (r.method == "full mesh") return "reference";
+  return std::isfinite(r.error.psnr) ? fmt("%.2f", r.error.psnr) : "identical";
+}
+
+// A baseline's figures against raylod's default, for the text below a
+// view's table: "PSNR 48.33 dB (raylod +4.16 dB)", or words for an image
+// identical to the reference.
+std::string against_baseline(const ReportRow& baseline, const ReportRow& raylod) {
+  if (!std::isfinite(baseline.error.psnr)) return "an image identical to the reference";
+  return "PSNR " + psnr_text(baseline.error.psnr) + " (raylod " +
+         (std::isfinite(raylod.error.psnr) ? fmt("%+.2f dB", raylod.error.psnr - baseline.error.psnr)
+                                           : std::string("identical")) +
+         ")";
 }
 
 const NoiseFloor* find_floor(const std::vector<ReportView>& views, const std::string& scene) {
@@ -179,16 +234,16 @@ void write_table1(std::ostringstream& md, const ReportRow& full, const ReportRow
      << (paper ? " none | " + fmt("%.0f", p.preprocessing_s) + " |" : "") << "\n";
   md << "| rendering s (load, BVH, trace) | " << fmt("%.2f", full.render_s) << " | " << fmt("%.2f", def.render_s) << " |"
      << (paper ? " " + fmt("%.0f", p.full_render_s) + " | " + fmt("%.0f", p.method_render_s) + " |" : "") << "\n";
-  md << "| PSNR against the full mesh | reference | " << fmt("%.2f dB", def.error.psnr)
+  md << "| PSNR against the full mesh | reference | " << psnr_text(def.error.psnr)
      << (floor ? " (noise floor " + fmt("%.2f dB", floor->psnr()) + ")" : std::string()) << " |"
      << (paper ? " reference | not reported |" : "") << "\n\n";
   md << "The store is built once per mesh and reused by every view (" << fmt("%.2f s", build_seconds)
      << " in this report, about 0 if it was already current).\n\n";
 }
 
-Status write_report_files(const ReportResult& result, const ReportConfig& cfg, const SceneStores& stores,
-                          double load_seconds, const std::map<std::string, std::string>& cut_legends,
-                          const Scene& input_scene) {
+Status write_report_files(const fs::path& out_dir, const ReportResult& result, const ReportConfig& cfg,
+                          const SceneStores& stores, double load_seconds,
+                          const std::map<std::string, std::string>& cut_legends, const Scene& input_scene) {
   // Machine-readable data first.
   nlohmann::json j;
   j["mesh"] = stores.meshes[0].string();
@@ -202,13 +257,14 @@ Status write_report_files(const ReportResult& result, const ReportConfig& cfg, c
   for (const auto& v : result.views) {
     const NoiseFloor& f = v.noise_floor;
     j["noise_floors"].push_back({{"scene", v.scene}, {"seed", f.seed}, {"other_seed", noise_floor_seed(f.seed)},
-                                 {"spp", f.spp}, {"psnr", psnr_for_json(f.psnr())}, {"ssim", f.error.ssim},
+                                 {"spp", f.spp}, {"psnr", psnr_for_json(f.psnr())},
+                                 {"identical", !std::isfinite(f.psnr())}, {"ssim", f.error.ssim},
                                  {"max_diff", f.error.max_diff}, {"render_seconds", f.render_seconds}});
   }
-  RAYLOD_RETURN_IF_ERROR(write_file_atomic(cfg.out_dir / "report.json", j.dump(2) + "\n"));
+  RAYLOD_RETURN_IF_ERROR(write_file_atomic(out_dir / "report.json", j.dump(2) + "\n"));
 
   std::ostringstream md;
-  md << "# raylod accuracy report: what accuracy costs in time\n\n";
+  md << kReportTitle << ": what accuracy costs in time\n\n";
   md << "Mesh `" << stores.meshes[0].filename().string() << "`, " << stores.triangles << " triangles. ";
   md << "Error is measured against the render of the full-resolution mesh (PSNR and SSIM on the displayed, "
         "sRGB-encoded image; largest absolute channel difference in [0, 1]). Times are wall-clock seconds on this "
@@ -252,7 +308,7 @@ Status write_report_files(const ReportResult& result, const ReportConfig& cfg, c
          << (ray ? std::to_string(r.rays) : "") << " | " << r.triangles << " | " << (ray ? fmt("%.2f", r.probe_s) : "")
          << " | " << (r.method == "full mesh" ? "" : fmt("%.2f", r.simplify_s)) << " | " << fmt("%.2f", r.render_s)
          << " | " << fmt("%.2f", r.total_s) << " | " << (ray ? mib(r.drc_bytes) : "") << " | " << mib(r.memory_bytes)
-         << " | " << (std::isfinite(r.error.psnr) ? fmt("%.2f", r.error.psnr) : "reference") << " | "
+         << " | " << psnr_cell(r) << " | "
          << fmt("%.4f", r.error.ssim) << " | " << fmt("%.3f", r.error.max_diff) << " | "
          << against_floor_cell(r, floor) << " |\n";
     }
@@ -269,16 +325,15 @@ Status write_report_files(const ReportResult& result, const ReportConfig& cfg, c
       const ReportRow* vc = find_row(result.rows, scene, "vertex clustering", def->triangles);
       const ReportRow* ec = find_row(result.rows, scene, "edge collapse", def->triangles);
       md << "At the default settings: " << fmt("%.1f", double(full->triangles) / std::max<uint64_t>(def->triangles, 1))
-         << "x fewer triangles than the input, PSNR " << fmt("%.2f dB", def->error.psnr)
+         << "x fewer triangles than the input, "
+         << (std::isfinite(def->error.psnr) ? "PSNR " + psnr_text(def->error.psnr) : "an image identical to the reference")
          << (floor ? " (" + describe_against_noise_floor(def->error, *floor) + ")" : std::string()) << "; probe + simplify + "
          << "render " << fmt("%.2f s", def->total_s) << " against " << fmt("%.2f s", full->total_s)
          << " to render the full mesh (load and BVH included).";
       if (vc)
-        md << " Uniform vertex clustering at " << vc->triangles << " triangles: PSNR " << fmt("%.2f dB", vc->error.psnr)
-           << " (raylod " << fmt("%+.2f dB", def->error.psnr - vc->error.psnr) << ").";
+        md << " Uniform vertex clustering at " << vc->triangles << " triangles: " << against_baseline(*vc, *def) << ".";
       if (ec)
-        md << " Quadric edge collapse at " << ec->triangles << " triangles: PSNR " << fmt("%.2f dB", ec->error.psnr)
-           << " (raylod " << fmt("%+.2f dB", def->error.psnr - ec->error.psnr) << ").";
+        md << " Quadric edge collapse at " << ec->triangles << " triangles: " << against_baseline(*ec, *def) << ".";
       md << "\n\n";
       write_table1(md, *full, *def, floor, stores.seconds, is_paper_bottle(input_scene));
       md << "| reference (full mesh) | raylod (default) | difference x4 | cut: collapse level |\n|---|---|---|---|\n";
@@ -325,12 +380,12 @@ Status write_report_files(const ReportResult& result, const ReportConfig& cfg, c
       pc.x_label = "total time [s]";
       pc.y_label = "PSNR [dB]";
       const std::string plot = tag + "-accuracy-vs-time.png";
-      RAYLOD_RETURN_IF_ERROR(write_plot(cfg.out_dir / plot, series, pc));
+      RAYLOD_RETURN_IF_ERROR(write_plot(out_dir / plot, series, pc));
       md << "Accuracy against time (higher and further left is better):\n\n![](" << plot << ")\n\n";
     }
   }
   md << "Data: `report.json`. Regenerate with the command in README.md (\"What accuracy costs\").\n";
-  RAYLOD_RETURN_IF_ERROR(write_file_atomic(cfg.out_dir / "REPORT.md", md.str()));
+  RAYLOD_RETURN_IF_ERROR(write_file_atomic(out_dir / "REPORT.md", md.str()));
   return {};
 }
 
@@ -350,7 +405,12 @@ StatusOr<ReportResult> run_report(const Scene& input_scene, const std::optional<
     return Status::error("the report compares simplifiers on one mesh; the scene has " +
                          std::to_string(input_scene.objects.size()) + " objects");
   // The report's folder is made if missing, but not the folders above it:
-  // a typo there is an error, as for every command's outputs.
+  // a typo there is an error, as for every command's outputs. The report is
+  // written into a temporary folder beside it (AtomicDirectory), which takes
+  // its place only once complete: an earlier report there is replaced whole
+  // (none of its files stay), and a failure or an interruption leaves it as
+  // it was. A folder that holds anything but an earlier report is refused
+  // before any work: the report never removes other files.
   fs::path dir = cfg.out_dir.lexically_normal();
   if (dir.empty()) return Status::error("--output: no folder name given");
   if (!dir.has_filename()) dir = dir.parent_path();  // "out/"
@@ -361,8 +421,17 @@ StatusOr<ReportResult> run_report(const Scene& input_scene, const std::optional<
   if (!fs::is_directory(parent, ec))
     return Status::error(cfg.out_dir.string() + ": the report folder (-o): directory " + parent.string() +
                          " does not exist");
-  fs::create_directory(dir, ec);
-  if (ec) return Status::error(cfg.out_dir.string() + ": cannot create report directory: " + ec.message());
+  if (report_folder_holds(dir) == FolderHolds::Other) return refuse_other_folder(cfg.out_dir);
+  // "." and "..": the temporary folder goes beside the folder they name.
+  if (dir.filename() == "." || dir.filename() == "..") {
+    dir = fs::absolute(dir, ec).lexically_normal();
+    if (!dir.has_filename()) dir = dir.parent_path();
+    if (ec || !dir.has_filename() || dir == dir.root_path())
+      return Status::error(cfg.out_dir.string() + ": the report folder (-o) cannot be replaced");
+  }
+  AtomicDirectory staged(dir);
+  RAYLOD_RETURN_IF_ERROR(staged.create());
+  const fs::path out_dir = staged.temp_path();  // every file goes here
   const fs::path cache_dir = cfg.cache_dir.empty() ? default_cache_dir() : cfg.cache_dir;
 
   Scene base = input_scene;
@@ -400,7 +469,7 @@ StatusOr<ReportResult> run_report(const Scene& input_scene, const std::optional<
 
   ReportResult result;
   std::map<std::string, std::string> cut_legends;
-  const fs::path scratch = cfg.out_dir / "meshes";
+  const fs::path scratch = out_dir / "meshes";
   fs::create_directories(scratch, ec);
 
   for (const auto& run : runs) {
@@ -420,7 +489,7 @@ StatusOr<ReportResult> run_report(const Scene& input_scene, const std::optional<
     ref.error.psnr = INFINITY;
     ref.error.ssim = 1;
     ref.image = tag + "-reference.png";
-    RAYLOD_RETURN_IF_ERROR(write_image(cfg.out_dir / ref.image, reference.color));
+    RAYLOD_RETURN_IF_ERROR(write_image(out_dir / ref.image, reference.color));
     result.rows.push_back(ref);
     say(run.label + ": reference render " + fmt("%.2f s", ref.render_s) + "; noise floor (seed " +
         std::to_string(noise_floor_seed(full.noise_floor.seed)) + " against " + std::to_string(full.noise_floor.seed) +
@@ -481,22 +550,22 @@ StatusOr<ReportResult> run_report(const Scene& input_scene, const std::optional<
       if (is_default || n == cfg.default_rays) {
         row.image = name + ".png";
         row.diff_image = name + ".diff.png";
-        RAYLOD_RETURN_IF_ERROR(write_image(cfg.out_dir / row.image, img.color));
-        RAYLOD_RETURN_IF_ERROR(write_image(cfg.out_dir / row.diff_image, difference_image(img.color, reference.color)));
+        RAYLOD_RETURN_IF_ERROR(write_image(out_dir / row.image, img.color));
+        RAYLOD_RETURN_IF_ERROR(write_image(out_dir / row.diff_image, difference_image(img.color, reference.color)));
       }
       if (is_default) {
         std::string legend;
         RAYLOD_ASSIGN_OR_RETURN(Image cut_img, cut_picture(run.scene, drc, store, probe.cuts[0], &legend));
-        RAYLOD_RETURN_IF_ERROR(write_image(cfg.out_dir / (tag + "-cut.png"), cut_img));
+        RAYLOD_RETURN_IF_ERROR(write_image(out_dir / (tag + "-cut.png"), cut_img));
         cut_legends[run.label] = legend;
         RenderOptions w = o;
         w.wireframe = true;
         RAYLOD_ASSIGN_OR_RETURN(RenderResult wire, render(run.scene, w));
-        RAYLOD_RETURN_IF_ERROR(write_image(cfg.out_dir / (tag + "-raylod-wireframe.png"), wire.color));
+        RAYLOD_RETURN_IF_ERROR(write_image(out_dir / (tag + "-raylod-wireframe.png"), wire.color));
       }
       if (n == cfg.default_rays && !diagonal) targets.push_back(row.triangles);
       say(run.label + ": " + row.method + " K=" + label_number(k) + " rays=" + std::to_string(n) + ": " +
-          std::to_string(row.triangles) + " triangles, PSNR " + fmt("%.2f dB", row.error.psnr) + " (" +
+          std::to_string(row.triangles) + " triangles, PSNR " + psnr_text(row.error.psnr) + " (" +
           describe_against_noise_floor(row.error, full.noise_floor) + "), total " + fmt("%.2f s", row.total_s));
       result.rows.push_back(row);
     }
@@ -528,17 +597,23 @@ StatusOr<ReportResult> run_report(const Scene& input_scene, const std::optional<
           const std::string name = tag + "-" + slug(row.method) + "-" + std::to_string(row.triangles);
           row.image = name + ".png";
           row.diff_image = name + ".diff.png";
-          RAYLOD_RETURN_IF_ERROR(write_image(cfg.out_dir / row.image, img.color));
-          RAYLOD_RETURN_IF_ERROR(write_image(cfg.out_dir / row.diff_image, difference_image(img.color, reference.color)));
+          RAYLOD_RETURN_IF_ERROR(write_image(out_dir / row.image, img.color));
+          RAYLOD_RETURN_IF_ERROR(write_image(out_dir / row.diff_image, difference_image(img.color, reference.color)));
           say(run.label + ": " + row.method + " " + std::to_string(row.triangles) + " triangles, PSNR " +
-              fmt("%.2f dB", row.error.psnr) + " (" + describe_against_noise_floor(row.error, full.noise_floor) + ")");
+              psnr_text(row.error.psnr) + " (" + describe_against_noise_floor(row.error, full.noise_floor) + ")");
           result.rows.push_back(row);
         }
       }
     }
   }
 
-  RAYLOD_RETURN_IF_ERROR(write_report_files(result, cfg, stores, load_seconds, cut_legends, input_scene));
+  // A fault point (core/fault_point.h): the pictures written, the tables not.
+  if (fault_point("report.files"))
+    return Status::error(out_dir.string() + ": cannot write the tables: failed at fault point report.files");
+  RAYLOD_RETURN_IF_ERROR(write_report_files(out_dir, result, cfg, stores, load_seconds, cut_legends, input_scene));
+  // Whatever came into the folder while the report ran is not replaced either.
+  if (report_folder_holds(staged.target()) == FolderHolds::Other) return refuse_other_folder(cfg.out_dir);
+  RAYLOD_RETURN_IF_ERROR(staged.commit());
   result.markdown = cfg.out_dir / "REPORT.md";
   result.plot = cfg.out_dir / "default-accuracy-vs-time.png";
   return result;

@@ -66,6 +66,12 @@ struct ReportResult {
 // Runs the sweep on scene (with mesh_override in place of its first
 // object's mesh) and, if config.closeup, on a close-up view of it; writes
 // images, REPORT.md, report.json and the accuracy-versus-time plot to out_dir.
+// The folder is written whole or not at all: the files go to a temporary
+// folder beside it (AtomicDirectory), which replaces it once complete. An
+// existing out_dir must be empty or an earlier report (which is replaced,
+// none of its files kept); one that holds other files is refused before any
+// work. Its parent folder must exist. In report.json an image identical to
+// the reference has "psnr": null and "identical": true.
 StatusOr<ReportResult> run_report(const Scene& scene, const std::optional<std::filesystem::path>& mesh_override,
                                   const ReportConfig& config, const LogFn& log);
 

@@ -5,6 +5,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <csignal>
 #include <cstdlib>
 #include <filesystem>
@@ -190,6 +191,85 @@ TEST(StaleTemporaries, RunRemovesMeshesStagedInTheTempFolderByKilledRuns) {
   EXPECT_FALSE(std::filesystem::exists(tmp / dead_file));
   EXPECT_TRUE(std::filesystem::exists(tmp / live_file));
   std::filesystem::remove_all(dir);
+}
+
+// AtomicDirectory (a folder of outputs written whole or not at all): the
+// folder it replaces goes whole, one never committed is removed, and a dead
+// process's temporary folder goes with the next one to the same destination.
+TEST(StaleTemporaries, AtomicDirectoryReplacesWholeOrNotAtAll) {
+  test::ScratchDir scratch("atomic-directory");
+  const std::filesystem::path dir = scratch.path, dest = dir / "rep";
+  auto names = [&](const std::filesystem::path& d) {
+    std::vector<std::string> out;
+    for (const auto& e : std::filesystem::directory_iterator(d)) out.push_back(e.path().filename().string());
+    std::sort(out.begin(), out.end());
+    return out;
+  };
+  std::filesystem::create_directories(dest / "meshes");
+  std::ofstream(dest / "old.png") << "old";
+  std::ofstream(dest / "meshes" / "old.drc") << "old";
+  const std::string dead = "rep.tmp-" + std::to_string(dead_pid()) + "@" + process_tag().substr(process_tag().find('@') + 1) + "-0-1";
+  const std::string live = "rep.tmp-" + std::to_string(::getppid()) + "-0-2";
+  std::filesystem::create_directories(dir / dead / "meshes");
+  std::ofstream(dir / dead / "meshes" / "half.drc") << "partial";
+  std::filesystem::create_directories(dir / live);
+  {
+    AtomicDirectory never(dest);
+    ASSERT_TRUE(never.create().is_ok());
+    EXPECT_EQ(never.temp_path().parent_path(), dir);
+    EXPECT_NE(never.temp_path().filename().string().find("rep.tmp-" + process_tag() + "-"), std::string::npos);
+    std::ofstream(never.temp_path() / "new.png") << "new";
+  }
+  EXPECT_FALSE(std::filesystem::exists(dir / dead)) << "a dead process's folder was kept";
+  EXPECT_EQ(names(dir), (std::vector<std::string>{"rep", live})) << "the uncommitted folder was kept";
+  EXPECT_EQ(names(dest), (std::vector<std::string>{"meshes", "old.png"}));
+  {
+    AtomicDirectory next(dest);
+    ASSERT_TRUE(next.create().is_ok());
+    std::filesystem::create_directories(next.temp_path() / "meshes");
+    std::ofstream(next.temp_path() / "new.png") << "new";
+    ASSERT_TRUE(next.commit().is_ok());
+  }
+  EXPECT_EQ(names(dir), (std::vector<std::string>{"rep", live}));
+  EXPECT_EQ(names(dest), (std::vector<std::string>{"meshes", "new.png"}));
+  EXPECT_TRUE(std::filesystem::is_empty(dest / "meshes"));
+  // Into a destination that is not there yet.
+  {
+    AtomicDirectory fresh(dir / "fresh");
+    ASSERT_TRUE(fresh.create().is_ok());
+    std::ofstream(fresh.temp_path() / "a") << "a";
+    ASSERT_TRUE(fresh.commit().is_ok());
+  }
+  EXPECT_EQ(names(dir / "fresh"), std::vector<std::string>{"a"});
+}
+
+// A process ended by SIGTERM (or SIGINT) while it fills a temporary folder
+// removes it, with everything in it, before it dies.
+TEST(StaleTemporaries, TerminatedProcessRemovesItsTemporaryFolder) {
+  test::ScratchDir scratch("sigterm-folder");
+  const std::filesystem::path dir = scratch.path;
+  std::filesystem::create_directories(dir / "rep");
+  std::ofstream(dir / "rep" / "REPORT.md") << "old";
+  EXPECT_EXIT(
+      {
+        AtomicDirectory staged(dir / "rep");
+        if (!staged.create().is_ok()) std::_Exit(1);
+        std::filesystem::create_directories(staged.temp_path() / "meshes" / "deeper");
+        for (int i = 0; i < 300; ++i) std::ofstream(staged.temp_path() / ("f" + std::to_string(i) + ".png")) << i;
+        std::ofstream(staged.temp_path() / "meshes" / "deeper" / "x.drc") << "x";
+        AtomicOutput live(staged.temp_path() / "REPORT.md");
+        std::ofstream(live.temp_path()) << "partial";
+        std::raise(SIGTERM);
+        std::_Exit(2);
+      },
+      testing::KilledBySignal(SIGTERM), "");
+  std::vector<std::string> left;
+  for (const auto& e : std::filesystem::directory_iterator(dir)) left.push_back(e.path().filename().string());
+  EXPECT_EQ(left, std::vector<std::string>{"rep"});
+  std::ifstream md(dir / "rep" / "REPORT.md");
+  std::string text;
+  std::getline(md, text);
+  EXPECT_EQ(text, "old");
 }
 
 }  // namespace

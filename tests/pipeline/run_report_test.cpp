@@ -2,15 +2,24 @@
 // memory-limited runs, and report --quick.
 #include <gtest/gtest.h>
 
+#include <fcntl.h>
+#include <spawn.h>
+#include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <array>
+#include <chrono>
+#include <cmath>
+#include <csignal>
 #include <cstdlib>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <map>
 #include <optional>
 #include <sstream>
+#include <thread>
 #include <vector>
 
 #include <nlohmann/json.hpp>
@@ -49,10 +58,11 @@ std::string read(const fs::path& p) {
 }
 
 // Runs raylod with arguments; returns the exit code, output in *out.
-int raylod(const std::string& args, std::string* out = nullptr) {
+// `env`: more VAR=value settings for it, e.g. RAYLOD_FAULT_POINT=NAME.
+int raylod(const std::string& args, std::string* out = nullptr, const std::string& env = "") {
   fs::path log = work_dir() / "last.log";
-  std::string cmd = "RAYLOD_CACHE_DIR='" + (work_dir() / "cache").string() + "' '" RAYLOD_EXE "' " + args + " > '" +
-                    log.string() + "' 2>&1";
+  std::string cmd = "RAYLOD_CACHE_DIR='" + (work_dir() / "cache").string() + "' " + env + " '" RAYLOD_EXE "' " + args +
+                    " > '" + log.string() + "' 2>&1";
   int rc = std::system(cmd.c_str());
   if (out) *out = read(log);
   return WIFEXITED(rc) ? WEXITSTATUS(rc) : -1;
@@ -710,25 +720,306 @@ TEST(Report, QuickWritesMarkdownPlotAndPictures) {
   std::map<std::string, double> floors;
   for (const auto& f : j["noise_floors"]) {
     EXPECT_EQ(f["other_seed"].get<uint64_t>(), f["seed"].get<uint64_t>() + 1);
-    floors[f["scene"].get<std::string>()] = f["psnr"].get<double>();
+    // An identical floor (no noise at all) has a null PSNR: infinite.
+    EXPECT_EQ(f["identical"].get<bool>(), f["psnr"].is_null()) << f.dump();
+    floors[f["scene"].get<std::string>()] = f["psnr"].is_null() ? INFINITY : f["psnr"].get<double>();
   }
   EXPECT_EQ(floors.count("default"), 1u);
   EXPECT_EQ(floors.count("close-up"), 1u);
-  // Every simplified row has a measured, finite error (999 stands for an
-  // identical image, which a real simplification of the default view is not)
-  // and is judged against its view's floor.
+  // Every simplified row has a measured error and is judged against its
+  // view's floor: a finite PSNR, or (in the almost noise-free close-up, where
+  // a baseline can render the very same pixels) a null one with "identical":
+  // true. A real simplification of the default view is not identical.
   for (const auto& row : j["rows"]) {
     if (row["method"] == "full mesh") continue;
-    EXPECT_GT(row["psnr"].get<double>(), 10.0) << row.dump();
     EXPECT_GT(row["triangles"].get<uint64_t>(), 0u) << row.dump();
     EXPECT_LT(row["triangles"].get<uint64_t>(), j["triangles"].get<uint64_t>()) << row.dump();
-    if (row["scene"] == "default") {
-      EXPECT_LT(row["psnr"].get<double>(), 999.0) << row.dump();
+    ASSERT_TRUE(row["identical"].is_boolean()) << row.dump();
+    if (row["identical"].get<bool>()) {
+      EXPECT_TRUE(row["psnr"].is_null()) << row.dump();
+      EXPECT_NE(row["scene"], "default") << row.dump();
+      EXPECT_TRUE(row["within_noise_floor"].get<bool>()) << row.dump();
+      continue;
     }
+    ASSERT_TRUE(row["psnr"].is_number()) << row.dump();
+    EXPECT_GT(row["psnr"].get<double>(), 10.0) << row.dump();
     EXPECT_EQ(row["within_noise_floor"].get<bool>(),
               row["psnr"].get<double>() >= floors[row["scene"].get<std::string>()])
         << row.dump();
   }
+}
+
+// The report's folder is written whole or not at all (AtomicDirectory): the
+// tests below give it a folder of its own, REP in a scratch folder BASE, so
+// that a temporary folder beside it (REP.tmp-...) shows in BASE.
+
+// Every file under dir (relative path -> bytes).
+std::map<std::string, std::string> files_in(const fs::path& dir) {
+  std::map<std::string, std::string> out;
+  for (const auto& e : fs::recursive_directory_iterator(dir))
+    if (e.is_regular_file()) {
+      std::ifstream f(e.path(), std::ios::binary);
+      std::stringstream ss;
+      ss << f.rdbuf();
+      out[fs::relative(e.path(), dir).string()] = ss.str();
+    }
+  return out;
+}
+
+// The names in a folder, sorted.
+std::vector<std::string> names_in(const fs::path& dir) {
+  std::vector<std::string> out;
+  for (const auto& e : fs::directory_iterator(dir)) out.push_back(e.path().filename().string());
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
+// `report` of the two-triangle scene (a report of a fraction of a second):
+// --quick's settings with one K and one ray count.
+std::string pair_report(const fs::path& scene, const fs::path& dir, const std::string& extra = "") {
+  return "report '" + scene.string() + "' --quick --scales 8 --rays 1000 -q " + extra + " -o '" + dir.string() + "'";
+}
+
+TEST(Report, ARerunWithFewerSectionsLeavesNoneOfTheFirstRunsFiles) {
+  // Close-up and baselines, then neither: the second report's folder holds
+  // its own files only (the close-up's and the baselines' pictures and the
+  // close-up's .drc files used to stay beside it). The first run goes into
+  // an empty folder that is already there.
+  const fs::path scene = write_pair_scene("rerun");
+  raylod::test::ScratchDir base("report-rerun");
+  const fs::path dir = base.path / "rep";
+  fs::create_directories(dir);
+  std::string out;
+  ASSERT_EQ(raylod(pair_report(scene, dir), &out), 0) << out;
+  const auto first = files_in(dir);
+  auto has = [](const std::map<std::string, std::string>& files, const std::string& part) {
+    for (const auto& [name, bytes] : files)
+      if (name.find(part) != std::string::npos) return true;
+    return false;
+  };
+  ASSERT_TRUE(has(first, "close-up-reference.png"));
+  ASSERT_TRUE(has(first, "meshes/close-up-"));
+  ASSERT_TRUE(has(first, "edge-collapse"));
+  ASSERT_TRUE(has(first, "vertex-clustering"));
+
+  ASSERT_EQ(raylod(pair_report(scene, dir, "--no-closeup --no-baselines"), &out), 0) << out;
+  const auto second = files_in(dir);
+  for (const char* part : {"close-up", "edge-collapse", "vertex-clustering"}) EXPECT_FALSE(has(second, part)) << part;
+  // Every file is one the second report names: a picture in REPORT.md or
+  // report.json, a mesh of the default view.
+  const std::string md = read(dir / "REPORT.md"), json = read(dir / "report.json");
+  for (const auto& [name, bytes] : second) {
+    if (name == "REPORT.md" || name == "report.json") continue;
+    if (name.rfind("meshes/", 0) == 0) {
+      EXPECT_EQ(name.rfind("meshes/default-raylod-", 0), 0u) << name;
+      continue;
+    }
+    EXPECT_TRUE(md.find("(" + name + ")") != std::string::npos || json.find('"' + name + '"') != std::string::npos)
+        << name << " is in the folder but not in the report";
+  }
+  EXPECT_EQ(names_in(base.path), std::vector<std::string>{"rep"}) << "a temporary folder was left beside it";
+}
+
+TEST(Report, AFailureMidwayLeavesTheEarlierReportAsItWas) {
+  // The second report (another image size: every picture differs) fails
+  // after its pictures are written, before its tables (a fault point): the
+  // first report stays, byte for byte, and no temporary folder is left.
+  const fs::path scene = write_pair_scene("midway");
+  raylod::test::ScratchDir base("report-midway");
+  const fs::path dir = base.path / "rep";
+  std::string out;
+  ASSERT_EQ(raylod(pair_report(scene, dir), &out), 0) << out;
+  const auto before = files_in(dir);
+  ASSERT_EQ(before.count("REPORT.md"), 1u);
+  EXPECT_NE(raylod(pair_report(scene, dir, "--width 40 --height 30"), &out, "RAYLOD_FAULT_POINT=report.files:error"), 0)
+      << out;
+  EXPECT_NE(out.find("fault point report.files"), std::string::npos) << out;
+  EXPECT_TRUE(files_in(dir) == before) << "the earlier report was changed";
+  EXPECT_EQ(names_in(base.path), std::vector<std::string>{"rep"}) << "a temporary folder was left beside it";
+}
+
+TEST(Report, AKilledReportLeavesTheEarlierOneAndTheNextRunClearsUp) {
+  // Killed outright (SIGKILL, no clean-up) at the same point: the earlier
+  // report stays as it was, beside the killed run's temporary folder, which
+  // the next report to the same folder removes.
+  const fs::path scene = write_pair_scene("killed");
+  raylod::test::ScratchDir base("report-killed");
+  const fs::path dir = base.path / "rep";
+  std::string out;
+  ASSERT_EQ(raylod(pair_report(scene, dir), &out), 0) << out;
+  const auto before = files_in(dir);
+  EXPECT_NE(raylod(pair_report(scene, dir, "--width 40 --height 30"), &out, "RAYLOD_FAULT_POINT=report.files"), 0)
+      << out;
+  EXPECT_NE(out.find("fault point report.files: SIGKILL"), std::string::npos) << out;
+  EXPECT_TRUE(files_in(dir) == before) << "the earlier report was changed";
+  const auto left = names_in(base.path);
+  ASSERT_EQ(left.size(), 2u);
+  EXPECT_EQ(left[1].rfind("rep.tmp-", 0), 0u) << left[1];
+  ASSERT_EQ(raylod(pair_report(scene, dir, "--width 40 --height 30"), &out), 0) << out;
+  EXPECT_EQ(names_in(base.path), std::vector<std::string>{"rep"});
+  EXPECT_NE(files_in(dir).at("default-reference.png"), before.at("default-reference.png"));
+}
+
+TEST(Report, AFolderOfOtherFilesIsRefusedBeforeAnyWork) {
+  // A report replaces its whole folder, so a folder that holds anything but
+  // an earlier report (here a note, and a REPORT.md of the user's own) is
+  // refused at once, naming it: nothing is built, written or removed.
+  const fs::path scene = write_pair_scene("refused");
+  raylod::test::ScratchDir base("report-refused");
+  const fs::path notes = base.path / "notes", own = base.path / "own";
+  fs::create_directories(notes);
+  fs::create_directories(own);
+  std::ofstream(notes / "notes.txt") << "mine";
+  std::ofstream(own / "REPORT.md") << "# my report\n";
+  std::ofstream(own / "report.json") << "{}\n";
+  for (const fs::path& dir : {notes, own}) {
+    const auto before = files_in(dir);
+    std::string out;
+    EXPECT_EQ(raylod("report '" + scene.string() + "' --quick -o '" + dir.string() + "'", &out), 1) << out;
+    EXPECT_NE(out.find(dir.string() + ": the report folder (-o) holds files that are not a raylod report"),
+              std::string::npos)
+        << out;
+    EXPECT_EQ(out.find("building store"), std::string::npos) << out;
+    EXPECT_EQ(out.find("reference render"), std::string::npos) << out;
+    EXPECT_TRUE(files_in(dir) == before);
+  }
+  EXPECT_FALSE(fs::exists(work_dir() / "refused.stl.raylod")) << "a store was built for a refused report";
+  EXPECT_EQ(names_in(base.path), (std::vector<std::string>{"notes", "own"}));
+}
+
+// The cells of a REPORT.md table row ("| a | b |" -> {"a", "b"}).
+std::vector<std::string> cells(const std::string& line) {
+  std::vector<std::string> out;
+  std::stringstream ss(line.substr(1));
+  std::string cell;
+  while (std::getline(ss, cell, '|')) {
+    const size_t a = cell.find_first_not_of(' '), b = cell.find_last_not_of(' ');
+    out.push_back(a == std::string::npos ? "" : cell.substr(a, b - a + 1));
+  }
+  return out;
+}
+
+TEST(Report, ABaselineEqualToTheReferenceIsIdenticalNotTheReference) {
+  // Two triangles: quadric edge collapse driven to raylod's count (both of
+  // them) leaves the mesh as it is, and its image equals the reference's.
+  // Only the full mesh's row says "reference"; that one says "identical",
+  // and report.json has a null PSNR and "identical": true for it (not 999).
+  const fs::path scene = write_pair_scene("identical");
+  raylod::test::ScratchDir base("report-identical");
+  const fs::path dir = base.path / "rep";
+  std::string out;
+  ASSERT_EQ(raylod(pair_report(scene, dir, "--no-closeup"), &out), 0) << out;
+  const std::string md = read(dir / "REPORT.md");
+  const auto j = nlohmann::json::parse(read(dir / "report.json"));
+  size_t identical = 0;
+  for (const auto& row : j["rows"]) {
+    EXPECT_TRUE(row["psnr"].is_null() || row["psnr"].get<double>() < 999.0) << row.dump();
+    if (row["method"] == "full mesh") {
+      EXPECT_TRUE(row["psnr"].is_null()) << row.dump();
+      EXPECT_FALSE(row.contains("identical")) << row.dump();
+      continue;
+    }
+    ASSERT_TRUE(row.contains("identical")) << row.dump();
+    EXPECT_EQ(row["identical"].get<bool>(), row["psnr"].is_null()) << row.dump();
+    if (row["identical"].get<bool>()) ++identical;
+  }
+  bool seen_edge_collapse = false;
+  std::istringstream lines(md);
+  std::string line;
+  size_t identical_cells = 0;
+  while (std::getline(lines, line)) {
+    if (line.rfind("| ", 0) != 0) continue;
+    const std::vector<std::string> c = cells(line);
+    if (c.size() != 14) continue;  // the view's table: PSNR dB is the 11th column
+    EXPECT_EQ(c[10] == "reference", c[0] == "full mesh") << line;
+    if (c[0] == "edge collapse") {
+      seen_edge_collapse = true;
+      EXPECT_EQ(c[10], "identical") << line;
+    }
+    identical_cells += c[10] == "identical";
+  }
+  EXPECT_TRUE(seen_edge_collapse) << md;
+  EXPECT_GE(identical, 1u) << j.dump(2);
+  EXPECT_EQ(identical_cells, identical) << md;
+}
+
+// Kills and reaps a child left running by a failed test.
+struct ChildGuard {
+  pid_t pid = -1;
+  ~ChildGuard() {
+    if (pid > 0) {
+      ::kill(pid, SIGKILL);
+      int status = 0;
+      ::waitpid(pid, &status, 0);
+    }
+  }
+};
+
+TEST(Report, CtrlCLeavesTheEarlierReportAndNoTemporaryFolder) {
+  // Ctrl-C (SIGINT) while a report is under way, once its first picture is
+  // written: the earlier report stays as it was (its pictures used to be
+  // replaced one by one, leaving a REPORT.md that did not match them), and
+  // the interrupted run's folder goes with it. raylod is spawned with SIGINT
+  // at its default action (a shell's background job would ignore it).
+  const fs::path scene = write_pair_scene("interrupted");
+  raylod::test::ScratchDir base("report-interrupted");
+  const fs::path dir = base.path / "rep";
+  std::string out;
+  ASSERT_EQ(raylod(pair_report(scene, dir), &out), 0) << out;
+  const auto before = files_in(dir);
+  // The default scene's teapot: long enough to be interrupted.
+  const fs::path log = work_dir() / "interrupted.log";
+  std::vector<std::string> args = {RAYLOD_EXE, "report", "--quick", "--no-baselines", "-o", dir.string()};
+  std::vector<char*> argv;
+  for (auto& a : args) argv.push_back(a.data());
+  argv.push_back(nullptr);
+  std::vector<std::string> env_strings = {"RAYLOD_CACHE_DIR=" + (work_dir() / "cache").string()};
+  for (char** e = environ; *e; ++e)
+    if (std::strncmp(*e, "RAYLOD_CACHE_DIR=", 17) != 0 && std::strncmp(*e, "RAYLOD_FAULT_POINT=", 19) != 0)
+      env_strings.push_back(*e);
+  std::vector<char*> envp;
+  for (auto& e : env_strings) envp.push_back(e.data());
+  envp.push_back(nullptr);
+  posix_spawn_file_actions_t actions;
+  posix_spawn_file_actions_init(&actions);
+  posix_spawn_file_actions_addopen(&actions, 1, log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+  posix_spawn_file_actions_adddup2(&actions, 1, 2);
+  posix_spawnattr_t attr;
+  posix_spawnattr_init(&attr);
+  sigset_t signals;
+  sigemptyset(&signals);
+  sigaddset(&signals, SIGINT);
+  posix_spawnattr_setsigdefault(&attr, &signals);
+  sigemptyset(&signals);
+  posix_spawnattr_setsigmask(&attr, &signals);
+  posix_spawnattr_setflags(&attr, POSIX_SPAWN_SETSIGDEF | POSIX_SPAWN_SETSIGMASK);
+  ChildGuard child;
+  const int spawned = posix_spawn(&child.pid, RAYLOD_EXE, &actions, &attr, argv.data(), envp.data());
+  posix_spawn_file_actions_destroy(&actions);
+  posix_spawnattr_destroy(&attr);
+  ASSERT_EQ(spawned, 0) << std::strerror(spawned);
+  // Wait for a picture in the temporary folder beside the report's.
+  bool seen = false;
+  int status = 0;
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::minutes(5);
+  while (!seen && std::chrono::steady_clock::now() < deadline) {
+    if (::waitpid(child.pid, &status, WNOHANG) == child.pid) {
+      child.pid = -1;
+      break;
+    }
+    std::error_code ec;
+    for (const auto& e : fs::directory_iterator(base.path, ec))
+      if (e.path().filename().string().rfind("rep.tmp-", 0) == 0 && fs::exists(e.path() / "default-reference.png"))
+        seen = true;
+    if (!seen) std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }
+  ASSERT_TRUE(seen) << "no picture in a temporary folder beside " << dir << "\n" << read(log);
+  ASSERT_EQ(::kill(child.pid, SIGINT), 0);
+  ASSERT_EQ(::waitpid(child.pid, &status, 0), child.pid);
+  child.pid = -1;
+  EXPECT_TRUE(WIFSIGNALED(status) && WTERMSIG(status) == SIGINT) << "status " << status << "\n" << read(log);
+  EXPECT_TRUE(files_in(dir) == before) << "the earlier report was changed";
+  EXPECT_EQ(names_in(base.path), std::vector<std::string>{"rep"}) << "a temporary folder was left beside it";
 }
 
 }  // namespace
