@@ -1,6 +1,7 @@
 #include "pipeline/report.h"
 
 #include <chrono>
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
@@ -421,14 +422,20 @@ StatusOr<ReportResult> run_report(const Scene& input_scene, const std::optional<
   if (!fs::is_directory(parent, ec))
     return Status::error(cfg.out_dir.string() + ": the report folder (-o): directory " + parent.string() +
                          " does not exist");
-  if (report_folder_holds(dir) == FolderHolds::Other) return refuse_other_folder(cfg.out_dir);
-  // "." and "..": the temporary folder goes beside the folder they name.
-  if (dir.filename() == "." || dir.filename() == "..") {
-    dir = fs::absolute(dir, ec).lexically_normal();
-    if (!dir.has_filename()) dir = dir.parent_path();
-    if (ec || !dir.has_filename() || dir == dir.root_path())
-      return Status::error(cfg.out_dir.string() + ": the report folder (-o) cannot be replaced");
+  // The folder is replaced whole, so never the one the shell stands in or
+  // one above it ("-o ." would leave the shell in a removed folder).
+  {
+    const fs::path here = fs::weakly_canonical(fs::current_path(ec), ec);
+    const fs::path target = fs::weakly_canonical(fs::absolute(dir, ec), ec);
+    if (!ec && !target.empty()) {
+      const auto [t, h] = std::mismatch(target.begin(), target.end(), here.begin(), here.end());
+      if (t == target.end())
+        return Status::error(cfg.out_dir.string() +
+                             ": the report folder (-o) is the current folder or holds it; the report replaces its "
+                             "folder whole: name another, such as a subfolder");
+    }
   }
+  if (report_folder_holds(dir) == FolderHolds::Other) return refuse_other_folder(cfg.out_dir);
   AtomicDirectory staged(dir);
   RAYLOD_RETURN_IF_ERROR(staged.create());
   const fs::path out_dir = staged.temp_path();  // every file goes here

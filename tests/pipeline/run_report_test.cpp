@@ -68,6 +68,11 @@ int raylod(const std::string& args, std::string* out = nullptr, const std::strin
   return WIFEXITED(rc) ? WEXITSTATUS(rc) : -1;
 }
 
+// The same, run from the folder `dir`.
+int raylod_in(const fs::path& dir, const std::string& args, std::string* out) {
+  return raylod(args, out, "sh -c 'cd \"$0\" && exec \"$@\"' '" + dir.string() + "'");
+}
+
 // A small version of the default scene: a generated 20k-triangle teapot,
 // a thumbnail, one sample per pixel. eye_scale moves the eye along the view.
 fs::path write_scene(const std::string& name, double eye_scale, int width = 128, int height = 96,
@@ -883,8 +888,19 @@ TEST(Report, AFolderOfOtherFilesIsRefusedBeforeAnyWork) {
     EXPECT_EQ(out.find("reference render"), std::string::npos) << out;
     EXPECT_TRUE(files_in(dir) == before);
   }
+  // Nor the folder the shell stands in, or one above it, though empty or
+  // an earlier report: replaced whole, it would leave the shell in a
+  // removed folder.
+  const fs::path empty = base.path / "empty";
+  fs::create_directories(empty / "inner");
+  for (const auto& [from, target] : {std::pair{empty, std::string(".")}, std::pair{empty / "inner", std::string("..")}}) {
+    std::string out;
+    EXPECT_EQ(raylod_in(from, "report '" + scene.string() + "' --quick -o " + target, &out), 1) << out;
+    EXPECT_NE(out.find(target + ": the report folder (-o) is the current folder or holds it"), std::string::npos) << out;
+  }
+  EXPECT_TRUE(fs::is_directory(empty / "inner"));
   EXPECT_FALSE(fs::exists(work_dir() / "refused.stl.raylod")) << "a store was built for a refused report";
-  EXPECT_EQ(names_in(base.path), (std::vector<std::string>{"notes", "own"}));
+  EXPECT_EQ(names_in(base.path), (std::vector<std::string>{"empty", "notes", "own"}));
 }
 
 // The cells of a REPORT.md table row ("| a | b |" -> {"a", "b"}).
