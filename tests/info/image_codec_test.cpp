@@ -29,8 +29,11 @@ TEST(ImageCodec, TheProgramDoesNotLoadOpenImageIOAtStart) {
   EXPECT_EQ(r.out.find("libOpenImageIO"), std::string::npos);
 }
 
+// Each test its own folder: the build's store must not be in the render's
+// folder, which that test checks is left empty.
 TEST(ImageCodec, CommandsWithoutImagesRunWithoutIt) {
-  const auto dir = raylod::test::scratch_dir("image-codec");
+  const raylod::test::ScratchDir scratch("image-codec-commands");
+  const auto& dir = scratch.path;
   const std::string stl = std::string(RAYLOD_DATA_DIR) + "/abc/abc5.stl";
   const CommandResult info = run(kMissing, "info " + stl);
   EXPECT_EQ(info.status, 0) << info.out;
@@ -40,7 +43,8 @@ TEST(ImageCodec, CommandsWithoutImagesRunWithoutIt) {
 }
 
 TEST(ImageCodec, ARenderWithoutItFailsNamingWhereItLookedAndWritesNothing) {
-  const auto dir = raylod::test::scratch_dir("image-codec");
+  const raylod::test::ScratchDir scratch("image-codec-render");
+  const auto& dir = scratch.path;
   const auto out = dir / "frame.png";
   const CommandResult r = run(kMissing, "render --width 16 --height 12 -o " + out.string() + " -q");
   EXPECT_NE(r.status, 0) << r.out;
@@ -51,7 +55,8 @@ TEST(ImageCodec, ARenderWithoutItFailsNamingWhereItLookedAndWritesNothing) {
 }
 
 TEST(ImageCodec, AFileThatIsNotTheModuleIsAnErrorNamingIt) {
-  const auto dir = raylod::test::scratch_dir("image-codec");
+  const raylod::test::ScratchDir scratch("image-codec-fake");
+  const auto& dir = scratch.path;
   const auto fake = dir / "libraylod_oiio.so";
   std::ofstream(fake) << "not a shared library\n";
   const auto out = dir / "frame.png";
