@@ -156,7 +156,8 @@ int cmd_probe(int argc, char** argv) {
       record_simplify_settings(cut, scene, objects, s);
       std::filesystem::path out = args.has("--output")
                                       ? std::filesystem::path(args.get("--output"))
-                                      : cut_dirs[s] / (meshes[s].filename().string() + "." + cut.key + ".cut");
+                                      : cut_dirs[s] / (temporary_stem(meshes[s].filename().string()) + "." +
+                                                       cut.key + ".cut");
       RAYLOD_RETURN_IF_ERROR(write_cut(out, cut));
       std::map<uint32_t, uint64_t> per_level;
       for (const CollapsedCell& cell : cut.cells) ++per_level[cell.key.level];

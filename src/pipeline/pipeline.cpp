@@ -217,16 +217,22 @@ fs::path store_path_for(const fs::path& mesh, const fs::path& cache_dir, const S
                         std::string* note) {
   const fs::path beside = default_store_path(mesh);
   const fs::path folder = fs::absolute(mesh).parent_path();
-  if (folder_is_writable(folder) || store_is_current(mesh, beside, options)) return beside;
+  // A mesh name so long that the store's check record beside it
+  // (MESH.raylod.checked) would pass a file name's 255 bytes: the cache,
+  // under a shortened name.
+  const bool fits = beside.filename().string().size() + std::strlen(".checked") <= 255;
+  if ((fits && folder_is_writable(folder)) || store_is_current(mesh, beside, options)) return beside;
   const std::string absolute = fs::absolute(mesh).lexically_normal().string();
   char hash[17];
   std::snprintf(hash, sizeof hash, "%016llx", static_cast<unsigned long long>(fnv1a64(absolute.data(), absolute.size())));
-  const std::string name = std::string(hash) + "-" + mesh.filename().string() + ".raylod";
+  const std::string name = std::string(hash) + "-" + temporary_stem(mesh.filename().string()) + ".raylod";
   const fs::path in_cache = cache_dir / "stores" / name;
+  const std::string why = fits ? folder.string() + " is not writable"
+                               : mesh.filename().string().substr(0, 40) + "...: the name is too long for a store beside it";
   std::error_code ec;
   fs::create_directories(in_cache.parent_path(), ec);
   if ((!ec && folder_is_writable(in_cache.parent_path())) || store_is_current(mesh, in_cache, options)) {
-    if (note) *note = folder.string() + " is not writable: the store goes to " + in_cache.string();
+    if (note) *note = why + ": the store goes to " + in_cache.string();
     return in_cache;
   }
   // Neither the mesh's folder nor the cache takes files (a read-only cache

@@ -426,6 +426,14 @@ TEST(Run, OutputDoesNotDependOnTheLimitAnEarlierBuildUsed) {
   EXPECT_NE(out.find("up to date"), std::string::npos) << out;
 }
 
+// The names in a folder, sorted.
+std::vector<std::string> names_in(const fs::path& dir) {
+  std::vector<std::string> out;
+  for (const auto& e : fs::directory_iterator(dir)) out.push_back(e.path().filename().string());
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
 // A folder of meshes, to be made read-only, and a folder beside it that
 // stays writable; `mesh` generates a teapot in the first.
 struct MeshFolders {
@@ -473,6 +481,38 @@ TEST(Run, MeshInAReadOnlyFolderGetsItsStoreInTheCache) {
   for (const auto& e : fs::directory_iterator(cache / "stores")) stores += e.path().extension() == ".raylod";
   EXPECT_EQ(stores, 1u);
   EXPECT_TRUE(fs::exists(writable / "x.png"));
+}
+
+TEST(Run, AMeshWithAVeryLongNameGetsItsStoreInTheCache) {
+  // 241 bytes: the store's check record beside it (MESH.raylod.checked)
+  // would pass a file name's 255 bytes, and the build failed with "File
+  // name too long". Its store goes to the cache under a shortened name, and
+  // probe's cut beside it.
+  const MeshFolders folders("long-name");
+  const std::string name = std::string(237, 'n') + ".ply";
+  folders.mesh(name, 2000);
+  const fs::path scene = write_scene("long-name.json", 1.0, 48, 36);
+  const std::string mesh = "--mesh '" + (folders.meshes / name).string() + "' --rays 300";
+  std::string out;
+  ASSERT_EQ(raylod("run '" + scene.string() + "' " + mesh + " -o '" + (folders.writable / "x.png").string() + "'", &out),
+            0)
+      << out;
+  EXPECT_NE(out.find("the name is too long for a store beside it: the store goes to " + (work_dir() / "cache" / "stores").string()),
+            std::string::npos)
+      << out;
+  EXPECT_TRUE(fs::exists(folders.writable / "x.png"));
+  ASSERT_EQ(raylod("probe '" + scene.string() + "' " + mesh, &out), 0) << out;
+  EXPECT_EQ(names_in(folders.meshes), std::vector<std::string>{name});
+  size_t stores = 0, cuts = 0;
+  for (const auto& e : fs::directory_iterator(work_dir() / "cache" / "stores")) {
+    const std::string f = e.path().filename().string();
+    EXPECT_LE(f.size(), 255u) << f;
+    if (f.find(std::string(100, 'n')) == std::string::npos) continue;
+    stores += e.path().extension() == ".raylod";
+    cuts += e.path().extension() == ".cut";
+  }
+  EXPECT_EQ(stores, 1u);
+  EXPECT_EQ(cuts, 1u);
 }
 
 TEST(Probe, ACutGoesBesideItsStoreOrIntoTheCacheWhereThatFolderIsReadOnly) {
@@ -768,14 +808,6 @@ std::map<std::string, std::string> files_in(const fs::path& dir) {
       ss << f.rdbuf();
       out[fs::relative(e.path(), dir).string()] = ss.str();
     }
-  return out;
-}
-
-// The names in a folder, sorted.
-std::vector<std::string> names_in(const fs::path& dir) {
-  std::vector<std::string> out;
-  for (const auto& e : fs::directory_iterator(dir)) out.push_back(e.path().filename().string());
-  std::sort(out.begin(), out.end());
   return out;
 }
 
