@@ -111,9 +111,39 @@ std::string label_number(double v) {
 // which a new report may replace, is told from a folder of other files.
 constexpr const char* kReportTitle = "# raylod accuracy report";
 
+// The list of every file a report wrote, one relative path a line (itself
+// included), written last: what a later report may replace.
+constexpr const char* kReportManifest = "report-files.txt";
+
+// The files and folders under `dir` (relative paths; folders end in '/').
+std::vector<std::string> entries_under(const fs::path& dir, std::error_code& ec) {
+  std::vector<std::string> out;
+  for (fs::recursive_directory_iterator it(dir, ec), end; !ec && it != end; it.increment(ec)) {
+    const fs::path rel = fs::relative(it->path(), dir, ec);
+    const bool folder = it->is_directory(ec) && !it->is_symlink(ec);
+    out.push_back(rel.string() + (folder ? "/" : ""));
+  }
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
+// Writes the manifest of the finished report in `dir`: every entry there.
+Status write_report_manifest(const fs::path& dir) {
+  std::error_code ec;
+  std::vector<std::string> entries = entries_under(dir, ec);
+  if (ec) return Status::error(dir.string() + ": cannot list the report's files: " + ec.message());
+  entries.push_back(kReportManifest);
+  std::sort(entries.begin(), entries.end());
+  std::string text;
+  for (const std::string& e : entries) text += e + "\n";
+  return write_file_atomic(dir / kReportManifest, text);
+}
+
 // What the report's folder (-o) holds: nothing (missing or empty), an
-// earlier report (REPORT.md with the report's title, and report.json), or
-// anything else.
+// earlier report (REPORT.md with the report's title, and nothing but the
+// files its manifest lists), or anything else: a file of the user's put
+// in an earlier report (a note, the scene the report reads) keeps the
+// folder from being replaced.
 enum class FolderHolds { Nothing, Report, Other };
 FolderHolds report_folder_holds(const fs::path& dir) {
   std::error_code ec;
@@ -124,14 +154,22 @@ FolderHolds report_folder_holds(const fs::path& dir) {
   std::ifstream md(dir / "REPORT.md");
   std::string first;
   std::getline(md, first);
-  if (first.rfind(kReportTitle, 0) == 0 && fs::is_regular_file(dir / "report.json", ec)) return FolderHolds::Report;
-  return FolderHolds::Other;
+  if (first.rfind(kReportTitle, 0) != 0 || fs::is_symlink(dir / "REPORT.md", ec)) return FolderHolds::Other;
+  std::ifstream manifest(dir / kReportManifest);
+  std::vector<std::string> listed;
+  for (std::string line; std::getline(manifest, line);) listed.push_back(line);
+  std::sort(listed.begin(), listed.end());
+  const std::vector<std::string> present = entries_under(dir, ec);
+  if (ec || listed.empty()) return FolderHolds::Other;
+  for (const std::string& e : present)
+    if (!std::binary_search(listed.begin(), listed.end(), e)) return FolderHolds::Other;
+  return FolderHolds::Report;
 }
 
 Status refuse_other_folder(const fs::path& out_dir) {
-  return Status::error(out_dir.string() + ": the report folder (-o) holds files that are not a raylod report (no " +
-                       "REPORT.md and report.json of one); a report replaces its whole folder, so give a new or " +
-                       "empty folder, or an earlier report's");
+  return Status::error(out_dir.string() + ": the report folder (-o) holds files that are not a raylod report's (its " +
+                       "REPORT.md and the files its " + kReportManifest + " lists); a report replaces its whole " +
+                       "folder, so give a new or empty folder, or an earlier report's as it was written");
 }
 
 std::string mib(uint64_t bytes) { return fmt("%.1f", double(bytes) / (1024.0 * 1024.0)); }
@@ -618,6 +656,7 @@ StatusOr<ReportResult> run_report(const Scene& input_scene, const std::optional<
   if (fault_point("report.files"))
     return Status::error(out_dir.string() + ": cannot write the tables: failed at fault point report.files");
   RAYLOD_RETURN_IF_ERROR(write_report_files(out_dir, result, cfg, stores, load_seconds, cut_legends, input_scene));
+  RAYLOD_RETURN_IF_ERROR(write_report_manifest(out_dir));
   // Whatever came into the folder while the report ran is not replaced either.
   if (report_folder_holds(staged.target()) == FolderHolds::Other) return refuse_other_folder(cfg.out_dir);
   RAYLOD_RETURN_IF_ERROR(staged.commit());

@@ -846,7 +846,7 @@ TEST(Report, ARerunWithFewerSectionsLeavesNoneOfTheFirstRunsFiles) {
   // report.json, a mesh of the default view.
   const std::string md = read(dir / "REPORT.md"), json = read(dir / "report.json");
   for (const auto& [name, bytes] : second) {
-    if (name == "REPORT.md" || name == "report.json") continue;
+    if (name == "REPORT.md" || name == "report.json" || name == "report-files.txt") continue;
     if (name.rfind("meshes/", 0) == 0) {
       EXPECT_EQ(name.rfind("meshes/default-raylod-", 0), 0u) << name;
       continue;
@@ -855,6 +855,31 @@ TEST(Report, ARerunWithFewerSectionsLeavesNoneOfTheFirstRunsFiles) {
         << name << " is in the folder but not in the report";
   }
   EXPECT_EQ(names_in(base.path), std::vector<std::string>{"rep"}) << "a temporary folder was left beside it";
+}
+
+TEST(Report, AFileOfTheUsersInAnEarlierReportKeepsItFromBeingReplaced) {
+  // An earlier report is replaced whole, so a file put into it afterwards
+  // (a note, the scene the new report reads: both were deleted by the swap)
+  // makes it a folder of other files, refused before any work; without
+  // them it is replaced again.
+  const fs::path scene = write_pair_scene("manifest");
+  raylod::test::ScratchDir base("report-manifest");
+  const fs::path dir = base.path / "rep";
+  std::string out;
+  ASSERT_EQ(raylod(pair_report(scene, dir), &out), 0) << out;
+  ASSERT_TRUE(fs::exists(dir / "report-files.txt"));
+  std::ofstream(dir / "notes.txt") << "mine";
+  fs::copy_file(scene, dir / "scene.json");
+  fs::create_directories(dir / "meshes" / "extra");
+  for (const char* mine : {"notes.txt", "scene.json", "meshes/extra/"}) {
+    const auto before = files_in(dir);
+    EXPECT_EQ(raylod(pair_report(scene, dir), &out), 1) << out;
+    EXPECT_NE(out.find("holds files that are not a raylod report's"), std::string::npos) << out;
+    EXPECT_TRUE(files_in(dir) == before) << mine;
+    fs::remove_all(dir / mine);
+  }
+  ASSERT_EQ(raylod(pair_report(scene, dir), &out), 0) << out;
+  EXPECT_EQ(names_in(base.path), std::vector<std::string>{"rep"});
 }
 
 TEST(Report, AFailureMidwayLeavesTheEarlierReportAsItWas) {
