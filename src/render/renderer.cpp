@@ -780,7 +780,8 @@ StatusOr<std::vector<std::filesystem::path>> write_aovs(const std::filesystem::p
   }
   if (!r.triangle_id.empty()) {
     written.push_back(aov_path(output, "triangle-id"));
-    RAYLOD_RETURN_IF_ERROR(write_triangle_id_image(written.back(), r.color.width, r.color.height, r.triangle_id));
+    // The frame's size from the statistics: an 8-bit output has no linear frame (srgb_color).
+    RAYLOD_RETURN_IF_ERROR(write_triangle_id_image(written.back(), r.stats.width, r.stats.height, r.triangle_id));
   }
   undo.done = true;
   return written;

@@ -547,6 +547,20 @@ TEST(Aov, DepthNormalAndTriangleIdOfTheCentrePixel) {
   auto depth = read_image(dir / "out.depth.exr");
   ASSERT_TRUE(depth.is_ok());
   EXPECT_EQ(depth->pixels, r.depth.pixels);
+  // Beside an 8-bit image, which `render -o X.png` makes without a linear
+  // frame (srgb_color): the triangle ids took that frame's size, 0 x 0, and
+  // failed ("triangle id buffer has the wrong size").
+  std::vector<TriangleMesh> again;
+  again.push_back(make_box({-1, -1, -1}, {1, 1, 1}, 0));
+  o.srgb_color = true;
+  const RenderResult bytes = render_meshes(std::move(again), s, o);
+  ASSERT_TRUE(bytes.color.empty());
+  auto beside_png = write_aovs(dir / "png.png", bytes);
+  ASSERT_TRUE(beside_png.is_ok()) << beside_png.status().message();
+  auto ids = read_image(dir / "png.triangle-id.exr");
+  ASSERT_TRUE(ids.is_ok()) << ids.status().message();
+  EXPECT_EQ(ids->width, 33);
+  EXPECT_EQ(ids->height, 33);
 }
 
 TEST(ImageIo, PngAndExrRoundTripAndLeaveNoTemporaries) {
