@@ -224,7 +224,7 @@ Status check_output_file(const std::filesystem::path& path, const std::string& r
   const std::filesystem::path dir = path.has_parent_path() ? path.parent_path() : std::filesystem::path(".");
   if (!std::filesystem::is_directory(dir, ec))
     return Status::error(path.string() + ": " + role + ": directory " + dir.string() + " does not exist");
-  return {};
+  return check_output_name_and_folder(path, role);
 }
 
 Status check_stats_json_path(const Args& args) {

@@ -62,7 +62,10 @@ Status run_render(int argc, char** argv, bool& help) {
   opts.wireframe = args.has("--wireframe");
   const bool quiet = apply_quiet(args);
   opts.progress = !quiet;
-  if (!quiet) opts.log = [](const std::string& m) { std::fprintf(stderr, "raylod render: %s\n", m.c_str()); };
+  // -q keeps errors and warnings (the option's rule): only the warnings of the log.
+  opts.log = [quiet](const std::string& m) {
+    if (!quiet || m.rfind("warning:", 0) == 0) std::fprintf(stderr, "raylod render: %s\n", m.c_str());
+  };
   if (args.has("--aov")) {
     std::stringstream list(args.get("--aov"));
     std::string aov;
@@ -81,6 +84,10 @@ Status run_render(int argc, char** argv, bool& help) {
     for (const auto& [on, aov] : {std::pair{opts.aov_depth, "depth"}, std::pair{opts.aov_normal, "normal"},
                                   std::pair{opts.aov_triangle_id, "triangle-id"}}) {
       if (!on) continue;
+      // Written beside the image: not beside a device or FIFO (/dev/null.depth.exr).
+      if (is_pass_through_output(output))
+        return Status::error(output.string() + ": --aov writes its images beside the image (-o), which must then be "
+                             "a file, not a device or FIFO");
       // Checked like the image: a path that cannot be written fails before rendering, not after.
       RAYLOD_RETURN_IF_ERROR(cluster::agree(check_image(aov_path(output, aov))));
       outputs.push_back({aov_path(output, aov), std::string("the ") + aov + " AOV"});

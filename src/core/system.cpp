@@ -562,7 +562,20 @@ bool folder_is_writable(const std::filesystem::path& dir) {
 std::filesystem::path temporary_folder() {
   std::error_code ec;
   std::filesystem::path dir = std::filesystem::temp_directory_path(ec);
-  return ec || dir.empty() ? std::filesystem::path("/tmp") : dir;
+  // One that does not exist or takes no files: /tmp, as for one not set.
+  return ec || dir.empty() || !folder_is_writable(dir) ? std::filesystem::path("/tmp") : dir;
+}
+
+Status check_output_name_and_folder(const std::filesystem::path& path, const std::string& role) {
+  if (is_pass_through_output(path)) return {};
+  const std::string name = path.filename().string();
+  if (name.size() > 255)
+    return Status::error(path.string().substr(0, 60) + "...: " + role + ": the file name is " +
+                         std::to_string(name.size()) + " bytes, more than the 255 a file name may have");
+  const std::filesystem::path dir = path.has_parent_path() ? path.parent_path() : std::filesystem::path(".");
+  if (!folder_is_writable(dir))
+    return Status::error(path.string() + ": " + role + ": the folder " + dir.string() + " takes no files (not writable)");
+  return {};
 }
 
 AtomicDirectory::AtomicDirectory(std::filesystem::path destination) : dest_(std::move(destination)) {

@@ -200,6 +200,11 @@ class AtomicDirectory {
 // else ~/.cache/raylod, else (no HOME) raylod-cache in temporary_folder()
 // (created on demand by the callers).
 std::filesystem::path default_cache_dir();
+// The checks every output gets before any work, beyond its folder's
+// existence: a file name of at most 255 bytes, and a folder this process
+// can create files in (not for devices and FIFOs, written in place).
+// `role` names the output in the message ("the cut (-o)").
+Status check_output_name_and_folder(const std::filesystem::path& path, const std::string& role);
 // Whether this process can create files in `dir` (a probe file, removed at
 // once): a permission check that also sees read-only mounts and immutable
 // folders.

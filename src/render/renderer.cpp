@@ -708,7 +708,7 @@ Status check_output_image_path(const std::filesystem::path& path) {
     return Status::error(path.string() + ": " + dir.string() + " is not a directory");
   if (!std::filesystem::is_directory(dir, ec))
     return Status::error(path.string() + ": directory " + dir.string() + " does not exist");
-  return {};
+  return check_output_name_and_folder(path, "the image");
 }
 
 Status check_output_image(const std::filesystem::path& path) {

@@ -359,6 +359,9 @@ Status parse_light(const Parser& p, const json& j, const std::string& where, Lig
     if (!j.contains("position")) return p.fail(where, "a point light needs 'position'");
     if (j.contains("direction")) return p.fail(where + ".direction", "is not used by a point light (it shines every way)");
     RAYLOD_RETURN_IF_ERROR(p.vec3(j["position"], where + ".position", l.position));
+    for (int a = 0; a < 3; ++a)  // the renderer holds it as floats
+      RAYLOD_RETURN_IF_ERROR(p.number_in_float_range(j["position"][a], where + ".position[" + std::to_string(a) + "]",
+                                                     l.position[a]));
   } else if (type == "directional") {
     l.type = LightType::Directional;
     if (!j.contains("direction")) return p.fail(where, "a directional light needs 'direction'");

@@ -180,6 +180,10 @@ TEST(OutputsApart, UnwritableOutputsFailBeforeRendering) {
       {"gen teapot --triangles 200 -o missing/t.ply -q", "the mesh (-o): directory missing does not exist"},
       {"gen teapot --triangles 200 -o d.png -q", "d.png: the mesh (-o) names a directory"},
       {"scene tetra.ply -o d.png -q", "d.png: the scene (-o) names a directory"},
+      // A name longer than a file name may be: before any work (it failed
+      // when renamed into place, after the render).
+      {"render scene.json -o " + std::string(252, 'c') + ".png -q", "the file name is 256 bytes"},
+      {"probe scene.json -o " + std::string(252, 'c') + ".cut -q", "the cut (-o): the file name is 256 bytes"},
       // Empty names: said so, not an internal error.
       {"scene tetra.ply -o '' -q", "the scene (-o): no file name given"},
       {"build '' -q", "the mesh: no file name given"},

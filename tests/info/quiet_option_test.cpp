@@ -75,6 +75,14 @@ TEST(QuietOption, WarningsAndErrorsStillShow) {
                              out),
             0);
   EXPECT_NE(out.find("raylod simplify: warning: --position-error 1e-15 cannot be met"), std::string::npos) << out;
+  // And render's (its log was off under -q, warnings with it): a mesh of
+  // degenerate triangles only.
+  const std::string flat = (dir.path / "flat.obj").string();
+  std::ofstream(flat) << "v 0 0 0\nv 1 0 0\nv 2 0 0\nf 1 2 3\n";
+  ASSERT_EQ(test::run_raylod("render " + scene + " --mesh " + flat + " -o " + (dir.path / "f.png").string() + " -q", out),
+            0)
+      << out;
+  EXPECT_NE(out.find("raylod render: warning: " + flat + ": all 1 triangles are degenerate"), std::string::npos) << out;
   out.clear();
   EXPECT_EQ(test::run_raylod("render " + (dir.path / "missing.json").string() + " -o " +
                                  (dir.path / "x.png").string() + " -q",

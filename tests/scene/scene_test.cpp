@@ -151,6 +151,8 @@ INSTANTIATE_TEST_SUITE_P(
         BadCase{"float_overflow_translate", "\"translate\": [1, 2, 3]", "\"translate\": [1e39, 2, 3]",
                 "bad.json: objects[0].transform: is beyond the float range"},
         BadCase{"float_overflow_scale", "\"scale\": 2", "\"scale\": 1e39", "objects[0].transform: is beyond the float range"},
+        BadCase{"float_overflow_light_position", "\"position\": [0, 5, 0]", "\"position\": [0, 1e39, 0]",
+                "bad.json: lights[0].position[1]: is beyond the float range"},
         BadCase{"float_overflow_ground_size", "\"spp\": 2,", "\"ground\": {\"size\": 1e39, \"material\": \"red\"}, \"spp\": 2,",
                 "bad.json: ground.size: is beyond the float range"},
         BadCase{"float_overflow_ground_height", "\"spp\": 2,",
