@@ -927,6 +927,7 @@ StatusOr<RenderResult> render_simplified(const Scene& scene, std::span<const Pro
   ro.memory_limit = memory_limit;
   ro.progress = options.progress;
   ro.log = log;
+  ro.warn_about_meshes = false;  // said from the stores (open_run_session), not of the simplified mesh's temporary
   for (const auto& obj : objects) {
     const SimplifiedMesh& sm = meshes[obj.store];
     ro.mesh_override.push_back(sm.drc);

@@ -320,10 +320,10 @@ StatusOr<std::vector<TriangleMesh>> load_scene_meshes(const Scene& world_scene, 
     if (!mesh)
       return Status::error((scene.source.empty() ? std::string() : scene.source.string() + ": ") + "objects[" +
                            std::to_string(i) + "]: " + mesh.status().message());
-    if (options.log && !has_area(*mesh))
+    if (options.log && options.warn_about_meshes && !has_area(*mesh))
       options.log("warning: " + paths[i].string() + ": all " + std::to_string(mesh->triangle_count()) +
                   " triangles are degenerate (zero area or repeated corners); nothing of it is rendered");
-    if (options.log) {
+    if (options.log && options.warn_about_meshes) {
       Bbox world;
       for (const Vec3& p : mesh->positions) world.expand(p);
       if (const std::string problem = size_problem(world); !problem.empty())

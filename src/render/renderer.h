@@ -86,6 +86,11 @@ struct RenderOptions {
   std::function<Status()> before_trace;
   // Informational messages (effects on, BVH quality, ...); null = silent.
   std::function<void(const std::string&)> log;
+  // Warn through `log` about meshes that render nothing or are too small or
+  // large for single-precision rays. Off where the caller warns about its
+  // own inputs (raylod run: it renders a simplified mesh under a temporary
+  // name, and warns from the stores).
+  bool warn_about_meshes = true;
   BvhConfig bvh;
   IntegratorConfig integrator;  // max_depth and wireframe are taken from the scene / above
 };

@@ -310,7 +310,10 @@ TEST(SceneCommand, RunWithAMeshItsSceneDoesNotShowSaysSoAndPointsHere) {
   // Far smaller than single-precision rays resolve: said by run and render.
   write_box_stl(dir / "speck.stl", Vec3d(0, 1e-10, 0), Vec3d(1e-10, 2e-10, 1e-10));
   const std::string speck = run("speck.stl");
-  EXPECT_NE(speck.find("units across in the world"), std::string::npos) << speck;
+  EXPECT_NE(speck.find("speck.stl is "), std::string::npos) << speck;
+  // Once, of the mesh: not again of the simplified mesh's temporary file.
+  EXPECT_EQ(speck.find("units across in the world"), speck.rfind("units across in the world")) << speck;
+  EXPECT_EQ(speck.find(".tmp-"), std::string::npos) << speck;
   std::string rendered;
   EXPECT_EQ(test::run_raylod("render --mesh '" + (dir / "speck.stl").string() + "' --spp 1 -o '" +
                                  (dir / "speck-full.png").string() + "'",
