@@ -22,7 +22,7 @@ OIIO::TypeDesc type_of(PixelType t) {
 
 bool has_writer(const std::string& writer) { return OIIO::ImageOutput::create(writer) != nullptr; }
 
-Encoded encode(const EncodeRequest& r) {
+Encoded encode_once(const EncodeRequest& r, bool into_memory) {
   Encoded result;
   auto out = OIIO::ImageOutput::create(r.writer);
   if (!out) {
@@ -40,7 +40,7 @@ Encoded encode(const EncodeRequest& r) {
   // process on a failed file write); the program then writes the bytes,
   // checking every write.
   OIIO::Filesystem::IOVecOutput memory(result.bytes);
-  result.in_memory = out->supports("ioproxy") && out->set_ioproxy(&memory);
+  result.in_memory = into_memory && out->supports("ioproxy") && out->set_ioproxy(&memory);
   if (!out->open(r.file, spec)) {
     result.error = "cannot open for writing: " + out->geterror();
     return result;
@@ -48,6 +48,15 @@ Encoded encode(const EncodeRequest& r) {
   const bool wrote = out->write_image(type_of(r.layout.type), r.pixels);
   const bool closed = out->close();
   if (!wrote || !closed) result.error = "write failed (disk full?): " + out->geterror();
+  return result;
+}
+
+Encoded encode(const EncodeRequest& r) {
+  Encoded result = encode_once(r, true);
+  // A writer that takes the memory proxy, puts nothing in it and reports
+  // success (OpenJPEG's, for .jp2 and .j2k: a 0-byte file, exit 0) fails.
+  if (result.error.empty() && result.in_memory && result.bytes.empty())
+    result.error = "the image writer wrote nothing (this build's writer does not encode such images)";
   return result;
 }
 

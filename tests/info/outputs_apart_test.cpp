@@ -228,6 +228,16 @@ TEST(OutputsApart, UnwritableOutputsFailBeforeRendering) {
   }
   for (const char* name : {"o.xyz", "v_0.xyz", "v_1.xyz"}) EXPECT_FALSE(std::filesystem::exists(dir / name)) << name;
   EXPECT_FALSE(std::filesystem::exists(dir / "tetra.ply.raylod"));
+  // A writer that reported success for an empty file (OpenJPEG's in this
+  // build, .jp2): a complete image or a failure that says so, never 0 bytes.
+  const test::CommandResult jp2 = test::run_command("cd '" + dir.string() + "' && '" + std::string(RAYLOD_EXE) +
+                                                    "' render scene.json -o o.jp2 -q");
+  if (jp2.status == 0) {
+    EXPECT_GT(std::filesystem::file_size(dir / "o.jp2"), 0u) << jp2.out;
+  } else {
+    EXPECT_NE(jp2.out.find("o.jp2: the image writer wrote nothing"), std::string::npos) << jp2.out;
+    EXPECT_FALSE(std::filesystem::exists(dir / "o.jp2"));
+  }
   // A TMPDIR that does not exist: the scratch files go to /tmp (run failed
   // with "internal error: filesystem error: temp_directory_path").
   const test::CommandResult t = test::run_command("cd '" + dir.string() + "' && TMPDIR='" + (dir / "no-such").string() +
