@@ -167,6 +167,7 @@ TEST(OutputsApart, UnwritableOutputsFailBeforeRendering) {
       {"build tetra.ply -o missing/a/x.raylod -q", "the store (-o): directory missing/a does not exist"},
       {"probe scene.json -o missing/b/x.cut -q", "the cut (-o): directory missing/b does not exist"},
       {"run scene.json --no-cache -o /dev/null --compare -q", "must then be a file, not a device or FIFO"},
+      {"render scene.json -o /dev/null --aov depth -q", "--aov writes its images beside the image (-o), which must then"},
       // Images written after the first one: checked before it is written.
       {"run scene.json --no-cache -o c.png --compare -q", "c.full.png: is a directory"},
       {"run scene.json --no-cache --orbit 2 -o v_#.png -q", "v_1.png: is a directory"},
