@@ -817,14 +817,25 @@ std::string pair_report(const fs::path& scene, const fs::path& dir, const std::s
   return "report '" + scene.string() + "' --quick --scales 8 --rays 1000 -q " + extra + " -o '" + dir.string() + "'";
 }
 
+// The two-triangle scene `name` and a scratch folder holding its report
+// folder (`dir`, not yet made): the setting of the tests of a report that
+// replaces an earlier one.
+struct ReportFolder {
+  fs::path scene;
+  raylod::test::ScratchDir base;
+  fs::path dir;
+  explicit ReportFolder(const std::string& name)
+      : scene(write_pair_scene(name)), base("report-" + name), dir(base.path / "rep") {}
+};
+
 TEST(Report, ARerunWithFewerSectionsLeavesNoneOfTheFirstRunsFiles) {
   // Close-up and baselines, then neither: the second report's folder holds
   // its own files only (the close-up's and the baselines' pictures and the
   // close-up's .drc files used to stay beside it). The first run goes into
   // an empty folder that is already there.
-  const fs::path scene = write_pair_scene("rerun");
-  raylod::test::ScratchDir base("report-rerun");
-  const fs::path dir = base.path / "rep";
+  const ReportFolder folder("rerun");
+  const fs::path &scene = folder.scene, &dir = folder.dir;
+  const raylod::test::ScratchDir& base = folder.base;
   fs::create_directories(dir);
   std::string out;
   ASSERT_EQ(raylod(pair_report(scene, dir), &out), 0) << out;
@@ -862,9 +873,9 @@ TEST(Report, AFileOfTheUsersInAnEarlierReportKeepsItFromBeingReplaced) {
   // (a note, the scene the new report reads: both were deleted by the swap)
   // makes it a folder of other files, refused before any work; without
   // them it is replaced again.
-  const fs::path scene = write_pair_scene("manifest");
-  raylod::test::ScratchDir base("report-manifest");
-  const fs::path dir = base.path / "rep";
+  const ReportFolder folder("manifest");
+  const fs::path &scene = folder.scene, &dir = folder.dir;
+  const raylod::test::ScratchDir& base = folder.base;
   std::string out;
   ASSERT_EQ(raylod(pair_report(scene, dir), &out), 0) << out;
   ASSERT_TRUE(fs::exists(dir / "report-files.txt"));
@@ -886,9 +897,9 @@ TEST(Report, AFailureMidwayLeavesTheEarlierReportAsItWas) {
   // The second report (another image size: every picture differs) fails
   // after its pictures are written, before its tables (a fault point): the
   // first report stays, byte for byte, and no temporary folder is left.
-  const fs::path scene = write_pair_scene("midway");
-  raylod::test::ScratchDir base("report-midway");
-  const fs::path dir = base.path / "rep";
+  const ReportFolder folder("midway");
+  const fs::path &scene = folder.scene, &dir = folder.dir;
+  const raylod::test::ScratchDir& base = folder.base;
   std::string out;
   ASSERT_EQ(raylod(pair_report(scene, dir), &out), 0) << out;
   const auto before = files_in(dir);
@@ -904,9 +915,9 @@ TEST(Report, AKilledReportLeavesTheEarlierOneAndTheNextRunClearsUp) {
   // Killed outright (SIGKILL, no clean-up) at the same point: the earlier
   // report stays as it was, beside the killed run's temporary folder, which
   // the next report to the same folder removes.
-  const fs::path scene = write_pair_scene("killed");
-  raylod::test::ScratchDir base("report-killed");
-  const fs::path dir = base.path / "rep";
+  const ReportFolder folder("killed");
+  const fs::path &scene = folder.scene, &dir = folder.dir;
+  const raylod::test::ScratchDir& base = folder.base;
   std::string out;
   ASSERT_EQ(raylod(pair_report(scene, dir), &out), 0) << out;
   const auto before = files_in(dir);
@@ -977,9 +988,8 @@ TEST(Report, ABaselineEqualToTheReferenceIsIdenticalNotTheReference) {
   // them) leaves the mesh as it is, and its image equals the reference's.
   // Only the full mesh's row says "reference"; that one says "identical",
   // and report.json has a null PSNR and "identical": true for it (not 999).
-  const fs::path scene = write_pair_scene("identical");
-  raylod::test::ScratchDir base("report-identical");
-  const fs::path dir = base.path / "rep";
+  const ReportFolder folder("identical");
+  const fs::path &scene = folder.scene, &dir = folder.dir;
   std::string out;
   ASSERT_EQ(raylod(pair_report(scene, dir, "--no-closeup"), &out), 0) << out;
   const std::string md = read(dir / "REPORT.md");
@@ -1034,9 +1044,9 @@ TEST(Report, CtrlCLeavesTheEarlierReportAndNoTemporaryFolder) {
   // replaced one by one, leaving a REPORT.md that did not match them), and
   // the interrupted run's folder goes with it. raylod is spawned with SIGINT
   // at its default action (a shell's background job would ignore it).
-  const fs::path scene = write_pair_scene("interrupted");
-  raylod::test::ScratchDir base("report-interrupted");
-  const fs::path dir = base.path / "rep";
+  const ReportFolder folder("interrupted");
+  const fs::path &scene = folder.scene, &dir = folder.dir;
+  const raylod::test::ScratchDir& base = folder.base;
   std::string out;
   ASSERT_EQ(raylod(pair_report(scene, dir), &out), 0) << out;
   const auto before = files_in(dir);
