@@ -560,10 +560,14 @@ bool folder_is_writable(const std::filesystem::path& dir) {
 }
 
 std::filesystem::path temporary_folder() {
-  std::error_code ec;
-  std::filesystem::path dir = std::filesystem::temp_directory_path(ec);
-  // One that does not exist or takes no files: /tmp, as for one not set.
-  return ec || dir.empty() || !folder_is_writable(dir) ? std::filesystem::path("/tmp") : dir;
+  // Decided once per process (its writability is probed with a file).
+  static const std::filesystem::path folder = [] {
+    std::error_code ec;
+    std::filesystem::path dir = std::filesystem::temp_directory_path(ec);
+    // One that does not exist or takes no files: /tmp, as for one not set.
+    return ec || dir.empty() || !folder_is_writable(dir) ? std::filesystem::path("/tmp") : dir;
+  }();
+  return folder;
 }
 
 Status check_output_name_and_folder(const std::filesystem::path& path, const std::string& role) {

@@ -83,18 +83,19 @@ struct Parser {
       return fail(where, "is beyond the float range (about 3.4e38)");
     return {};
   }
-  Status vec3(const json& j, const std::string& where, Vec3d& out) const {
+  Status vec3(const json& j, const std::string& where, Vec3d& out, bool float_range = false) const {
     if (!j.is_array() || j.size() != 3) return fail(where, "expected an array of 3 numbers");
-    for (int i = 0; i < 3; ++i) RAYLOD_RETURN_IF_ERROR(number(j[i], where + "[" + std::to_string(i) + "]", out[i]));
+    for (int i = 0; i < 3; ++i) {
+      const std::string at = where + "[" + std::to_string(i) + "]";
+      RAYLOD_RETURN_IF_ERROR(float_range ? number_in_float_range(j[i], at, out[i]) : number(j[i], at, out[i]));
+    }
     return {};
   }
   // A number held as a float (colours, intensities, material constants):
   // beyond the float range it would become infinite.
   Status number_float(const json& j, const std::string& where, float& out) const {
     double v;
-    RAYLOD_RETURN_IF_ERROR(number(j, where, v));
-    if (std::abs(v) > double(std::numeric_limits<float>::max()))
-      return fail(where, "is beyond the float range (about 3.4e38)");
+    RAYLOD_RETURN_IF_ERROR(number_in_float_range(j, where, v));
     out = float(v);
     return {};
   }
@@ -358,10 +359,8 @@ Status parse_light(const Parser& p, const json& j, const std::string& where, Lig
     l.type = LightType::Point;
     if (!j.contains("position")) return p.fail(where, "a point light needs 'position'");
     if (j.contains("direction")) return p.fail(where + ".direction", "is not used by a point light (it shines every way)");
-    RAYLOD_RETURN_IF_ERROR(p.vec3(j["position"], where + ".position", l.position));
-    for (int a = 0; a < 3; ++a)  // the renderer holds it as floats
-      RAYLOD_RETURN_IF_ERROR(p.number_in_float_range(j["position"][a], where + ".position[" + std::to_string(a) + "]",
-                                                     l.position[a]));
+    // The renderer holds it as floats.
+    RAYLOD_RETURN_IF_ERROR(p.vec3(j["position"], where + ".position", l.position, /*float_range=*/true));
   } else if (type == "directional") {
     l.type = LightType::Directional;
     if (!j.contains("direction")) return p.fail(where, "a directional light needs 'direction'");
