@@ -217,19 +217,10 @@ StatusOr<CutOptions> cut_options_from_args(const Args& args) {
   return o;
 }
 
-Status check_output_file(const std::filesystem::path& path, const std::string& role) {
-  std::error_code ec;
-  if (path.empty()) return Status::error(role + ": no file name given");
-  if (std::filesystem::is_directory(path, ec)) return Status::error(path.string() + ": " + role + " names a directory");
-  const std::filesystem::path dir = path.has_parent_path() ? path.parent_path() : std::filesystem::path(".");
-  if (!std::filesystem::is_directory(dir, ec))
-    return Status::error(path.string() + ": " + role + ": directory " + dir.string() + " does not exist");
-  return check_output_name_and_folder(path, role);
-}
 
 Status check_stats_json_path(const Args& args) {
   if (!args.has("--stats-json")) return {};
-  return check_output_file(args.get("--stats-json"), "--stats-json");
+  return check_output_path(args.get("--stats-json"), "--stats-json");
 }
 
 std::vector<FileRole> scene_mesh_files(const Args& args, const Scene& scene) {

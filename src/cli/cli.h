@@ -96,10 +96,6 @@ StatusOr<CutOptions> cut_options_from_args(const Args& args);
 // --stats-json FILE, if given: checked before any work (its folder exists and
 // it is not a folder), so that a bad path does not fail a finished run.
 Status check_stats_json_path(const Args& args);
-// An output file the command will write, checked before any work: a name
-// given, not a directory, in a folder that exists (so that a long run does
-// not end on a name it could never write). `role` names the option.
-Status check_output_file(const std::filesystem::path& path, const std::string& role);
 // The mesh files a scene-reading command reads: --mesh and every object's.
 std::vector<FileRole> scene_mesh_files(const Args& args, const Scene& scene);
 // The files a scene-reading command reads: the scene file (if given) and

@@ -59,7 +59,7 @@ int run_build(int argc, char** argv) {
                                                            : store_path_for(mesh, default_cache_dir(), options, &where);
   if (Status st = check_outputs_apart({{store, "the store (-o)"}}, {{mesh, "the mesh"}}); !st) return fail("build", st);
   if (args.has("--output"))
-    if (Status st = check_output_file(store, "the store (-o)"); !st) return fail("build", st);
+    if (Status st = check_output_path(store, "the store (-o)"); !st) return fail("build", st);
   if (!where.empty() && !quiet) std::fprintf(stderr, "raylod build: %s\n", where.c_str());
   // --force replaces the old store atomically; it stays in place if the build fails.
   auto built = build_store(mesh, store, options, args.has("--force"), args.has("--verify"));

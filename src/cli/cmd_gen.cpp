@@ -73,7 +73,7 @@ int run_gen(int argc, char** argv) {
   // A progress bar only where there is time to watch one.
   options.progress = !apply_quiet(args) && options.triangles >= 5000000;
   const std::string out = args.get("--output", options.shape + "-" + human_count(options.triangles) + ".ply");
-  if (Status st = check_output_file(out, "the mesh (-o)"); !st) return fail("gen", st);
+  if (Status st = check_output_path(out, "the mesh (-o)"); !st) return fail("gen", st);
   auto report = generate_mesh(options, out);
   if (!report) return fail("gen", report.status());
   const GenReport& r = *report;

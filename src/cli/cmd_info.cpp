@@ -91,11 +91,12 @@ int run_info(int argc, char** argv) {
 
   // Dispatch by content (store and cut magic) first, then meshes by
   // extension; a new file kind gets its branch here, before the mesh fallback.
-  if (is_store_file(path)) {
+  // A damaged store or cut keeps its extension: its reader says what is wrong.
+  if (is_store_file(path) || path.extension() == ".raylod") {
     if (Status st = print_store_info(path, stdout); !st) return fail("info", st);
     return 0;
   }
-  if (is_cut_file(path)) {
+  if (is_cut_file(path) || path.extension() == ".cut") {
     if (Status st = print_cut_info(path, stdout); !st) return fail("info", st);
     return 0;
   }

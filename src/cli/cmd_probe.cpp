@@ -57,7 +57,7 @@ int cmd_probe(int argc, char** argv) {
   const bool quiet = cli::apply_quiet(args);
   // The cut's name is checked before the stores are built.
   if (args.has("--output"))
-    if (Status s = cluster::agree(cli::check_output_file(args.get("--output"), "the cut (-o)")); !s)
+    if (Status s = cluster::agree(check_output_path(args.get("--output"), "the cut (-o)")); !s)
       return cli::fail("probe", s);
   // One store per distinct mesh, built first if missing or stale (saying so).
   const MemoryBudget budget = *limit;
@@ -78,6 +78,12 @@ int cmd_probe(int argc, char** argv) {
   const std::vector<std::filesystem::path>& meshes = ss.meshes;
   const std::vector<ProbeStore>& stores = ss.probe_stores;
   const std::vector<ProbeObject>& objects = ss.objects;
+  // Objects beyond the float range are refused, odd sizes warned about, as
+  // run and render do.
+  std::vector<std::string> warnings;
+  if (Status s = cluster::agree(check_object_placements(scene, ss, warnings)); !s) return cli::fail("probe", s);
+  if (cluster::is_root())
+    for (const std::string& w : warnings) std::fprintf(stderr, "raylod probe: warning: %s\n", w.c_str());
   if (args.has("--output") && meshes.size() > 1)
     return cli::fail("probe", cluster::agree(Status::error("-o names one cut, but the scene has " +
                                                            std::to_string(meshes.size()) +
@@ -100,9 +106,7 @@ int cmd_probe(int argc, char** argv) {
         std::filesystem::path dir = std::filesystem::absolute(store).parent_path();
         if (!folder_is_writable(dir)) {
           const std::filesystem::path in_cache = default_cache_dir() / "stores";
-          std::error_code ec;
-          std::filesystem::create_directories(in_cache, ec);
-          if (ec || !folder_is_writable(in_cache)) {
+          if (!cache_store_folder_is_writable(default_cache_dir())) {
             where = Status::error("neither " + dir.string() + " (beside the store) nor " + in_cache.string() +
                                   " takes files: give the cut's name with -o CUT");
             break;

@@ -114,14 +114,13 @@ Status run_render(int argc, char** argv, bool& help) {
   // Rank 0 holds the whole frame and writes it; the others wait to learn
   // whether it could, so that a failed write ends the job like any failure.
   auto write_outputs = [&]() -> Status {
-    RAYLOD_RETURN_IF_ERROR(write_color(output, result));
-    auto written_aovs = write_aovs(output, result);
-    if (!written_aovs.is_ok()) {  // nothing of a failed render stays: the image goes with its AOVs
-      std::error_code ec;
-      std::filesystem::remove(output, ec);
-      return written_aovs.status();
-    }
-    const auto& aovs = *written_aovs;
+    // The image and its AOVs all or none: each written under a temporary
+    // name, then all renamed into place (an earlier image of the same names
+    // stays if any write fails).
+    ImageBatch batch;
+    RAYLOD_RETURN_IF_ERROR(write_color(output, result, &batch));
+    RAYLOD_ASSIGN_OR_RETURN(const std::vector<std::filesystem::path> aovs, write_aovs(output, result, &batch));
+    RAYLOD_RETURN_IF_ERROR(batch.commit());
     const RenderStats& s = result.stats;
     if (!quiet)
       std::fprintf(stderr,

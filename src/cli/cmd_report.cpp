@@ -122,6 +122,7 @@ Status run_report_cmd(int argc, char** argv) {
   if (!quiet) log = [](const std::string& m) { std::fprintf(stderr, "raylod report: %s\n", m.c_str()); };
 
   RAYLOD_ASSIGN_OR_RETURN(ReportResult r, run_report(scene, mesh, cfg, log));
+  for (const std::string& w : r.warnings) std::fprintf(stderr, "raylod report: warning: %s\n", w.c_str());
   summary("raylod report: wrote %s (%zu rows) and %s\n", r.markdown.string().c_str(), r.rows.size(),
               r.plot.string().c_str());
   return {};

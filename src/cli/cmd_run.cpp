@@ -142,7 +142,7 @@ Status run_run(int argc, char** argv, bool& help) {
   start_loading_image_codec();
   RAYLOD_RETURN_IF_ERROR(check_output_image_early(first_image));
   RAYLOD_RETURN_IF_ERROR(check_stats_json_path(args));
-  if (args.has("--export-mesh")) RAYLOD_RETURN_IF_ERROR(check_output_file(args.get("--export-mesh"), "--export-mesh"));
+  if (args.has("--export-mesh")) RAYLOD_RETURN_IF_ERROR(check_output_path(args.get("--export-mesh"), "--export-mesh"));
   if (args.has("--compare")) {
     if (is_pass_through_output(output))
       return Status::error(output.string() + ": --compare writes its images beside the image (-o), which must then "

@@ -77,7 +77,7 @@ Status write_scene_for_mesh(const Args& args) {
   RAYLOD_ASSIGN_OR_RETURN(int64_t spp, args.get_int("--spp", 4, 1, 4096));
   options.width = int(width);
   options.height = int(height);
-  RAYLOD_RETURN_IF_ERROR(check_output_file(out, "the scene (-o)"));
+  RAYLOD_RETURN_IF_ERROR(check_output_path(out, "the scene (-o)"));
   RAYLOD_RETURN_IF_ERROR(check_outputs_apart({{out, "the scene (-o)"}}, {{mesh, "the mesh"}}));
   RAYLOD_RETURN_IF_ERROR(check_regular_file(parse_mesh_ref(mesh).file));
 

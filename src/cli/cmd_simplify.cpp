@@ -97,7 +97,7 @@ int run_simplify(int argc, char** argv) {
   if (ext != ".drc" && ext != ".glb" && ext != ".ply" && ext != ".obj")
     return fail("simplify", Status::error(out_path.string() + ": unknown output format '" + ext +
                                           "' (use .drc, .glb, .ply or .obj)"));
-  if (Status st = check_output_file(out_path, "the simplified mesh (-o)"); !st) return fail("simplify", st);
+  if (Status st = check_output_path(out_path, "the simplified mesh (-o)"); !st) return fail("simplify", st);
   auto limit = memory_budget_from_args(args);
   if (!limit) return fail("simplify", limit.status());
   auto normal_bits = args.get_int("--normal-bits", 0, 2, 30);

@@ -570,26 +570,30 @@ std::filesystem::path temporary_folder() {
   return folder;
 }
 
-Status check_output_name_and_folder(const std::filesystem::path& path, const std::string& role) {
+Status check_output_path(const std::filesystem::path& path, const std::string& role) {
+  if (path.empty()) return Status::error(role + ": no file name given");
+  const std::string who = path.string() + ": " + role + ": ";
+  const std::filesystem::path dir = path.has_parent_path() ? path.parent_path() : std::filesystem::path(".");
+  std::error_code ec;
+  if (std::filesystem::is_directory(path, ec)) return Status::error(who + "is a directory");
+  if (std::filesystem::exists(dir, ec) && !std::filesystem::is_directory(dir, ec))
+    return Status::error(who + dir.string() + " is not a directory");
+  if (!std::filesystem::is_directory(dir, ec)) return Status::error(who + "directory " + dir.string() + " does not exist");
   if (is_pass_through_output(path)) return {};
   const std::string name = path.filename().string();
   if (name.size() > 255)
     return Status::error(path.string().substr(0, 60) + "...: " + role + ": the file name is " +
                          std::to_string(name.size()) + " bytes, more than the 255 a file name may have");
-  const std::filesystem::path dir = path.has_parent_path() ? path.parent_path() : std::filesystem::path(".");
-  if (!folder_is_writable(dir))
-    return Status::error(path.string() + ": " + role + ": the folder " + dir.string() + " takes no files (not writable)");
+  if (!folder_is_writable(dir)) return Status::error(who + "the folder " + dir.string() + " takes no files (not writable)");
   return {};
 }
 
 AtomicDirectory::AtomicDirectory(std::filesystem::path destination) : dest_(std::move(destination)) {
   namespace fs = std::filesystem;
   std::error_code ec;
-  target_ = dest_;
-  if (fs::is_symlink(fs::symlink_status(dest_, ec))) {
-    const fs::path resolved = fs::canonical(dest_, ec);
-    if (!ec) target_ = resolved;
-  }
+  // A symlink is followed, also one whose folder does not exist yet: the
+  // folder is made where it points, and the link stays.
+  target_ = follow_symlinks(dest_);
   remove_stale_temporaries(target_);
   temp_ = temporary_beside(target_);
 }
@@ -633,6 +637,10 @@ Status AtomicDirectory::commit() {
   ::pthread_sigmask(SIG_BLOCK, &block, &previous);
   std::error_code ec;
   const bool replace = fs::exists(fs::symlink_status(target_, ec));
+  // The folder replaced keeps its permissions (the new one was made with
+  // the process's umask).
+  if (struct stat old; replace && ::stat(target_.c_str(), &old) == 0 && S_ISDIR(old.st_mode))
+    ::chmod(temp_.c_str(), old.st_mode & 07777);
   int err = 0;
   bool old_at_temp = false;  // the folder replaced is now at temp_
   fs::path aside;            // ...or there
@@ -671,6 +679,7 @@ Status AtomicDirectory::commit() {
   committed_ = true;
   sync_folder(target_.parent_path());
   // The folder replaced: removed (a signal meanwhile removes the rest).
+  const fs::path replaced = old_at_temp ? temp_ : aside;
   if (old_at_temp) {
     return_folder_to_handler(slot_);
     fs::remove_all(temp_, ec);
@@ -679,6 +688,9 @@ Status AtomicDirectory::commit() {
     fs::remove_all(aside, ec);
     release_temporary(aside_slot);
   }
+  if (!replaced.empty() && (ec || fs::exists(fs::symlink_status(replaced, ec))))
+    leftover_ = "the folder replaced, moved to " + replaced.string() + ", could not be removed" +
+                (ec ? ": " + ec.message() : std::string());
   release_temporary(slot_);
   return Status::ok();
 }

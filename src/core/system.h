@@ -187,11 +187,17 @@ class AtomicDirectory {
   // The folder replaced: the destination, or the folder its symlinks name.
   const std::filesystem::path& target() const { return target_; }
   // Renames the temporary folder to the destination, exchanging it with
-  // the folder there if there is one, which is then removed.
+  // the folder there if there is one, which is then removed. The folder
+  // replaced gives the new one its permissions.
   Status commit();
+  // After commit(): empty, or what is left of the folder replaced where it
+  // could not be removed whole (a file in it that may not be deleted), for
+  // the caller to warn about.
+  const std::string& leftover() const { return leftover_; }
 
  private:
   std::filesystem::path dest_, target_, temp_;
+  std::string leftover_;
   bool created_ = false, committed_ = false;
   int slot_ = -1;  // in the signal handler's table of live temporaries
 };
@@ -200,11 +206,12 @@ class AtomicDirectory {
 // else ~/.cache/raylod, else (no HOME) raylod-cache in temporary_folder()
 // (created on demand by the callers).
 std::filesystem::path default_cache_dir();
-// The checks every output gets before any work, beyond its folder's
-// existence: a file name of at most 255 bytes, and a folder this process
-// can create files in (not for devices and FIFOs, written in place).
-// `role` names the output in the message ("the cut (-o)").
-Status check_output_name_and_folder(const std::filesystem::path& path, const std::string& role);
+// The checks every output file gets before any work: a name given, not a
+// directory, a folder that exists, a file name of at most 255 bytes, and a
+// folder this process can create files in (devices and FIFOs, written in
+// place, pass the last two). `role` names the output in the message
+// ("PATH: the cut (-o): directory D does not exist").
+Status check_output_path(const std::filesystem::path& path, const std::string& role);
 // Whether this process can create files in `dir` (a probe file, removed at
 // once): a permission check that also sees read-only mounts and immutable
 // folders.

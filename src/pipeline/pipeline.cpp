@@ -213,6 +213,12 @@ bool staged_write_refused(const Status& status, const fs::path& staged) {
   return status.is_write_failure() && fs::path(status.path()) == staged;
 }
 
+bool cache_store_folder_is_writable(const fs::path& cache_dir) {
+  std::error_code ec;
+  fs::create_directories(cache_dir / "stores", ec);
+  return !ec && folder_is_writable(cache_dir / "stores");
+}
+
 fs::path store_path_for(const fs::path& mesh, const fs::path& cache_dir, const StoreOptions& options,
                         std::string* note) {
   const fs::path beside = default_store_path(mesh);
@@ -229,9 +235,7 @@ fs::path store_path_for(const fs::path& mesh, const fs::path& cache_dir, const S
   const fs::path in_cache = cache_dir / "stores" / name;
   const std::string why = fits ? folder.string() + " is not writable"
                                : mesh.filename().string().substr(0, 40) + "...: the name is too long for a store beside it";
-  std::error_code ec;
-  fs::create_directories(in_cache.parent_path(), ec);
-  if ((!ec && folder_is_writable(in_cache.parent_path())) || store_is_current(mesh, in_cache, options)) {
+  if (cache_store_folder_is_writable(cache_dir) || store_is_current(mesh, in_cache, options)) {
     if (note) *note = why + ": the store goes to " + in_cache.string();
     return in_cache;
   }
@@ -239,6 +243,7 @@ fs::path store_path_for(const fs::path& mesh, const fs::path& cache_dir, const S
   // shared by others): the system's temporary folder, per user.
   const fs::path in_temp =
       temporary_folder() / ("raylod-stores-" + std::to_string(::getuid())) / name;
+  std::error_code ec;
   fs::create_directories(in_temp.parent_path(), ec);
   if (note)
     *note = folder.string() + " and " + in_cache.parent_path().string() + " are not writable: the store goes to " +
@@ -418,6 +423,25 @@ std::string store_identities(const SceneStores& stores) {
 
 }  // namespace
 
+Status check_object_placements(const Scene& scene, const SceneStores& stores, std::vector<std::string>& warnings) {
+  // An object its transform puts beyond the float range cannot be rendered
+  // (the full render refuses it too); one outside the sizes single-precision
+  // rays render faithfully is warned about.
+  for (size_t o = 0; o < stores.objects.size(); ++o) {
+    const ProbeObject& obj = stores.objects[o];
+    const StoreHeader& h = stores.stores[obj.store]->header();
+    const Bbox world = world_bounds(obj.transform * glm::translate(glm::dmat4(1.0), h.mesh_origin), h.bounds);
+    const std::string& mesh = stores.meshes[obj.store].string();
+    double reach = 0;
+    for (int a = 0; a < 3; ++a) reach = std::max({reach, std::abs(world.lo[a]), std::abs(world.hi[a])});
+    if (!(reach <= double(std::numeric_limits<float>::max())))
+      return Status::error(object_context(scene, o) + "the object's transform puts " + mesh +
+                           " beyond the float range (its bounds reach " + fmt("%.3g", reach) + ")");
+    if (const std::string problem = size_problem(world); !problem.empty()) warnings.push_back(mesh + " " + problem);
+  }
+  return Status::ok();
+}
+
 StatusOr<RunSession> open_run_session(Scene& scene, const RunOptions& options, const LogFn& log) {
   RunSession session;
   const fs::path cache_dir = options.cache_dir.empty() ? default_cache_dir() : options.cache_dir;
@@ -477,23 +501,7 @@ StatusOr<RunSession> open_run_session(Scene& scene, const RunOptions& options, c
                                  " in this scene; `raylod scene " + options.mesh_override->string() +
                                  "` writes a scene that frames it");
   }
-  // An object its transform puts beyond the float range cannot be rendered
-  // (the full render refuses it too); one outside the sizes single-precision
-  // rays render faithfully is warned about.
-  for (size_t o = 0; o < session.stores.objects.size(); ++o) {
-    const ProbeObject& obj = session.stores.objects[o];
-    const StoreHeader& h = session.stores.stores[obj.store]->header();
-    const Bbox world = world_bounds(obj.transform * glm::translate(glm::dmat4(1.0), h.mesh_origin), h.bounds);
-    const std::string& mesh = session.stores.meshes[obj.store].string();
-    double reach = 0;
-    for (int a = 0; a < 3; ++a) reach = std::max({reach, std::abs(world.lo[a]), std::abs(world.hi[a])});
-    if (!(reach <= double(std::numeric_limits<float>::max())))
-      return Status::error((scene.source.empty() ? std::string() : scene.source.string() + ": ") + "objects[" +
-                           std::to_string(o) + "]: the object's transform puts " + mesh +
-                           " beyond the float range (its bounds reach " + fmt("%.3g", reach) + ")");
-    if (const std::string problem = size_problem(world); !problem.empty())
-      session.warnings.push_back(mesh + " " + problem);
-  }
+  RAYLOD_RETURN_IF_ERROR(check_object_placements(scene, session.stores, session.warnings));
   // What a store build had to say (a position grid made coarse by a few
   // far-away vertices; a memory limit below its minimum).
   for (size_t i = 0; i < session.stores.builds.size(); ++i)

@@ -59,6 +59,11 @@ struct SceneStores {
 StatusOr<SceneStores> prepare_scene_stores(Scene& scene, const std::optional<std::filesystem::path>& mesh_override,
                                            const StoreOptions& store_options, const std::filesystem::path& cache_dir,
                                            const LogFn& log, bool check_stores = true);
+// Refuses an object whose transform puts it beyond the float range (naming
+// the scene and objects[i]); adds a warning for one outside the sizes
+// single-precision rays render faithfully (size_problem). run and probe
+// call it once the stores are open.
+Status check_object_placements(const Scene& scene, const SceneStores& stores, std::vector<std::string>& warnings);
 
 struct RunOptions {
   std::optional<std::filesystem::path> mesh_override;
@@ -129,6 +134,9 @@ struct RunResult {
 // absolute path and its file name). *note says why the cache was chosen.
 std::filesystem::path store_path_for(const std::filesystem::path& mesh, const std::filesystem::path& cache_dir,
                                      const StoreOptions& options, std::string* note = nullptr);
+// Creates cache_dir/stores, where stores and cuts go whose mesh's folder
+// takes no files, and says whether it takes files.
+bool cache_store_folder_is_writable(const std::filesystem::path& cache_dir);
 
 StatusOr<RunResult> run_pipeline(Scene scene, const RunOptions& options, const LogFn& log);
 

@@ -660,6 +660,7 @@ StatusOr<ReportResult> run_report(const Scene& input_scene, const std::optional<
   // Whatever came into the folder while the report ran is not replaced either.
   if (report_folder_holds(staged.target()) == FolderHolds::Other) return refuse_other_folder(cfg.out_dir);
   RAYLOD_RETURN_IF_ERROR(staged.commit());
+  if (!staged.leftover().empty()) result.warnings.push_back(staged.leftover());
   result.markdown = cfg.out_dir / "REPORT.md";
   result.plot = cfg.out_dir / "default-accuracy-vs-time.png";
   return result;

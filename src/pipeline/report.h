@@ -61,6 +61,7 @@ struct ReportResult {
   std::vector<ReportRow> rows;
   std::vector<ReportView> views;
   std::filesystem::path markdown, plot;
+  std::vector<std::string> warnings;  // printed whatever the log level
 };
 
 // Runs the sweep on scene (with mesh_override in place of its first

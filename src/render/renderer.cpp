@@ -78,15 +78,17 @@ std::string image_writer_for(const std::filesystem::path& path) {
 }
 
 // Encodes the pixels (request.layout, request.pixels) through the image
-// codec under a temporary name, then renames it into place. Some writers
-// (libpng's, on a full disk) report success for a truncated file, so a file
-// is kept only if it decodes to the image that was written; on any failure
-// the temporary is removed and the destination left as it was.
-Status write_pixels(const std::filesystem::path& path, EncodeRequest request) {
+// codec under a temporary name, then renames it into place, or with a batch
+// leaves the rename to the batch's commit. Some writers (libpng's, on a full
+// disk) report success for a truncated file, so a file is kept only if it
+// decodes to the image that was written; on any failure the temporary is
+// removed and the destination left as it was.
+Status write_pixels(const std::filesystem::path& path, EncodeRequest request, ImageBatch* batch) {
   RAYLOD_ASSIGN_OR_RETURN(const ImageCodec* codec, image_codec());
-  // Declared first so that it outlives the writer: a writer that still holds
+  // Made first so that it outlives the writer: a writer that still holds
   // the temporary open closes it before the temporary is removed.
-  AtomicOutput atomic(path);
+  auto staged = std::make_unique<AtomicOutput>(path);
+  AtomicOutput& atomic = *staged;
   // The writer is chosen from the destination's name; the temporary name
   // ("out.png.tmp-...") is then only the file it writes to.
   request.writer = image_writer_for(path);
@@ -116,6 +118,10 @@ Status write_pixels(const std::filesystem::path& path, EncodeRequest request) {
   }
   if (fault_point("image.before_rename"))
     return Status::error(path.string() + ": could not rename into place: failed at fault point image.before_rename");
+  if (batch) {
+    batch->add(std::move(staged));
+    return {};
+  }
   return atomic.commit();
 }
 
@@ -318,8 +324,7 @@ StatusOr<std::vector<TriangleMesh>> load_scene_meshes(const Scene& world_scene, 
                                    [&](uint64_t n) { if (progress) progress->advance(n); });
     // Which of the scene's objects, where the scene has several.
     if (!mesh)
-      return Status::error((scene.source.empty() ? std::string() : scene.source.string() + ": ") + "objects[" +
-                           std::to_string(i) + "]: " + mesh.status().message());
+      return Status::error(object_context(scene, i) + mesh.status().message());
     if (options.log && options.warn_about_meshes && !has_area(*mesh))
       options.log("warning: " + paths[i].string() + ": all " + std::to_string(mesh->triangle_count()) +
                   " triangles are degenerate (zero area or repeated corners); nothing of it is rendered");
@@ -655,7 +660,8 @@ StatusOr<RenderResult> render(const Scene& scene, const RenderOptions& options) 
 namespace {
 
 // An 8-bit sRGB image to an 8-bit format.
-Status write_srgb_bytes(const std::filesystem::path& path, int width, int height, int channels, const uint8_t* bytes) {
+Status write_srgb_bytes(const std::filesystem::path& path, int width, int height, int channels, const uint8_t* bytes,
+                        ImageBatch* batch) {
   EncodeRequest request;
   request.layout = {width, height, channels, PixelType::UInt8};
   request.pixels = bytes;
@@ -667,48 +673,51 @@ Status write_srgb_bytes(const std::filesystem::path& path, int width, int height
   // 0.32 -> 0.12 s, 822 -> 741 KB). Other writers ignore the attribute.
   constexpr int kPngFilterNone = 0x08;
   request.png_filter = kPngFilterNone;
-  return write_pixels(path, std::move(request));
+  return write_pixels(path, std::move(request), batch);
 }
 
 }  // namespace
 
-Status write_image(const std::filesystem::path& path, const Image& image) {
+Status ImageBatch::commit() {
+  for (auto& output : staged_) RAYLOD_RETURN_IF_ERROR(output->commit());
+  staged_.clear();
+  return {};
+}
+
+ImageBatch::~ImageBatch() = default;
+
+void ImageBatch::add(std::unique_ptr<AtomicOutput> staged) { staged_.push_back(std::move(staged)); }
+
+Status write_image(const std::filesystem::path& path, const Image& image, ImageBatch* batch) {
   if (image.empty()) return Status::error(path.string() + ": empty image");
   if (is_float_image_format(path)) {
     EncodeRequest request;
     request.layout = {image.width, image.height, image.channels, PixelType::Float};
     request.pixels = image.pixels.data();
     if (image.channels == 1) request.channel_names = {"Z"};
-    return write_pixels(path, std::move(request));
+    return write_pixels(path, std::move(request), batch);
   }
   std::vector<uint8_t> bytes(image.pixels.size());
   srgb_bytes(image.pixels, bytes);
-  return write_srgb_bytes(path, image.width, image.height, image.channels, bytes.data());
+  return write_srgb_bytes(path, image.width, image.height, image.channels, bytes.data(), batch);
 }
 
-Status write_image(const std::filesystem::path& path, const SrgbImage& image) {
+Status write_image(const std::filesystem::path& path, const SrgbImage& image, ImageBatch* batch) {
   if (image.empty()) return Status::error(path.string() + ": empty image");
   if (is_float_image_format(path))
     return Status::error(path.string() + ": a float format needs the linear image, and this one is 8-bit sRGB");
-  return write_srgb_bytes(path, image.width, image.height, image.channels, image.pixels.data());
+  return write_srgb_bytes(path, image.width, image.height, image.channels, image.pixels.data(), batch);
 }
 
-Status write_color(const std::filesystem::path& path, const RenderResult& render) {
-  return render.srgb.empty() ? write_image(path, render.color) : write_image(path, render.srgb);
+Status write_color(const std::filesystem::path& path, const RenderResult& render, ImageBatch* batch) {
+  return render.srgb.empty() ? write_image(path, render.color, batch) : write_image(path, render.srgb, batch);
 }
 
 Status check_output_image_path(const std::filesystem::path& path) {
-  if (path.empty()) return Status::error("no output image given");
+  RAYLOD_RETURN_IF_ERROR(check_output_path(path, "the image"));
   if (!path.has_extension() && !is_extensionless_device(path))
     return Status::error(path.string() + ": no file extension to choose the image format from");
-  const auto dir = path.has_parent_path() ? path.parent_path() : std::filesystem::path(".");
-  std::error_code ec;
-  if (std::filesystem::is_directory(path, ec)) return Status::error(path.string() + ": is a directory");
-  if (std::filesystem::exists(dir, ec) && !std::filesystem::is_directory(dir, ec))
-    return Status::error(path.string() + ": " + dir.string() + " is not a directory");
-  if (!std::filesystem::is_directory(dir, ec))
-    return Status::error(path.string() + ": directory " + dir.string() + " does not exist");
-  return check_output_name_and_folder(path, "the image");
+  return {};
 }
 
 Status check_output_image(const std::filesystem::path& path) {
@@ -743,13 +752,13 @@ StatusOr<Image> read_image(const std::filesystem::path& path) {
 }
 
 Status write_triangle_id_image(const std::filesystem::path& path, int width, int height,
-                               const std::vector<uint32_t>& ids) {
+                               const std::vector<uint32_t>& ids, ImageBatch* batch) {
   if (ids.size() != size_t(width) * height) return Status::error(path.string() + ": triangle id buffer has the wrong size");
   EncodeRequest request;
   request.layout = {width, height, 1, PixelType::UInt32};
   request.pixels = ids.data();
   request.channel_names = {"id"};
-  return write_pixels(path, std::move(request));
+  return write_pixels(path, std::move(request), batch);
 }
 
 std::filesystem::path aov_path(const std::filesystem::path& output, const std::string& aov) {
@@ -759,31 +768,27 @@ std::filesystem::path aov_path(const std::filesystem::path& output, const std::s
   return p;
 }
 
-StatusOr<std::vector<std::filesystem::path>> write_aovs(const std::filesystem::path& output, const RenderResult& r) {
+StatusOr<std::vector<std::filesystem::path>> write_aovs(const std::filesystem::path& output, const RenderResult& r,
+                                                        ImageBatch* batch) {
+  // All or none: without the caller's batch, one of its own, committed here.
+  ImageBatch own;
+  ImageBatch& staged = batch ? *batch : own;
   std::vector<std::filesystem::path> written;
-  // All or none: a failed write removes the AOVs this call wrote before it.
-  struct Undo {
-    std::vector<std::filesystem::path>* written;
-    bool done = false;
-    ~Undo() {
-      std::error_code ec;
-      if (!done) for (const auto& p : *written) std::filesystem::remove(p, ec);
-    }
-  } undo{&written};
   if (!r.depth.empty()) {
     written.push_back(aov_path(output, "depth"));
-    RAYLOD_RETURN_IF_ERROR(write_image(written.back(), r.depth));
+    RAYLOD_RETURN_IF_ERROR(write_image(written.back(), r.depth, &staged));
   }
   if (!r.normal.empty()) {
     written.push_back(aov_path(output, "normal"));
-    RAYLOD_RETURN_IF_ERROR(write_image(written.back(), r.normal));
+    RAYLOD_RETURN_IF_ERROR(write_image(written.back(), r.normal, &staged));
   }
   if (!r.triangle_id.empty()) {
     written.push_back(aov_path(output, "triangle-id"));
     // The frame's size from the statistics: an 8-bit output has no linear frame (srgb_color).
-    RAYLOD_RETURN_IF_ERROR(write_triangle_id_image(written.back(), r.stats.width, r.stats.height, r.triangle_id));
+    RAYLOD_RETURN_IF_ERROR(
+        write_triangle_id_image(written.back(), r.stats.width, r.stats.height, r.triangle_id, &staged));
   }
-  undo.done = true;
+  if (!batch) RAYLOD_RETURN_IF_ERROR(own.commit());
   return written;
 }
 

@@ -185,18 +185,42 @@ RenderResult render_embree_scene(const EmbreeScene& geometry, const Scene& scene
 // The whole render: load, memory check, BVH build, trace.
 StatusOr<RenderResult> render(const Scene& scene, const RenderOptions& options);
 
+class AtomicOutput;  // core/system.h
+
+// Images written together, all or none (an image and its AOVs): each write
+// given the batch encodes into a temporary beside its destination and is
+// checked, and commit() renames them all into place. Destroyed without
+// commit(), the batch removes its temporaries and every destination stays as
+// it was. A rename failing within commit() leaves the ones before it
+// renamed; renames within a folder fail only on a destination made a
+// directory meanwhile.
+class ImageBatch {
+ public:
+  ImageBatch() = default;
+  ~ImageBatch();
+  ImageBatch(const ImageBatch&) = delete;
+  ImageBatch& operator=(const ImageBatch&) = delete;
+  Status commit();
+  // For the writers: an output written and checked, to rename on commit().
+  void add(std::unique_ptr<AtomicOutput> staged);
+
+ private:
+  std::vector<std::unique_ptr<AtomicOutput>> staged_;
+};
+
 // Writes an image, format chosen by the extension (anything OpenImageIO
 // writes). Float formats (EXR, HDR, TIFF, PFM) get linear floats; 8/16-bit
 // formats (PNG, JPEG, ...) get sRGB-encoded values clamped to [0, 1].
-// Atomic: written under a temporary name, then renamed.
-Status write_image(const std::filesystem::path& path, const Image& image);
+// Atomic: written under a temporary name, then renamed (with a batch, when
+// the batch commits).
+Status write_image(const std::filesystem::path& path, const Image& image, ImageBatch* batch = nullptr);
 // Writes an 8-bit sRGB image (RenderOptions::srgb_color) to an 8-bit format:
 // the same file as write_image of the linear image it was encoded from. A
 // float format is an error (the linear values are gone).
-Status write_image(const std::filesystem::path& path, const SrgbImage& image);
+Status write_image(const std::filesystem::path& path, const SrgbImage& image, ImageBatch* batch = nullptr);
 // Writes a render's color as the render made it: its 8-bit frame
 // (RenderOptions::srgb_color), else its linear one.
-Status write_color(const std::filesystem::path& path, const RenderResult& render);
+Status write_color(const std::filesystem::path& path, const RenderResult& render, ImageBatch* batch = nullptr);
 // Whether write_image stores path's format as linear floats (EXR, HDR,
 // TIFF, PFM) rather than 8-bit sRGB.
 bool is_float_image_format(const std::filesystem::path& path);
@@ -216,10 +240,12 @@ Status check_output_image_early(const std::filesystem::path& path);
 StatusOr<Image> read_image(const std::filesystem::path& path);
 // A triangle-id buffer as a one-channel 32-bit unsigned EXR.
 Status write_triangle_id_image(const std::filesystem::path& path, int width, int height,
-                               const std::vector<uint32_t>& ids);
+                               const std::vector<uint32_t>& ids, ImageBatch* batch = nullptr);
 // "out.png" + "depth" -> "out.depth.exr" (AOVs are always EXR).
 std::filesystem::path aov_path(const std::filesystem::path& output, const std::string& aov);
-// Writes the AOVs present in result next to output; returns the paths written.
-StatusOr<std::vector<std::filesystem::path>> write_aovs(const std::filesystem::path& output, const RenderResult& result);
+// Writes the AOVs present in result next to output, all or none; returns the
+// paths written. With a batch they are renamed into place when it commits.
+StatusOr<std::vector<std::filesystem::path>> write_aovs(const std::filesystem::path& output, const RenderResult& result,
+                                                        ImageBatch* batch = nullptr);
 
 }  // namespace raylod

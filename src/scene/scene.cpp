@@ -49,6 +49,11 @@ bool Scene::ground_shows_shadows() const {
   return ground && !lights.empty() && !materials[size_t(ground->material)].reflects();
 }
 
+std::string object_context(const Scene& scene, size_t object) {
+  return (scene.source.empty() ? std::string() : scene.source.string() + ": ") + "objects[" + std::to_string(object) +
+         "]: ";
+}
+
 Status replace_first_mesh(Scene& scene, const std::filesystem::path& mesh) {
   std::error_code ec;
   if (std::filesystem::is_directory(mesh, ec)) return Status::error(mesh.string() + ": is a directory, not a mesh file");

@@ -136,6 +136,9 @@ StatusOr<Scene> load_scene(const std::filesystem::path& path, bool first_mesh_re
 // `--mesh FILE` of render and run: FILE (a regular file) in place of the
 // first object's mesh, which is then never generated.
 Status replace_first_mesh(Scene& scene, const std::filesystem::path& mesh);
+// Where an error about one of the scene's objects happened, as messages
+// name it: "SCENE.json: objects[2]: " ("objects[2]: " for a scene with no file).
+std::string object_context(const Scene& scene, size_t object);
 // A views file (`raylod run --views`): a JSON array of cameras with the
 // scene's camera fields; the fields an element leaves out (up, fov_y, width,
 // height) are taken from `defaults` (the scene's camera). Errors name the

@@ -165,7 +165,7 @@ case "$case" in
     mkdir mpi/g.png
     status=0
     out="$(mpi render scene.json -o mpi/g.png -q 2>&1)" || status=$?
-    expect_error "render, the frame's name a folder" "raylod render: error: mpi/g.png: is a directory"
+    expect_error "render, the frame's name a folder" "raylod render: error: mpi/g.png: the image: is a directory"
     [ -z "$(ls -A mpi/g.png)" ] || fail "something was written into mpi/g.png"
     rmdir mpi/g.png
     no_temporaries
@@ -175,7 +175,7 @@ case "$case" in
     status=0
     out="$(RAYLOD_CACHE_DIR="$tmp/cache-mpi" mpi run scene.json --views views.json -o mpi/v_##.png --rays 500 -q 2>&1)" ||
       status=$?
-    expect_error "run --views, view 1's name a folder" "raylod run: error: mpi/v_01.png: is a directory"
+    expect_error "run --views, view 1's name a folder" "raylod run: error: mpi/v_01.png: the image: is a directory"
     [ -z "$(ls -A mpi/v_01.png)" ] || fail "something was written into mpi/v_01.png"
     rmdir mpi/v_01.png
     [ -z "$(ls -A mpi)" ] || fail "view 1's name a folder: images were written: $(ls -A mpi)"

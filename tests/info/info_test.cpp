@@ -76,6 +76,17 @@ TEST(Info, BadFilesFailWithTheFileNamed) {
   r = run("info " + txt.string());
   EXPECT_EQ(r.status, 1) << r.out;
   EXPECT_NE(r.out.find("unknown mesh format '.txt'"), std::string::npos) << r.out;
+  // A damaged store or cut keeps its extension: its reader says what is
+  // wrong, not that it is an unknown mesh format.
+  std::ofstream(scratch() / "garbage.cut") << "not a cut at all, long enough for a header";
+  r = run("info " + (scratch() / "garbage.cut").string());
+  EXPECT_EQ(r.status, 1) << r.out;
+  EXPECT_NE(r.out.find("garbage.cut: not a cut file (bad magic)"), std::string::npos) << r.out;
+  std::ofstream(scratch() / "garbage.raylod") << "not a store at all, long enough for a header";
+  r = run("info " + (scratch() / "garbage.raylod").string());
+  EXPECT_EQ(r.status, 1) << r.out;
+  EXPECT_NE(r.out.find("garbage.raylod: "), std::string::npos) << r.out;
+  EXPECT_EQ(r.out.find("unknown mesh format"), std::string::npos) << r.out;
   r = run("info");
   EXPECT_EQ(r.status, 1) << r.out;
 }

@@ -158,29 +158,30 @@ TEST(OutputsApart, UnwritableOutputsFailBeforeRendering) {
     std::string args, expect;
   };
   const Case cases[] = {
-      {"render scene.json -o d.png -q", "d.png: is a directory"},
-      {"render scene.json -o o.png --aov depth,normal -q", "o.normal.exr: is a directory"},
-      {"render scene.json -o tetra.ply/x.png -q", "tetra.ply is not a directory"},
+      {"render scene.json -o d.png -q", "d.png: the image: is a directory"},
+      {"render scene.json -o o.png --aov depth,normal -q", "o.normal.exr: the image: is a directory"},
+      {"render scene.json -o tetra.ply/x.png -q", "x.png: the image: tetra.ply is not a directory"},
       {"render scene.json -o missing/x.png -q", "directory missing does not exist"},
       // Checked before the pipeline runs, not when the file is written.
       {"run scene.json --no-cache -o o.png --export-mesh missing/s.glb -q", "--export-mesh: directory missing does not exist"},
       {"build tetra.ply -o missing/a/x.raylod -q", "the store (-o): directory missing/a does not exist"},
       {"probe scene.json -o missing/b/x.cut -q", "the cut (-o): directory missing/b does not exist"},
+      {"probe scene.json -o tetra.ply/x.cut -q", "x.cut: the cut (-o): tetra.ply is not a directory"},
       {"run scene.json --no-cache -o /dev/null --compare -q", "must then be a file, not a device or FIFO"},
       {"render scene.json -o /dev/null --aov depth -q", "--aov writes its images beside the image (-o), which must then"},
       // Images written after the first one: checked before it is written.
-      {"run scene.json --no-cache -o c.png --compare -q", "c.full.png: is a directory"},
-      {"run scene.json --no-cache --orbit 2 -o v_#.png -q", "v_1.png: is a directory"},
+      {"run scene.json --no-cache -o c.png --compare -q", "c.full.png: the image: is a directory"},
+      {"run scene.json --no-cache --orbit 2 -o v_#.png -q", "v_1.png: the image: is a directory"},
       {"render scene.json --mesh d.png -o r.png -q", "d.png: is a directory, not a mesh file"},
       // The report makes its folder, not the folders above it.
       {"report scene.json -o missing/r -q", "the report folder (-o): directory missing does not exist"},
       {"report scene.json -o tetra.ply -q", "tetra.ply: the report folder (-o) names a file"},
       // The commands that write meshes and scenes, before any work.
       {"simplify none.raylod none.cut -o missing/s.drc -q", "the simplified mesh (-o): directory missing does not exist"},
-      {"simplify none.raylod none.cut -o m.drc -q", "m.drc: the simplified mesh (-o) names a directory"},
+      {"simplify none.raylod none.cut -o m.drc -q", "m.drc: the simplified mesh (-o): is a directory"},
       {"gen teapot --triangles 200 -o missing/t.ply -q", "the mesh (-o): directory missing does not exist"},
-      {"gen teapot --triangles 200 -o d.png -q", "d.png: the mesh (-o) names a directory"},
-      {"scene tetra.ply -o d.png -q", "d.png: the scene (-o) names a directory"},
+      {"gen teapot --triangles 200 -o d.png -q", "d.png: the mesh (-o): is a directory"},
+      {"scene tetra.ply -o d.png -q", "d.png: the scene (-o): is a directory"},
       // A name longer than a file name may be: before any work (it failed
       // when renamed into place, after the render).
       {"render scene.json -o " + std::string(252, 'c') + ".png -q", "the file name is 256 bytes"},

@@ -893,6 +893,29 @@ TEST(Report, AFileOfTheUsersInAnEarlierReportKeepsItFromBeingReplaced) {
   EXPECT_EQ(names_in(base.path), std::vector<std::string>{"rep"});
 }
 
+TEST(Report, ASymlinkToAFolderNotYetMadeIsFollowedAndAReplacedFolderKeepsItsMode) {
+  // -o a symlink whose folder does not exist yet: the report is made where
+  // it points and the link stays (it was replaced by the report's folder).
+  // A report replacing an earlier one keeps that folder's permissions
+  // (they became the umask's).
+  const ReportFolder folder("symlink");
+  const fs::path &scene = folder.scene, &dir = folder.dir;
+  const fs::path link = folder.base.path / "latest";
+  fs::create_symlink("rep", link);
+  ASSERT_FALSE(fs::exists(dir));
+  std::string out;
+  ASSERT_EQ(raylod(pair_report(scene, link), &out), 0) << out;
+  EXPECT_TRUE(fs::is_symlink(fs::symlink_status(link)));
+  EXPECT_TRUE(fs::is_directory(dir));
+  EXPECT_TRUE(fs::exists(dir / "REPORT.md"));
+  fs::permissions(dir, fs::perms::owner_all | fs::perms::group_read | fs::perms::group_exec);
+  ASSERT_EQ(raylod(pair_report(scene, link), &out), 0) << out;
+  EXPECT_TRUE(fs::is_symlink(fs::symlink_status(link)));
+  EXPECT_EQ(fs::status(dir).permissions() & fs::perms::all,
+            fs::perms::owner_all | fs::perms::group_read | fs::perms::group_exec);
+  EXPECT_EQ(names_in(folder.base.path), (std::vector<std::string>{"latest", "rep"}));
+}
+
 TEST(Report, AFailureMidwayLeavesTheEarlierReportAsItWas) {
   // The second report (another image size: every picture differs) fails
   // after its pictures are written, before its tables (a fault point): the

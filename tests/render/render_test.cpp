@@ -4,6 +4,7 @@
 // tested in tests/geometry.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <span>
@@ -561,6 +562,64 @@ TEST(Aov, DepthNormalAndTriangleIdOfTheCentrePixel) {
   ASSERT_TRUE(ids.is_ok()) << ids.status().message();
   EXPECT_EQ(ids->width, 33);
   EXPECT_EQ(ids->height, 33);
+}
+
+// An image and its AOVs are written all or none, and a failed write leaves
+// the files of an earlier render of the same names as they were (it
+// removed those the failed call had already replaced).
+TEST(ImageIo, AFailedAovWriteLeavesEarlierFilesAsTheyWere) {
+  const auto dir = test_tmp("render-aov-batch");
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir);
+  Image earlier(4, 4, 1);
+  for (size_t i = 0; i < earlier.pixels.size(); ++i) earlier.pixels[i] = float(i);
+  ASSERT_TRUE(write_image(dir / "out.depth.exr", earlier).is_ok());
+  Image earlier_color(4, 4, 3);
+  ASSERT_TRUE(write_image(dir / "out.exr", earlier_color).is_ok());
+  RenderResult r;
+  r.stats.width = r.stats.height = 3;
+  r.color = Image(3, 3, 3);
+  r.depth = Image(3, 3, 1);
+  r.normal = Image(3, 3, 3);
+  r.triangle_id.assign(5, 0);  // the wrong size: the third AOV's write fails
+  {
+    ImageBatch batch;
+    ASSERT_TRUE(write_color(dir / "out.exr", r, &batch).is_ok());
+    auto aovs = write_aovs(dir / "out.exr", r, &batch);
+    ASSERT_FALSE(aovs.is_ok());
+    EXPECT_NE(aovs.status().message().find("wrong size"), std::string::npos) << aovs.status().message();
+  }
+  auto depth = read_image(dir / "out.depth.exr");
+  ASSERT_TRUE(depth.is_ok());
+  EXPECT_EQ(depth->width, 4);
+  EXPECT_EQ(depth->pixels, earlier.pixels);
+  auto color = read_image(dir / "out.exr");
+  ASSERT_TRUE(color.is_ok());
+  EXPECT_EQ(color->width, 4);
+  EXPECT_FALSE(std::filesystem::exists(dir / "out.normal.exr"));
+  // Without a batch of the caller's, the same.
+  EXPECT_FALSE(write_aovs(dir / "out.exr", r).is_ok());
+  depth = read_image(dir / "out.depth.exr");
+  ASSERT_TRUE(depth.is_ok());
+  EXPECT_EQ(depth->pixels, earlier.pixels);
+  std::vector<std::string> names;
+  for (const auto& e : std::filesystem::directory_iterator(dir)) names.push_back(e.path().filename().string());
+  std::sort(names.begin(), names.end());
+  EXPECT_EQ(names, (std::vector<std::string>{"out.depth.exr", "out.exr"}));
+  // Committed, all are replaced.
+  r.triangle_id.assign(9, 0);
+  ImageBatch batch;
+  ASSERT_TRUE(write_color(dir / "out.exr", r, &batch).is_ok());
+  ASSERT_TRUE(write_aovs(dir / "out.exr", r, &batch).is_ok());
+  depth = read_image(dir / "out.depth.exr");
+  ASSERT_TRUE(depth.is_ok());
+  EXPECT_EQ(depth->width, 4);  // not yet: the batch has not committed
+  ASSERT_TRUE(batch.commit().is_ok());
+  depth = read_image(dir / "out.depth.exr");
+  ASSERT_TRUE(depth.is_ok());
+  EXPECT_EQ(depth->width, 3);
+  EXPECT_TRUE(std::filesystem::exists(dir / "out.triangle-id.exr"));
+  std::filesystem::remove_all(dir);
 }
 
 TEST(ImageIo, PngAndExrRoundTripAndLeaveNoTemporaries) {

@@ -329,9 +329,10 @@ TEST(SceneCommand, RunWithAMeshItsSceneDoesNotShowSaysSoAndPointsHere) {
   EXPECT_NE(behind.find("is behind the camera"), std::string::npos) << behind;
 }
 
-TEST(SceneCommand, AnObjectItsTransformPutsBeyondTheFloatRangeIsRefusedByRunAndRender) {
+TEST(SceneCommand, AnObjectItsTransformPutsBeyondTheFloatRangeIsRefusedByRunRenderAndProbe) {
   // A transform within the float range that puts the mesh beyond it: the
-  // object vanished from `run`'s image while `render` refused it.
+  // object vanished from `run`'s image while `render` refused it (and
+  // `probe` traced it and wrote a cut).
   const fs::path dir = temp_dir() / "overflow";
   fs::create_directories(dir);
   write_box_stl(dir / "box.stl", Vec3d(0, 0, 0), Vec3d(4, 4, 4));
@@ -349,6 +350,11 @@ TEST(SceneCommand, AnObjectItsTransformPutsBeyondTheFloatRangeIsRefusedByRunAndR
     EXPECT_NE(out.find("beyond the float range"), std::string::npos) << out;
     EXPECT_FALSE(fs::exists(dir / (command + ".png"))) << command;
   }
+  std::string out;
+  EXPECT_EQ(test::run_raylod("probe '" + (dir / "s.json").string() + "' -o '" + (dir / "p.cut").string() + "'", out), 1)
+      << out;
+  EXPECT_NE(out.find("s.json: objects[0]: the object's transform puts"), std::string::npos) << out;
+  EXPECT_FALSE(fs::exists(dir / "p.cut"));
 }
 
 TEST(SceneCommand, AGltfFileIsFramedAsItsNodesPlaceItsMeshes) {
