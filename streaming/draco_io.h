@@ -29,14 +29,14 @@ struct IndexedMesh {
   size_t triangle_count() const { return indices.size() / 3; }
 };
 
-// The encoder speed for a simplified mesh of `triangles` (the pipeline's
-// cache entries): Draco's speed 6 from a million triangles, its speed 5
-// below (both select the standard edgebreaker and the same prediction
-// schemes). Measured (README, "Benchmarks"): on the 100M glass scene's
-// 9.4M-triangle teapot, speed 6 encodes in 3.5 to 4.1 s instead of 4.8 to
-// 5.2 s and decodes in 1.13 to 1.15 s instead of 1.59 to 1.72 s, 0.06%
-// smaller; on meshes under a million triangles the time saved is under a
-// tenth of a second, and some grow (the bunny scan's cut by 22%, the
+// The encoder speed for a simplified mesh of `triangles` (the pipeline's cache
+// entries): Draco's speed 6 from a million triangles, its speed 5 below (both
+// select the standard edgebreaker and the same prediction schemes). Measured
+// (tools/MEASUREMENTS.md, "Draco's speed for large simplified meshes"): on the
+// 100M glass scene's 9.4M-triangle teapot, speed 6 encodes in 3.5 to 4.1 s
+// instead of 4.8 to 5.2 s and decodes in 1.13 to 1.15 s instead of 1.59 to
+// 1.72 s, 0.06% smaller; on meshes under a million triangles the time saved is
+// under a tenth of a second, and some grow (the bunny scan's cut by 22%, the
 // default view's 72k-triangle one by 12%).
 inline constexpr uint64_t kFastDracoFromTriangles = 1'000'000;
 inline int draco_speed_for(uint64_t triangles) { return triangles >= kFastDracoFromTriangles ? 6 : 5; }

@@ -72,15 +72,15 @@ TriangleMesh make_ground_mesh(const Ground& ground, const Camera& camera);
 // traversal).
 //
 // A large scene that serves fewer camera rays than it has triangles (a
-// full-resolution mesh rendered once: 10M triangles, 1280 x 960 at 4 spp)
-// is built with Embree's low-quality (Morton code) builder instead: its
-// build is then most of the render. Measured (README, "Benchmarks"): on the
-// 10M teapot the build takes 0.8 s instead of 2.4 s and the trace 4 to 13%
-// longer; on the 100M glass scene's 9.4M-triangle view 0.9 s instead of
-// 2.3 s, the trace 13 to 32% longer (1.24 -> 1.40 to 1.64 s). At one camera
-// ray per triangle the glass trace's loss would be about the build's gain,
-// hence the threshold. The choice depends on the frame (width x height x
-// spp), never on threads or ranks.
+// full-resolution mesh rendered once: 10M triangles, 1280 x 960 at 4 spp) is
+// built with Embree's low-quality (Morton code) builder instead: its build is
+// then most of the render. Measured (tools/MEASUREMENTS.md, "The BVH builder
+// by frame"): on the 10M teapot the build takes 0.8 s instead of 2.4 s and the
+// trace 4 to 13% longer; on the 100M glass scene's 9.4M-triangle view 0.9 s
+// instead of 2.3 s, the trace 13 to 32% longer (1.24 -> 1.40 to 1.64 s). At
+// one camera ray per triangle the glass trace's loss would be about the
+// build's gain, hence the threshold. The choice depends on the frame (width x
+// height x spp), never on threads or ranks.
 struct BvhConfig {
   uint64_t high_quality_below = 2'000'000;  // triangles
   uint64_t compact_from = 20'000'000;       // triangles
