@@ -50,9 +50,9 @@ double normal_error_bound(int bits) {
 }
 
 int choose_normal_bits(double max_error) {
-  for (int bits = 2; bits < kMaxDracoBits; ++bits)
+  for (int bits = 2; bits < kMaxNormalBits; ++bits)
     if (normal_error_bound(bits) <= max_error) return bits;
-  return kMaxDracoBits;
+  return kMaxNormalBits;
 }
 
 namespace {
@@ -281,8 +281,8 @@ StatusOr<DracoEncoded> encode_draco_mesh(const std::filesystem::path& path, cons
         return Status::error(path.string() + ": normal_bits 0 needs a positive max_normal_error");
       report.normal_bits = choose_normal_bits(options.max_normal_error);
     } else {
-      if (options.normal_bits < 2 || options.normal_bits > kMaxDracoBits)
-        return Status::error(path.string() + ": normal_bits must be between 2 and 30");
+      if (options.normal_bits < 2 || options.normal_bits > kMaxNormalBits)
+        return Status::error(path.string() + ": normal_bits must be between 2 and " + std::to_string(kMaxNormalBits));
       report.normal_bits = options.normal_bits;
     }
     report.max_normal_error = normal_error_bound(report.normal_bits);

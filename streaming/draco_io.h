@@ -90,8 +90,16 @@ int choose_position_bits(double extent, double max_abs, double max_error);
 // The bound for those bits: sqrt(3) * (extent / (2^bits - 1) / 2 + float rounding).
 double position_error_bound(double extent, double max_abs, int bits);
 
-// Smallest normal_bits (2..30) whose octahedral quantisation error bound is
-// at most max_error radians (30 if none is).
+// The most octahedral normal bits raylod encodes: 24 bits quantise a normal
+// to 2.9e-7 rad, about the precision of the float normals the renderer
+// shades with (2^-24 per component). Draco's normal coder holds tables of
+// about 2^bits entries whatever the mesh's size: 82 MB at 24 bits, 4.2 GB at
+// 30 (measured, `raylod simplify --normal-bits B` on a 40k-triangle sphere),
+// which a memory limit did not see.
+inline constexpr int kMaxNormalBits = 24;
+// Smallest normal_bits (2..kMaxNormalBits) whose octahedral quantisation
+// error bound is at most max_error radians (kMaxNormalBits if none is: a
+// glossy shininess of 1e4 and more asks for less).
 int choose_normal_bits(double max_error);
 // The bound for those bits (radians).
 double normal_error_bound(int bits);

@@ -63,7 +63,7 @@ int run_simplify(int argc, char** argv) {
              {"--memory-limit", "", "memory the simplified mesh may use (default: a quarter of RAM)", true, "SIZE"},
              {"--position-error", "", "Draco: largest position error in world units (default: as the pipeline's)",
               true, "E"},
-             {"--normal-bits", "", "Draco: octahedral normal quantisation bits, 2..30 (default: as raylod run,\n"
+             {"--normal-bits", "", "Draco: octahedral normal quantisation bits, 2..24 (default: as raylod run,\n"
                                    "                              from the scene's materials, recorded in the cut; else 10)", true, "N"},
              {"--speed", "", "Draco: encoder speed 0 (smallest) .. 10 (fastest) (default 5)", true, "S"},
              {"--parts", "", "Draco: split the mesh into N bitstreams encoded and decoded in parallel\n"
@@ -100,7 +100,7 @@ int run_simplify(int argc, char** argv) {
   if (Status st = check_output_path(out_path, "the simplified mesh (-o)"); !st) return fail("simplify", st);
   auto limit = memory_budget_from_args(args);
   if (!limit) return fail("simplify", limit.status());
-  auto normal_bits = args.get_int("--normal-bits", 0, 2, 30);
+  auto normal_bits = args.get_int("--normal-bits", 0, 2, kMaxNormalBits);
   if (!normal_bits) return fail("simplify", normal_bits.status());
   auto speed = args.get_int("--speed", 5, 0, 10);
   if (!speed) return fail("simplify", speed.status());
@@ -186,7 +186,9 @@ int run_simplify(int argc, char** argv) {
     double bound = footprint > 0 ? footprint / 8.0 : 0.0;
     if (const double geometric = geometric_normal_position_bound(**store); geometric > 0)
       bound = bound > 0 ? std::min(bound, geometric) : geometric;
-    opt.max_position_error = *position_error > 0 ? *position_error : bound;
+    opt.max_position_error = *position_error > 0 ? *position_error
+                                                 : thin_wall_position_bound(bound, r.mesh, (*store)->header().root_size,
+                                                                            config.exact_normals);
     // .glb: the same Draco bytes as the .drc, as one primitive of one node.
     auto report = ext == ".drc" ? write_draco(out_path, std::move(r.mesh), opt)
                                   : write_simplified_glb(out_path, std::move(r.mesh), opt);
@@ -249,6 +251,6 @@ int run_simplify(int argc, char** argv) {
 
 }  // namespace
 
-RAYLOD_COMMAND("simplify", "collapse the probed cells and write the simplified mesh (.drc/.ply/.obj)", run_simplify);
+RAYLOD_COMMAND("simplify", "collapse the probed cells and write the simplified mesh (.drc/.glb/.ply/.obj)", run_simplify);
 
 }  // namespace raylod::cli

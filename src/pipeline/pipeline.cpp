@@ -94,6 +94,20 @@ double draco_error_bound(const Cut& cut, const OctreeStore& store) {
   return bound;
 }
 
+double thin_wall_position_bound(double bound, const IndexedMesh& mesh, double root_size, bool specular) {
+  if (!specular) return bound;
+  double shortest2 = std::numeric_limits<double>::infinity();
+  for (size_t t = 0; t + 2 < mesh.indices.size(); t += 3)
+    for (int k = 0; k < 3; ++k) {
+      const Vec3d a(mesh.positions[mesh.indices[t + size_t(k)]]), b(mesh.positions[mesh.indices[t + size_t((k + 1) % 3)]]);
+      const double l2 = glm::dot(a - b, a - b);
+      if (l2 > 0) shortest2 = std::min(shortest2, l2);
+    }
+  if (!std::isfinite(shortest2)) return bound;
+  const double floor = root_size * 0x1p-22;
+  return std::min(bound, std::max(floor, std::sqrt(shortest2) / 4));
+}
+
 namespace {
 
 // What the probe keeps free for its test rays' hit records.
@@ -136,7 +150,7 @@ double shading_normal_tolerance(const Scene& scene) {
   double tolerance = 1.0 / (2.0 * 255.0);
   for (const auto& m : scene.materials) {
     if (m.type == MaterialType::Glossy) tolerance = std::min(tolerance, 1.0 / (2.0 * 255.0 * std::max(1.0f, m.shininess)));
-    if (m.reflects()) {
+    if (scene.traces_specular(m)) {
       const double pixel = 2.0 * std::tan(glm::radians(scene.camera.fov_y_deg) / 2) / scene.camera.height;
       tolerance = std::min(tolerance, pixel / 16.0);
     }
@@ -148,7 +162,7 @@ int fold_passes_for(const Scene& scene, std::span<const ProbeObject> objects, si
   for (const ProbeObject& o : objects) {
     if (o.store != store) continue;
     const Material& m = scene.materials[size_t(o.material)];
-    if (m.refracts() || (m.reflects() && m.reflectance > 0)) return kSpecularFoldPasses;
+    if (scene.traces_specular(m)) return kSpecularFoldPasses;
   }
   return 0;
 }
@@ -168,7 +182,7 @@ SimplifySettings simplify_settings_of(const Cut& cut) {
   if (f == cut.counters.end() || b == cut.counters.end() || a == cut.counters.end()) return s;
   s.recorded = true;
   s.fold_passes = int(std::min<uint64_t>(f->second, 64));
-  s.normal_bits = int(std::clamp<uint64_t>(b->second, 2, 30));
+  s.normal_bits = int(std::clamp<uint64_t>(b->second, 2, kMaxNormalBits));
   s.crease_angle_deg = std::min(180.0, double(a->second) * 1e-6);
   return s;
 }
@@ -191,7 +205,9 @@ StatusOr<SimplifiedMesh> simplify_cut_to_draco(const OctreeStore& store, const C
     return empty;
   }
   DracoOptions dopt;
-  dopt.max_position_error = draco_error_bound(cut, store);
+  dopt.max_position_error =
+      thin_wall_position_bound(draco_error_bound(cut, store), simplified.mesh, store.header().root_size,
+                               sc.exact_normals);
   dopt.normal_bits = 0;
   dopt.max_normal_error = max_normal_error;
   const uint64_t triangles = simplified.mesh.triangle_count();

@@ -343,4 +343,13 @@ double geometric_normal_position_bound(const OctreeStore& store);
 // kept input triangles does not tilt their face normals visibly.
 double draco_error_bound(const Cut& cut, const OctreeStore& store);
 
+// On mirrors and glass (the meshes simplify gives exact normals), `bound`
+// held to a quarter of the simplified mesh's shortest edge, but no less than
+// 2^-22 of root_size (the store's root cell): through glass, sheets that
+// quantisation merges or crosses swap the order in which a ray meets them.
+// A 12-triangle glass pane 1e-4 of its size thick came out flat from a bound
+// of 4.2e-4 (11 bits) and rendered at 21 dB against a 42 dB floor. Returns
+// `bound` itself for other meshes, and for one with no edge longer than 0.
+double thin_wall_position_bound(double bound, const IndexedMesh& mesh, double root_size, bool specular);
+
 }  // namespace raylod

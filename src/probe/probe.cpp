@@ -955,8 +955,8 @@ StatusOr<CutSelection> CutSelection::make(std::span<const ProbeView> views, cons
   for (const ProbeObject& o : objects) xf.push_back(make_object_xf(o, stores));
 
   bool specular = false;
-  for (const ProbeObject& o : objects) specular |= scene.materials[size_t(o.material)].reflects();
-  if (scene.ground) specular |= scene.materials[size_t(scene.ground->material)].reflects();
+  for (const ProbeObject& o : objects) specular |= scene.traces_specular(scene.materials[size_t(o.material)]);
+  if (scene.ground) specular |= scene.traces_specular(scene.materials[size_t(scene.ground->material)]);
   const bool lights = !scene.lights.empty();
 
   for (size_t s = 0; s < stores.size(); ++s) {
@@ -1141,7 +1141,7 @@ StatusOr<CutSelection> CutSelection::make(std::span<const ProbeView> views, cons
 
     // Mirror or glass objects on this store: their cells also bound the normal.
     for (const ObjectXf& x : xf)
-      if (x.store == s) n.specular |= scene.materials[size_t(x.material)].reflects();
+      if (x.store == s) n.specular |= scene.traces_specular(scene.materials[size_t(x.material)]);
 
     // Unreached mirror and glass cells on a curved surface (probe.h): the
     // tilt they take grows with their curvature times the beam's width. Per

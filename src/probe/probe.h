@@ -218,9 +218,9 @@ StatusOr<CutBalance> parse_cut_balance(const std::string& name);
 // OpenCASCADE parts (whole views and close-ups), the bunny scan and both
 // glass scenes: with the deviation criterion at 0.5 px every one stays at or
 // above its noise floor at K = 64 (the closest, the pump cover's whole view,
-// by 0.4 dB), and the close-ups need it: the pump cover's goes from 8.9x at
-// K = 32 to 18.3x. The deviation bound decides; K only caps what a quadric
-// cannot see (open rims). The diagonal criterion alone needs a small K (its
+// by 0.4 dB when this was chosen, 1.6 dB on 2026-11-29), and the close-ups
+// need it: the pump cover's goes from 8.9x at K = 32 to 18.3x. The deviation
+// bound decides; K only caps what a quadric cannot see (open rims). The diagonal criterion alone needs a small K (its
 // cells grow with the footprint whatever their curvature).
 inline constexpr double kDefaultFootprintScale = 64.0;
 inline constexpr double kDefaultDiagonalFootprintScale = 10.0;

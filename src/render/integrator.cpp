@@ -56,7 +56,12 @@ Effects effects_for(const Scene& scene, std::span<const int> used_materials) {
     if (lit && nonzero(m.color)) e.diffuse = true;
     if (lit && nonzero(m.specular)) e.glossy = true;
     if (bounces && m.type == MaterialType::Mirror && m.reflectance > 0) e.reflection = true;
-    if (bounces && m.type == MaterialType::Glass) e.reflection = e.refraction = true;
+    // Glass of ior 1 reflects nothing (Fresnel's term is 0, no total
+    // internal reflection); glass of tint 0 passes no light through.
+    if (bounces && m.type == MaterialType::Glass) {
+      if (m.ior != 1.0f) e.reflection = true;
+      if (nonzero(m.tint)) e.refraction = true;
+    }
   }
   e.shadows = e.diffuse || e.glossy;
   return e;

@@ -36,6 +36,10 @@ const char* to_string(MaterialType t) {
   return "?";
 }
 
+bool Scene::traces_specular(const Material& m) const {
+  return max_depth > 0 && (m.refracts() || (m.reflects() && m.reflectance > 0));
+}
+
 bool Scene::any_reflection() const {
   for (const auto& m : materials) if (m.reflects()) return true;
   return false;
@@ -503,6 +507,10 @@ StatusOr<Scene> parse_scene(const std::string& text, const std::filesystem::path
     for (size_t i = 0; i < j["lights"].size(); ++i) {
       Light l;
       RAYLOD_RETURN_IF_ERROR(parse_light(p, j["lights"][i], "lights[" + std::to_string(i) + "]", l));
+      // A light of intensity 0 or colour black lights nothing and casts no
+      // shadow: left out, so that neither the render nor the probe traces
+      // shadow rays for it or holds cells for its shadows.
+      if (l.intensity == 0 || (l.color.r == 0 && l.color.g == 0 && l.color.b == 0)) continue;
       scene.lights.push_back(l);
     }
   }

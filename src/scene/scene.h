@@ -106,6 +106,12 @@ struct Scene {
   // views of the scene (copies with another camera) keep it.
   Vec3d render_origin{0};
 
+  // Whether the renderer ever traces a reflected or refracted ray from a
+  // surface of material m: glass, or a mirror of some reflectance, with
+  // max_depth above 0. What the cut holds for mirrors and glass (their
+  // normals' turn, exact normals, fold passes) applies only then: a mirror
+  // of reflectance 0 or a scene of max_depth 0 shades like any other.
+  bool traces_specular(const Material& m) const;
   bool any_reflection() const;
   bool any_refraction() const;
   // Whether shadows can show on the ground: there is a ground, it does not

@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <filesystem>
 #include <vector>
@@ -100,6 +101,59 @@ TEST(DracoErrorBound, QuantisedKeptTrianglesKeepTheirFaceNormals) {
   const double p99 = tilt[tilt.size() * 99 / 100];
   EXPECT_LT(p99, kGeometricNormalTolerance) << "99th percentile face tilt " << p99 << " rad";
   EXPECT_LT(tilt.back(), 2 * kGeometricNormalTolerance) << "largest face tilt " << tilt.back() << " rad";
+  fs::remove_all(dir);
+}
+
+// A closed box 1 x t x 1 of 12 triangles, t thin, without normals.
+fs::path write_pane(const fs::path& dir, double t) {
+  const fs::path path = dir / "pane.ply";
+  auto writer = create_mesh_writer(path);
+  EXPECT_TRUE(writer.is_ok());
+  TriangleBatch batch;
+  const Vec3 c[8] = {{0, 0, 0}, {1, 0, 0}, {1, 0, 1}, {0, 0, 1},
+                     {0, float(t), 0}, {1, float(t), 0}, {1, float(t), 1}, {0, float(t), 1}};
+  const int quads[6][4] = {{0, 1, 2, 3}, {4, 7, 6, 5}, {0, 4, 5, 1}, {1, 5, 6, 2}, {2, 6, 7, 3}, {3, 7, 4, 0}};
+  for (const auto& q : quads)
+    for (const std::array<int, 3>& tri : {std::array<int, 3>{q[0], q[1], q[2]}, std::array<int, 3>{q[0], q[2], q[3]}})
+      for (int k : tri) batch.positions.push_back(c[k]);
+  EXPECT_TRUE((*writer)->write(batch).is_ok());
+  EXPECT_TRUE((*writer)->finish().is_ok());
+  return path;
+}
+
+TEST(DracoErrorBound, ThinWallsOnGlassKeepTheirSheetsApart) {
+  IndexedMesh sliver;
+  sliver.positions = {{0, 0, 0}, {1, 0, 0}, {0, 1e-4f, 0}};
+  sliver.indices = {0, 1, 2};
+  EXPECT_DOUBLE_EQ(thin_wall_position_bound(1e-3, sliver, 1.0, false), 1e-3);
+  EXPECT_NEAR(thin_wall_position_bound(1e-3, sliver, 1.0, true), 0.25 * double(1e-4f), 1e-12);
+  EXPECT_DOUBLE_EQ(thin_wall_position_bound(1e-6, sliver, 1.0, true), 1e-6);
+  sliver.positions[2].y = 1e-9f;  // no less than 2^-22 of the root cell
+  EXPECT_DOUBLE_EQ(thin_wall_position_bound(1e-3, sliver, 1.0, true), 0x1p-22);
+
+  // End to end: a glass pane 1e-4 thick, nothing collapsed. With the mirror
+  // and glass settings (fold passes, exact normals) both sheets come back
+  // apart, each within a quarter of the thickness; the footprint's bound
+  // alone (an opaque object's) may merge them.
+  const fs::path dir = test::scratch_dir("draco-bound-pane");
+  const double t = 1e-4;
+  const fs::path mesh = write_pane(dir, t);
+  ASSERT_TRUE(build_store(mesh, dir / "pane.raylod", StoreOptions{}).is_ok());
+  auto store = OctreeStore::open(dir / "pane.raylod");
+  ASSERT_TRUE(store.is_ok());
+  Cut cut;
+  cut.min_footprint = 3e-3f;  // a pixel of a 320-pixel view of the pane
+  ASSERT_GT(draco_error_bound(cut, **store), t);
+  auto written = simplify_cut_to_draco(**store, cut, dir / "pane.drc", 0, 1e-3, false, nullptr, kDefaultCreaseAngleDeg, 1);
+  ASSERT_TRUE(written.is_ok()) << written.status().message();
+  EXPECT_LE(written->max_position_error, t / 4);
+  auto out = read_draco(dir / "pane.drc");
+  ASSERT_TRUE(out.is_ok());
+  ASSERT_EQ(out->triangle_count(), 12u);
+  for (const Vec3& p : out->positions) {
+    const double y = p.y;
+    EXPECT_TRUE(std::abs(y) <= t / 4 || std::abs(y - t) <= t / 4) << y;
+  }
   fs::remove_all(dir);
 }
 

@@ -1508,6 +1508,41 @@ TEST(ProbeDeviation, AngleToleranceLoosensOnlyMirrorAndGlass) {
   EXPECT_NE(rejected.status().message().find("angle tolerance"), std::string::npos) << rejected.status().message();
 }
 
+// A mirror of reflectance 0, or mirrors and glass in a scene of max_depth 0,
+// reflect nothing the renderer traces: the cut holds none of the mirror's
+// rules for them (it kept 2.8 times the triangles of the same diffuse
+// object, for an image that shows no reflection).
+TEST(ProbeDeviation, MirrorsThatReflectNothingTakeNoMirrorRules) {
+  const Built& b = teapot();
+  const OneObject one(b);
+  ProbeConfig c;
+  c.rays = 1000;
+  c.seed = 3;
+  auto cut = [&](const Scene& scene) {
+    auto r = run_probe(scene, one.stores(), one.objects(), c);
+    EXPECT_TRUE(r.is_ok()) << r.status().message();
+    return r.is_ok() ? r->cuts[0] : Cut{};
+  };
+  const Cut diffuse = cut(make_scene(MaterialType::Diffuse, kEye, kLook));
+  Scene black = make_scene(MaterialType::Mirror, kEye, kLook);
+  black.materials[0].reflectance = 0;
+  black.materials[0].color = Vec3(0.8f);
+  Scene flat = make_scene(MaterialType::Glass, kEye, kLook);
+  flat.max_depth = 0;
+  flat.materials[0].color = Vec3(0.8f);
+  const Scene diffuse_scene = make_scene(MaterialType::Diffuse, kEye, kLook);
+  ASSERT_EQ(diffuse_scene.materials[0].color, Vec3(0.8f));
+  for (const Scene& s : {black, flat}) {
+    EXPECT_FALSE(s.traces_specular(s.materials[0]));
+    const Cut got = cut(s);
+    EXPECT_EQ(got.counters.at("cells_kept_for_normals"), 0u);
+    EXPECT_EQ(cells_of(got), cells_of(diffuse));
+  }
+  const Scene mirror = make_scene(MaterialType::Mirror, kEye, kLook);
+  EXPECT_TRUE(mirror.traces_specular(mirror.materials[0]));
+  EXPECT_NE(cells_of(cut(mirror)), cells_of(diffuse));
+}
+
 // Cells no test ray reached are held to unreached_angle_allowance times the
 // angle tolerance, measured cells to the tolerance itself: on a mirror
 // teapot (grading off, so that no cell is split), raising the allowance

@@ -247,6 +247,26 @@ TEST(Effects, OnlyMaterialsTheGeometryUsesCount) {
   EXPECT_EQ(e.describe(), "diffuse, shadows (1 light)");
 }
 
+// The effects line says what is traced: glass of ior 1 reflects nothing,
+// glass of tint 0 lets nothing through (it reported both on while tracing
+// none of them), and the rays agree.
+TEST(Effects, GlassThatReflectsOrTransmitsNothingSaysSo) {
+  Material clear = material("g", MaterialType::Glass);
+  clear.ior = 1.0f;
+  auto same = render_counting({clear, material("b", MaterialType::Diffuse)}, {point_light({2, 5, 3}, 30)});
+  EXPECT_FALSE(same.stats.effects.reflection);
+  EXPECT_TRUE(same.stats.effects.refraction);
+  EXPECT_EQ(same.stats.rays.reflection, 0u);
+  EXPECT_GT(same.stats.rays.refraction, 0u);
+  Material opaque = material("g", MaterialType::Glass);
+  opaque.tint = Vec3(0.0f);
+  auto dark = render_counting({opaque, material("b", MaterialType::Diffuse)}, {point_light({2, 5, 3}, 30)});
+  EXPECT_TRUE(dark.stats.effects.reflection);
+  EXPECT_FALSE(dark.stats.effects.refraction);
+  EXPECT_GT(dark.stats.rays.reflection, 0u);
+  EXPECT_EQ(dark.stats.rays.refraction, 0u);
+}
+
 TEST(Determinism, SameImageForOneAndTwoThreads) {
   // The renderer sets no thread limit of its own: the arena it runs in bounds it.
   auto render_with_threads = [](int threads) {

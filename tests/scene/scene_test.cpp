@@ -69,6 +69,23 @@ TEST(Scene, DiffuseOnlySceneCallsForNoSpecularRays) {
   EXPECT_FALSE(scene->any_reflection());
 }
 
+// A light that adds nothing (intensity 0, or colour black) is left out:
+// the render traced a shadow ray per hit for it and the probe held cells
+// for its shadows, for the same image as without it.
+TEST(Scene, ALightThatAddsNothingIsLeftOut) {
+  std::string text = kMinimal;
+  const std::string point = R"("intensity": 10})";
+  ASSERT_NE(text.find(point), std::string::npos);
+  for (const std::string& nothing : {std::string(R"("intensity": 0})"), std::string(R"("intensity": 10, "color": [0, 0, 0]})")}) {
+    std::string t = text;
+    t.replace(t.find(point), point.size(), nothing);
+    auto scene = parse_scene(t, ".", "s.json");
+    ASSERT_TRUE(scene.is_ok()) << scene.status().message();
+    ASSERT_EQ(scene->lights.size(), 1u) << nothing;
+    EXPECT_EQ(scene->lights[0].type, LightType::Directional);
+  }
+}
+
 TEST(Scene, RelativeMeshPathResolvesAgainstSceneFile) {
   fs::path dir = temp_dir() / "sub";
   fs::create_directories(dir);

@@ -314,6 +314,25 @@ TEST(DracoIo, NormalErrorBoundHoldsForRandomNormals) {
   }
 }
 
+// A glossy shininess of 1e6 asked for 30 normal bits, and Draco's normal
+// coder then held 4.2 GB whatever the mesh (a memory limit of 512M did not
+// see it): the bits stop at kMaxNormalBits, about float normals' precision.
+TEST(DracoIo, NormalBitsStopAtWhatFloatNormalsHold) {
+  EXPECT_EQ(choose_normal_bits(1e-12), kMaxNormalBits);
+  EXPECT_EQ(choose_normal_bits(normal_error_bound(kMaxNormalBits)), kMaxNormalBits);
+  EXPECT_LT(choose_normal_bits(normal_error_bound(12)), kMaxNormalBits);
+  EXPECT_LT(normal_error_bound(kMaxNormalBits), 3e-7);
+  const IndexedMesh mesh = indexed(test::uv_sphere({0, 0, 0}, 1.0f, 8, 12));
+  DracoOptions opt;
+  opt.normal_bits = kMaxNormalBits + 1;
+  auto refused = write_draco(tmp_dir() / "bits.drc", mesh, opt);
+  ASSERT_FALSE(refused.is_ok());
+  EXPECT_NE(refused.status().message().find("normal_bits must be between 2 and 24"), std::string::npos)
+      << refused.status().message();
+  opt.normal_bits = kMaxNormalBits;
+  ASSERT_TRUE(write_draco(tmp_dir() / "bits.drc", mesh, opt).is_ok());
+}
+
 TEST(DracoIo, MeshReaderOverADecodedFile) {
   const IndexedMesh mesh = indexed(test::uv_sphere({0, 0, 0}, 1.0f, 8, 12));
   const auto path = tmp_dir() / "reader.drc";
