@@ -1101,8 +1101,8 @@ std::string describe_position_grid(double step, const Bbox& bounds, const Vec3d&
   char text[320];
   std::snprintf(text, sizeof text,
                 "the store's position grid (points %.3g apart, set by the mesh's bounding box from (%.6g, %.6g, %.6g) "
-                "to (%.6g, %.6g, %.6g))",
-                step, lo.x, lo.y, lo.z, hi.x, hi.y, hi.z);
+                "to (%.6g, %.6g, %.6g), %.3g across)",
+                step, lo.x, lo.y, lo.z, hi.x, hi.y, hi.z, std::max({hi.x - lo.x, hi.y - lo.y, hi.z - lo.z}));
   return text;
 }
 

@@ -261,8 +261,8 @@ uint64_t resolved_memory_limit(const StoreOptions& options);
 // For messages: "1.00 GiB", or "no limit" for 0.
 std::string describe_memory_limit(uint64_t memory_limit);
 // "the store's position grid (points STEP apart, set by the mesh's bounding
-// box from (..) to (..))", the box in the mesh's own coordinates (store
-// bounds plus mesh_origin): what the build's warning and an empty
+// box from (..) to (..), S across)", the box in the mesh's own coordinates
+// (store bounds plus mesh_origin): what the build's warning and an empty
 // simplified mesh say when a few far-away vertices made the grid too coarse.
 std::string describe_position_grid(double step, const Bbox& bounds, const Vec3d& mesh_origin);
 

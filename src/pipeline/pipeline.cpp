@@ -894,8 +894,20 @@ StatusOr<StagedMeshes> simplify_or_reuse(RunSession& session, const Scene& scene
         // stretches).
         if (why.find("degenerate") != std::string::npos) {
           const StoreHeader& h = stores.stores[i]->header();
+          const Vec3d lo = h.bounds.lo + h.mesh_origin, hi = h.bounds.hi + h.mesh_origin;
           why += " on " + describe_position_grid(page_grid(h.root_lo, h.root_size, h.grid_bits).step, h.bounds,
                                                  h.mesh_origin);
+          // A mesh a few float steps across, far from the origin: its own
+          // coordinates lost the detail (single precision keeps steps of
+          // about 2^-23 of the distance: a millimetre part at 1e6 rounds to
+          // a few points in a float32 PLY or STL).
+          const double where = std::max({std::abs(lo.x), std::abs(lo.y), std::abs(lo.z), std::abs(hi.x),
+                                         std::abs(hi.y), std::abs(hi.z)});
+          const double extent = std::max({hi.x - lo.x, hi.y - lo.y, hi.z - lo.z});
+          if (where > 0 && extent <= where * 0x1p-16)
+            why += "; single-precision coordinates this far from the origin are " +
+                   fmt("%.3g", std::ldexp(1.0, std::ilogb(where) - 23)) + " apart, so a mesh stored as float there loses any smaller detail (write it in double "
+                   "precision, or nearer the origin)";
         }
         session.warnings.push_back(stores.meshes[i].string() + ": " + why + "; it is left out of the image");
         out.meshes.push_back(sm);
@@ -1017,6 +1029,16 @@ StatusOr<RunResult> run_pipeline(Scene scene, const RunOptions& options, const L
 #if defined(__GLIBC__)
   malloc_trim(0);
 #endif
+  // Every object left out and no ground: nothing to render, and the
+  // reasons (the warnings of the objects left out) are the error, which
+  // the run's warnings would otherwise not reach.
+  if (!scene.ground && std::all_of(result.meshes.begin(), result.meshes.end(),
+                                   [](const SimplifiedMesh& sm) { return sm.triangles == 0; })) {
+    std::string why;
+    for (const std::string& w : session.warnings)
+      if (w.find("left out of the image") != std::string::npos) why += (why.empty() ? "" : "; ") + w;
+    return Status::error("nothing to render: every object is left out" + (why.empty() ? std::string() : ": " + why));
+  }
   say(log, "[4/4] render");
   auto t_render = std::chrono::steady_clock::now();
   RAYLOD_ASSIGN_OR_RETURN(result.render, render_simplified(scene, session.stores.objects, result.meshes, options,

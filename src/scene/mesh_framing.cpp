@@ -127,7 +127,15 @@ StatusOr<MeshFraming> frame_mesh(const Bbox& bounds, const FramingOptions& optio
                                  std::abs(f.bounds.hi.x), std::abs(f.bounds.hi.y), std::abs(f.bounds.hi.z)});
   // (Relative alone: a mesh 1e-15 across at the origin is not a point, it
   // is outside the framed sizes below.)
-  if (!(diag > 1e-12 * where)) return Status::error("the mesh is a single point: nothing to frame");
+  if (!(diag > 1e-12 * where)) {
+    char hint[200] = "";
+    if (where > 0)
+      std::snprintf(hint, sizeof hint,
+                    " (single-precision coordinates %.3g from the origin are %.3g apart: a mesh stored as float "
+                    "there loses any smaller detail)",
+                    where, std::ldexp(1.0, std::ilogb(where) - 23));
+    return Status::error(std::string("the mesh is a single point: nothing to frame") + hint);
+  }
   // Rays are traced in single precision about the look-at point, with
   // offsets and a ground plane that scale with the scene; outside this range
   // the ground or a light's contribution is lost (measured: a triangle of

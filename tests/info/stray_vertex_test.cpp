@@ -51,7 +51,7 @@ TEST(StrayVertex, TheBuildSaysTheGridIsTooCoarseAndWhy) {
   EXPECT_NE(out.find("raylod build: warning: 801 of 801 triangles lose a corner to the store's position grid"),
             std::string::npos)
       << out;
-  EXPECT_NE(out.find("to (1e+08, 20, 0.2)"), std::string::npos) << out;
+  EXPECT_NE(out.find("to (1e+08, 20, 0.2), 1e+08 across)"), std::string::npos) << out;
 }
 
 }  // namespace

@@ -14,6 +14,7 @@
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
+#include <fstream>
 #include <limits>
 
 #include "geometry/pinhole_camera.h"
@@ -253,6 +254,55 @@ TEST(FarFromOrigin, AFarCameraFramesAsANearOneDoes) {
   };
   // 39.9 dB; 10.2 dB with rays started at the eye.
   EXPECT_GT(render_psnr(scene_at(1.5e2), scene_at(1.5e5)), 30.0);
+}
+
+// A millimetre part a million units out, in a float32 PLY: the file itself
+// holds one point. run leaves it out saying so, and names single
+// precision's step there (0.0625) rather than only the store's grid.
+TEST(FarFromOrigin, AFloatFileFarOutThatHoldsAPointSaysWhy) {
+  test::ScratchDir scratch("far-float-point");
+  const fs::path mesh = scratch.path / "far_f.ply";
+  {
+    // Binary float32, as CAD exports write: 1e6 + 0.001 rounds to 1e6.
+    std::ofstream f(mesh, std::ios::binary);
+    f << "ply\nformat binary_little_endian 1.0\nelement vertex 4\nproperty float x\nproperty float y\n"
+         "property float z\nelement face 4\nproperty list uchar int vertex_indices\nend_header\n";
+    const double corners[4][3] = {{0, 0, 0}, {1e-3, 0, 0}, {0, 1e-3, 0}, {0, 0, 1e-3}};
+    for (const auto& c : corners)
+      for (double x : c) {
+        const float v = float(1e6 + x);
+        f.write(reinterpret_cast<const char*>(&v), sizeof v);
+      }
+    const int faces[4][3] = {{0, 2, 1}, {0, 1, 3}, {0, 3, 2}, {1, 2, 3}};
+    for (const auto& t : faces) {
+      const unsigned char n = 3;
+      f.write(reinterpret_cast<const char*>(&n), 1);
+      f.write(reinterpret_cast<const char*>(t), sizeof t);
+    }
+  }
+  Scene scene = staircase_scene(Vec3d(1e6), mesh);
+  RunOptions run;
+  run.cache_dir = scratch.path / "cache";
+  run.use_cache = false;
+  run.progress = false;
+  run.rays = 500;
+  // Without a ground nothing is left to render: the reason is the error
+  // (it said "the scene has no triangles").
+  auto r = run_pipeline(scene, run, nullptr);
+  ASSERT_FALSE(r.is_ok());
+  const std::string why = r.status().message();
+  EXPECT_NE(why.find("nothing to render: every object is left out: "), std::string::npos) << why;
+  EXPECT_NE(why.find("single-precision coordinates this far from the origin are 0.0625 apart"), std::string::npos)
+      << why;
+  // With a ground, the run renders it and warns.
+  scene.ground = Ground{1e6 - 0.01, 1.0, 0};
+  auto grounded = run_pipeline(scene, run, nullptr);
+  ASSERT_TRUE(grounded.is_ok()) << grounded.status().message();
+  EXPECT_EQ(grounded->triangles_out, 0u);
+  std::string all;
+  for (const std::string& w : grounded->warnings) all += w + "\n";
+  EXPECT_NE(all.find("single-precision coordinates this far from the origin are 0.0625 apart"), std::string::npos)
+      << all;
 }
 
 TEST(FarFromOrigin, RunMatchesTheSameStaircaseNearZero) {
