@@ -904,7 +904,7 @@ StatusOr<StagedMeshes> simplify_or_reuse(RunSession& session, const Scene& scene
           const double where = std::max({std::abs(lo.x), std::abs(lo.y), std::abs(lo.z), std::abs(hi.x),
                                          std::abs(hi.y), std::abs(hi.z)});
           const double extent = std::max({hi.x - lo.x, hi.y - lo.y, hi.z - lo.z});
-          if (where > 0 && extent <= where * 0x1p-16)
+          if (where > 0 && std::isfinite(where) && extent <= where * 0x1p-16)
             why += "; single-precision coordinates this far from the origin are " +
                    fmt("%.3g", std::ldexp(1.0, std::ilogb(where) - 23)) + " apart, so a mesh stored as float there loses any smaller detail (write it in double "
                    "precision, or nearer the origin)";

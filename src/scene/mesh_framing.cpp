@@ -129,7 +129,7 @@ StatusOr<MeshFraming> frame_mesh(const Bbox& bounds, const FramingOptions& optio
   // is outside the framed sizes below.)
   if (!(diag > 1e-12 * where)) {
     char hint[200] = "";
-    if (where > 0)
+    if (where > 0 && std::isfinite(where))
       std::snprintf(hint, sizeof hint,
                     " (single-precision coordinates %.3g from the origin are %.3g apart: a mesh stored as float "
                     "there loses any smaller detail)",
