@@ -217,7 +217,6 @@ StatusOr<CutOptions> cut_options_from_args(const Args& args) {
   return o;
 }
 
-
 Status check_stats_json_path(const Args& args) {
   if (!args.has("--stats-json")) return {};
   return check_output_path(args.get("--stats-json"), "--stats-json");

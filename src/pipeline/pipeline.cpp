@@ -99,7 +99,8 @@ double thin_wall_position_bound(double bound, const IndexedMesh& mesh, double ro
   double shortest2 = std::numeric_limits<double>::infinity();
   for (size_t t = 0; t + 2 < mesh.indices.size(); t += 3)
     for (int k = 0; k < 3; ++k) {
-      const Vec3d a(mesh.positions[mesh.indices[t + size_t(k)]]), b(mesh.positions[mesh.indices[t + size_t((k + 1) % 3)]]);
+      const Vec3d a(mesh.positions[mesh.indices[t + size_t(k)]]);
+      const Vec3d b(mesh.positions[mesh.indices[t + size_t((k + 1) % 3)]]);
       const double l2 = glm::dot(a - b, a - b);
       if (l2 > 0) shortest2 = std::min(shortest2, l2);
     }
@@ -906,9 +907,10 @@ StatusOr<StagedMeshes> simplify_or_reuse(RunSession& session, const Scene& scene
           const double extent = std::max({hi.x - lo.x, hi.y - lo.y, hi.z - lo.z});
           if (where > 0 && std::isfinite(where) && extent <= where * 0x1p-16)
             why += "; single-precision coordinates this far from the origin are " +
-                   fmt("%.3g", std::ldexp(1.0, std::ilogb(where) - 23)) + " apart, so a mesh stored as float there loses any smaller detail (write it in double "
-                   "precision, or nearer the origin)";
+                   fmt("%.3g", float_spacing_at(where)) + " apart, so a mesh stored as float there loses any smaller detail (write it in double precision, "
+                   "or nearer the origin)";
         }
+        sm.empty_reason = why;
         session.warnings.push_back(stores.meshes[i].string() + ": " + why + "; it is left out of the image");
         out.meshes.push_back(sm);
         continue;
@@ -1030,14 +1032,14 @@ StatusOr<RunResult> run_pipeline(Scene scene, const RunOptions& options, const L
   malloc_trim(0);
 #endif
   // Every object left out and no ground: nothing to render, and the
-  // reasons (the warnings of the objects left out) are the error, which
-  // the run's warnings would otherwise not reach.
+  // reasons (each mesh's empty_reason) are the error, which the run's
+  // warnings would otherwise not reach.
   if (!scene.ground && std::all_of(result.meshes.begin(), result.meshes.end(),
                                    [](const SimplifiedMesh& sm) { return sm.triangles == 0; })) {
     std::string why;
-    for (const std::string& w : session.warnings)
-      if (w.find("left out of the image") != std::string::npos) why += (why.empty() ? "" : "; ") + w;
-    return Status::error("nothing to render: every object is left out" + (why.empty() ? std::string() : ": " + why));
+    for (size_t i = 0; i < result.meshes.size(); ++i)
+      why += (i ? "; " : ": ") + session.stores.meshes[i].string() + ": " + result.meshes[i].empty_reason;
+    return Status::error("nothing to render: every object is left out" + why);
   }
   say(log, "[4/4] render");
   auto t_render = std::chrono::steady_clock::now();

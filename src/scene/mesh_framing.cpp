@@ -133,7 +133,7 @@ StatusOr<MeshFraming> frame_mesh(const Bbox& bounds, const FramingOptions& optio
       std::snprintf(hint, sizeof hint,
                     " (single-precision coordinates %.3g from the origin are %.3g apart: a mesh stored as float "
                     "there loses any smaller detail)",
-                    where, std::ldexp(1.0, std::ilogb(where) - 23));
+                    where, float_spacing_at(where));
     return Status::error(std::string("the mesh is a single point: nothing to frame") + hint);
   }
   // Rays are traced in single precision about the look-at point, with
@@ -228,6 +228,8 @@ std::string scene_json_for_mesh(const std::string& mesh_path, const MeshFraming&
   write_json(j, 0, out);
   return out + "\n";
 }
+
+double float_spacing_at(double x) { return std::ldexp(1.0, std::ilogb(x) - 23); }
 
 std::string size_problem(const Bbox& bounds) {
   if (bounds.empty()) return "";

@@ -69,6 +69,9 @@ std::string scene_json_for_mesh(const std::string& mesh_path, const MeshFraming&
 // is, or a point (no size), else what is wrong, for a warning ("is 1.73e-15
 // units across in the world; ..."). `render` and `run` warn with it.
 std::string size_problem(const Bbox& bounds);
+// The spacing of single-precision numbers near x (finite, non-zero): the
+// detail a float coordinate that far from the origin keeps (0.0625 at 1e6).
+double float_spacing_at(double x);
 
 // Whether a scene shows a mesh placed in it with world bounds `bounds`: empty
 // if it does, else what is wrong, for a warning ("lies at or under the ground
