@@ -176,16 +176,9 @@ int run_simplify(int argc, char** argv) {
     opt.normal_bits = args.has("--normal-bits") ? int(*normal_bits) : pipeline.normal_bits;
     opt.speed = int(*speed);
     opt.parts = int(*parts);
-    // The smallest footprint the probe measured, with a safety factor of 8,
-    // so quantisation stays well below what any test ray can resolve.
-    float footprint = cut->min_footprint;
-    if (!(footprint > 0))
-      for (const auto& c : cut->cells) if (c.min_footprint > 0 && (!(footprint > 0) || c.min_footprint < footprint)) footprint = c.min_footprint;
-    // Also small against the input triangles the cut keeps, whose face
-    // normals quantisation would otherwise tilt (pipeline.h).
-    double bound = footprint > 0 ? footprint / 8.0 : 0.0;
-    if (const double geometric = geometric_normal_position_bound(**store); geometric > 0)
-      bound = bound > 0 ? std::min(bound, geometric) : geometric;
+    // The bound `raylod run` uses for the same cut (pipeline.h), so that this
+    // command writes the mesh run would cache.
+    const double bound = draco_error_bound(*cut, **store);
     opt.max_position_error = *position_error > 0 ? *position_error
                                                  : thin_wall_position_bound(bound, r.mesh, (*store)->header().root_size,
                                                                             config.exact_normals);

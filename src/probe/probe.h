@@ -220,8 +220,9 @@ StatusOr<CutBalance> parse_cut_balance(const std::string& name);
 // above its noise floor at K = 64 (the closest, the pump cover's whole view,
 // by 0.4 dB when this was chosen, 1.6 dB on 2026-11-29), and the close-ups
 // need it: the pump cover's goes from 8.9x at K = 32 to 18.3x. The deviation
-// bound decides; K only caps what a quadric cannot see (open rims). The diagonal criterion alone needs a small K (its
-// cells grow with the footprint whatever their curvature).
+// bound decides; K only caps what a quadric cannot see (open rims). The
+// diagonal criterion alone needs a small K (its cells grow with the footprint
+// whatever their curvature).
 inline constexpr double kDefaultFootprintScale = 64.0;
 inline constexpr double kDefaultDiagonalFootprintScale = 10.0;
 inline constexpr double kDefaultTolerancePx = 0.5;
