@@ -167,10 +167,12 @@ std::vector<Args::Option> cut_options() {
           {"--balance", "", "grade the cut (no cell beside one two levels coarser): specular\n"
                             "                              (objects on mirrors and glass under the deviation criterion;\n"
                             "                              default), all or off", true, "WHICH"},
-          {"--unseen-cells", "", "on (default) or off: cells no test ray reached that the camera\n"
-                                 "                              cannot see (back faces of a closed mesh, outside the view)\n"
-                                 "                              and whose shadows cannot show collapse; off: the rule before\n"
-                                 "                              2026-11-29", true, "ON|OFF"}};
+          {"--unseen-cells", "", "on (default), frustum or off: cells no test ray reached that the\n"
+                                 "                              camera cannot see (back faces of a closed mesh, outside the\n"
+                                 "                              view) and whose shadows fall on nothing it sees collapse;\n"
+                                 "                              frustum: their shadows count wherever they may fall in the\n"
+                                 "                              view (the rule before 2026-11-30); off: the rule before\n"
+                                 "                              2026-11-29", true, "ON|FRUSTUM|OFF"}};
 }
 
 std::vector<Args::Option> with_cut_options(std::vector<Args::Option> options) {
@@ -211,8 +213,10 @@ StatusOr<CutOptions> cut_options_from_args(const Args& args) {
   if (args.has("--balance")) { RAYLOD_ASSIGN_OR_RETURN(o.balance, parse_cut_balance(args.get("--balance"))); }
   if (args.has("--unseen-cells")) {
     const std::string v = args.get("--unseen-cells");
-    if (v != "on" && v != "off") return Status::error("--unseen-cells: unknown value '" + v + "' (on or off)");
-    o.unseen_cells = v == "on";
+    if (v != "on" && v != "frustum" && v != "off")
+      return Status::error("--unseen-cells: unknown value '" + v + "' (on, frustum or off)");
+    o.unseen_cells = v != "off";
+    o.shadow_receivers = v == "on";
   }
   return o;
 }

@@ -82,7 +82,8 @@ struct CutOptions {
   double unreached_angle_allowance = kDefaultUnreachedAngleAllowance;
   double footprint_scale = kDefaultFootprintScale;
   CutBalance balance = CutBalance::Specular;
-  bool unseen_cells = true;  // --unseen-cells
+  bool unseen_cells = true;      // --unseen-cells on or frustum
+  bool shadow_receivers = true;  // --unseen-cells on
   bool tolerance_given = false, angle_tolerance_given = false;
   // The default tolerances for a render of `spp` samples per pixel
   // (default_tolerance_px), where none was given.

@@ -130,6 +130,7 @@ int cmd_probe(int argc, char** argv) {
   config.unreached_angle_allowance = cut_opts->unreached_angle_allowance;
   config.balance = cut_opts->balance;
   config.unseen_cells = cut_opts->unseen_cells;
+  config.shadow_receivers = cut_opts->shadow_receivers;
 
   auto traced = trace_probe_across_ranks(scene, stores, objects, config);
   if (!traced) return cli::fail("probe", traced.status());

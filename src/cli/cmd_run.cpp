@@ -10,6 +10,7 @@
 #include "streaming/octree_store.h"
 #include "streaming/source_record.h"
 #include "core/cluster.h"
+#include "core/memory_budget.h"
 #include "core/system.h"
 #include "gen/generate.h"
 #include "pipeline/image_compare.h"
@@ -111,6 +112,8 @@ Status run_run(int argc, char** argv, bool& help) {
              {"--export-mesh", "", "also write the simplified meshes as a Draco-compressed glTF (.glb), one\n"
                                    "                              node per scene object, with the .drc's quantisation", true, "OUT.glb"},
              {"--crease-angle", "", crease_angle_help(), true, "DEG"},
+             {"--width", "", "image width (default: the scene camera's; with --views, the views' default)", true, "W"},
+             {"--height", "", "image height (default: the scene camera's; likewise)", true, "H"},
              {"--views", "", "render every camera of a JSON list (the scene camera's fields; up, fov_y,\n"
                              "                              width and height default to the scene's) to numbered images:\n"
                              "                              -o out_####.png (without '#', _#### goes before the extension)", true, "FILE"},
@@ -189,6 +192,10 @@ Status run_run(int argc, char** argv, bool& help) {
   if (!quiet) log = [](const std::string& m) { std::fprintf(stderr, "raylod run: %s\n", m.c_str()); };
 
   RAYLOD_ASSIGN_OR_RETURN(Scene scene, scene_from_args(args));
+  RAYLOD_ASSIGN_OR_RETURN(int64_t width, args.get_int("--width", scene.camera.width, 1, 32768));
+  RAYLOD_ASSIGN_OR_RETURN(int64_t height, args.get_int("--height", scene.camera.height, 1, 32768));
+  scene.camera.width = int(width);
+  scene.camera.height = int(height);
   const int render_spp = opts.spp > 0 ? opts.spp : scene.spp;
   cut.fit_defaults_to(render_spp);  // the tolerances, once the render's spp is known
   opts.tolerance_px = cut.tolerance_px;
@@ -197,6 +204,7 @@ Status run_run(int argc, char** argv, bool& help) {
   opts.unreached_angle_allowance = cut.unreached_angle_allowance;
   opts.balance = cut.balance;
   opts.unseen_cells = cut.unseen_cells;
+  opts.shadow_receivers = cut.shadow_receivers;
   {
     std::vector<FileRole> outputs = {{sequence ? numbered_image_path(output, 0) : output, "the image (-o)"}};
     if (args.has("--compare")) {
@@ -230,6 +238,25 @@ Status run_run(int argc, char** argv, bool& help) {
     // could not be written to (a directory there) would fail the run after
     // the views before it were written. And against the statistics file
     // (view 0's was checked with the others above).
+    // And each view's frame against the memory limit, as the run checks it
+    // (select_fitting_cuts, within what keep_pages_between_views leaves a
+    // view: 7/8 of the working memory), so that a view too large for it
+    // fails before the views before it are rendered.
+    const MemoryBudget budget = MemoryBudget::of(opts.memory_limit);
+    const uint64_t per_view = budget.working() - budget.working() / 8;
+    RenderOptions frame;
+    frame.srgb_color = opts.srgb_color;
+    for (size_t i = 0; i < cameras.size() && budget.limited(); ++i) {
+      const uint64_t image = estimate_image_memory(cameras[i].width, cameras[i].height, frame);
+      if (image >= per_view)
+        return Status::error((args.has("--views") ? args.get("--views") + ": [" + std::to_string(i) + "]"
+                                                  : std::string("--orbit: view ") + std::to_string(i)) +
+                             ": the " + std::to_string(cameras[i].width) + " x " + std::to_string(cameras[i].height) +
+                             " image needs about " + format_bytes(image) + ", more than the " +
+                             format_bytes(per_view) + " the memory limit of " + format_bytes(budget.total) +
+                             " leaves after the program's own " + format_bytes(budget.baseline) +
+                             "; render a smaller image or raise --memory-limit");
+    }
     for (size_t i = 1; i < cameras.size(); ++i) {
       RAYLOD_RETURN_IF_ERROR(check_output_image_path(numbered_image_path(output, i)));
       if (args.has("--stats-json"))

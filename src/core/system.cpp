@@ -245,9 +245,19 @@ bool same_file(const std::filesystem::path& a, const std::filesystem::path& b) {
     const bool same = std::filesystem::equivalent(a, b, ec);
     if (!ec) return same;
   }
-  const auto absolute_a = std::filesystem::weakly_canonical(std::filesystem::absolute(a, ec), ec);
-  const auto absolute_b = std::filesystem::weakly_canonical(std::filesystem::absolute(b, ec), ec);
-  return absolute_a == absolute_b;
+  // A symlink whose target does not exist yet names that target (an output
+  // written through it lands there): followed by hand, as weakly_canonical
+  // leaves a component that does not exist as it is.
+  auto resolved = [&](std::filesystem::path p) {
+    p = std::filesystem::absolute(p, ec);
+    for (int hops = 0; hops < 40 && std::filesystem::is_symlink(p, ec); ++hops) {
+      const std::filesystem::path to = std::filesystem::read_symlink(p, ec);
+      if (ec) break;
+      p = to.is_absolute() ? to : p.parent_path() / to;
+    }
+    return std::filesystem::weakly_canonical(p, ec).lexically_normal();
+  };
+  return resolved(a) == resolved(b);
 }
 
 }  // namespace
@@ -478,6 +488,13 @@ bool is_pass_through_output(const std::filesystem::path& path) {
   const fs::file_status st = fs::status(path, ec);  // through symlinks
   return !ec && fs::exists(st) && !fs::is_regular_file(st) && !fs::is_directory(st);
 }
+
+int register_scratch_file(const std::filesystem::path& path) {
+  install_temporary_handlers();
+  return register_temporary(path);
+}
+
+void release_scratch_file(int& slot) { release_temporary(slot); }
 
 AtomicOutput::AtomicOutput(std::filesystem::path destination) : dest_(std::move(destination)) {
   namespace fs = std::filesystem;

@@ -138,6 +138,14 @@ bool is_pass_through_output(const std::filesystem::path& path);
 // and is neither a regular file nor a directory (a device such as
 // /dev/null, a FIFO, /dev/stdout's terminal or pipe) is never replaced: the
 // temporary, then in the system's temporary directory, is copied into it.
+// A file of this process's own, not a temporary of AtomicOutput's (a staged
+// simplified mesh, a link to a cached one), that SIGTERM, SIGINT or SIGHUP
+// removes as they remove AtomicOutput's temporaries while it is registered.
+// Returns the slot, or -1 if every slot is taken (the file is then left to
+// the next run's clean-up); release_scratch_file gives the slot back.
+int register_scratch_file(const std::filesystem::path& path);
+void release_scratch_file(int& slot);
+
 class AtomicOutput {
  public:
   explicit AtomicOutput(std::filesystem::path destination);

@@ -413,9 +413,10 @@ ScratchFiles& ScratchFiles::operator=(ScratchFiles&& other) noexcept {
 ScratchFiles::~ScratchFiles() { remove_all(); }
 
 void ScratchFiles::remove_all() {
-  for (const auto& f : files_) {
+  for (auto& [file, slot] : files_) {
     std::error_code ec;
-    fs::remove(f, ec);
+    fs::remove(file, ec);
+    release_scratch_file(slot);
   }
   files_.clear();
 }
@@ -562,6 +563,7 @@ StatusOr<ProbeConfig> run_probe_config(const RunSession& session, const Scene& s
   probe.unreached_angle_allowance = options.unreached_angle_allowance;
   probe.balance = options.balance;
   probe.unseen_cells = options.unseen_cells;
+  probe.shadow_receivers = options.shadow_receivers;
   probe.selection_cache = session.selection_cache.get();
   return probe;
 }

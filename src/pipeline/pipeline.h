@@ -14,10 +14,12 @@
 #include <set>
 #include <span>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "core/memory_budget.h"
 #include "core/status.h"
+#include "core/system.h"
 #include "pipeline/simplified_cache.h"
 #include "probe/probe.h"
 #include "render/renderer.h"
@@ -78,6 +80,7 @@ struct RunOptions {
   double unreached_angle_allowance = kDefaultUnreachedAngleAllowance;
   CutBalance balance = CutBalance::Specular;             // which cuts are graded (probe.h)
   bool unseen_cells = true;  // cells the camera cannot see collapse as their shadows allow (probe.h)
+  bool shadow_receivers = true;  // ... as their shadows on what the camera sees allow (ProbeConfig)
   std::filesystem::path cache_dir;    // empty = default_cache_dir()
   uint64_t cache_limit = uint64_t(4) << 30;
   bool use_cache = true;
@@ -216,7 +219,8 @@ struct FittedCuts {
 StatusOr<FittedCuts> select_fitting_cuts(RunSession& session, std::span<const ProbeView> views, const Scene& scene,
                                          ProbeConfig probe, const RunOptions& options, const LogFn& log);
 
-// Files removed when the owner goes (staged simplified meshes).
+// Files removed when the owner goes (staged simplified meshes), or by
+// SIGTERM, SIGINT or SIGHUP before that (register_scratch_file).
 class ScratchFiles {
  public:
   ScratchFiles() = default;
@@ -225,11 +229,11 @@ class ScratchFiles {
   ScratchFiles(const ScratchFiles&) = delete;
   ScratchFiles& operator=(const ScratchFiles&) = delete;
   ~ScratchFiles();
-  void add(const std::filesystem::path& file) { files_.push_back(file); }
+  void add(const std::filesystem::path& file) { files_.push_back({file, register_scratch_file(file)}); }
 
  private:
   void remove_all();
-  std::vector<std::filesystem::path> files_;
+  std::vector<std::pair<std::filesystem::path, int>> files_;  // and their signal-handler slots
 };
 
 // The simplified meshes of a set of cuts, staged for rendering.

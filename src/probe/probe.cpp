@@ -562,6 +562,7 @@ std::string probe_key(const Scene& scene, const OctreeStore& store, std::span<co
   mix(config.angle_tolerance_px);
   mix(config.outline_tolerance);
   mix(config.unseen_cells);
+  mix(config.shadow_receivers);
   mix(config.balance);
   mix(config.calibration_quantile);
   mix(config.curved_unreached_tilt);
@@ -822,6 +823,7 @@ struct ViewFacts {
   double m = 1;         // the trace's magnification
   GroundSeen ground{{}};  // where its test rays met the ground
   std::vector<GroundSeen> lit_ground;  // per light, where they met ground it reaches
+  std::vector<ShadowReceivers> receivers;  // per light, where its shadows can be seen
 };
 
 ViewFacts make_view_facts(const ProbeView& v, size_t lights) {
@@ -838,6 +840,27 @@ ViewFacts make_view_facts(const ProbeView& v, size_t lights) {
   f.ground = GroundSeen(v.trace->ground_hits);
   for (size_t l = 0; l < lights; ++l) f.lit_ground.emplace_back(v.trace->ground_hits, int(l));
   return f;
+}
+
+// Per light, where its shadows can be seen in the view (probe.h, "Unseen
+// cells"): every hit of its test rays, on a mesh or the ground, standing
+// for the surface out to twice the rays' mean spacing in the image.
+std::vector<ShadowReceivers> shadow_receivers_of(const ViewFacts& f, std::span<const ObjectXf> xf, const Scene& scene) {
+  const double pixels = double(f.cam.width) * double(f.cam.height);
+  const double spacing = 2.0 * std::sqrt(pixels / double(std::max<uint64_t>(1, f.trace->rays)));
+  std::vector<ShadowReceiver> receivers;
+  receivers.reserve(f.trace->hits.size() + f.trace->ground_hits.size());
+  for (const ProbeHit& h : f.trace->hits) {
+    const ObjectXf& x = xf[h.object];
+    const Vec3d local = (1 - h.b1 - h.b2) * h.corners[0] + h.b1 * h.corners[1] + h.b2 * h.corners[2];
+    const double footprint = h.footprint * x.sigma * (h.estimated ? f.m : 1.0);  // world units, per pixel
+    receivers.push_back({Vec3d(x.m * glm::dvec4(local, 1.0)), spacing * footprint});
+  }
+  for (const GroundHit& g : f.trace->ground_hits)
+    receivers.push_back({g.point, spacing * f.a_min * glm::length(g.point - f.cam.eye)});
+  std::vector<ShadowReceivers> out;
+  for (const Light& l : scene.lights) out.push_back(ShadowReceivers::make(l, receivers));
+  return out;
 }
 
 // The smallest angle between neighbouring pixels' rays over the pixels a
@@ -915,6 +938,7 @@ struct CutSelection::State {
   std::span<const ProbeObject> objects;
   double shadow_factor = 0;
   bool unseen_cells = true;
+  bool shadow_receivers = true;
   // What the unreached curved cells' calibration (make()) read of the config.
   bool curved_unreached_tilt = true;
   double calibration_quantile = 0;
@@ -945,6 +969,7 @@ StatusOr<CutSelection> CutSelection::make(std::span<const ProbeView> views, cons
   state.objects = objects;
   state.shadow_factor = config.shadow_factor;
   state.unseen_cells = config.unseen_cells;
+  state.shadow_receivers = config.shadow_receivers;
   state.curved_unreached_tilt = config.curved_unreached_tilt;
   state.calibration_quantile = config.calibration_quantile;
   state.unreached_angle_allowance = config.unreached_angle_allowance;
@@ -958,6 +983,9 @@ StatusOr<CutSelection> CutSelection::make(std::span<const ProbeView> views, cons
   for (const ProbeObject& o : objects) specular |= scene.traces_specular(scene.materials[size_t(o.material)]);
   if (scene.ground) specular |= scene.traces_specular(scene.materials[size_t(scene.ground->material)]);
   const bool lights = !scene.lights.empty();
+  // Unseen cells are a rule of scenes without mirrors and glass (estimate below).
+  if (config.unseen_cells && config.shadow_receivers && lights && !specular)
+    for (ViewFacts& f : facts) f.receivers = shadow_receivers_of(f, xf, scene);
 
   for (size_t s = 0; s < stores.size(); ++s) {
     const OctreeStore& st = *stores[s].store;
@@ -1034,9 +1062,11 @@ StatusOr<CutSelection> CutSelection::make(std::span<const ProbeView> views, cons
         else {
           // Unseen: only its shadows on what the camera sees.
           if (unseen) *unseen = true;
-          if (lit && (!unseen_cells || !std::all_of(scene.lights.begin(), scene.lights.end(), [&](const Light& l) {
-                        return view.frustum.shadow_outside(c, l);
-                      })))
+          bool casts = false;
+          for (size_t li = 0; li < scene.lights.size() && !casts; ++li)
+            casts = !unseen_cells || (!view.frustum.shadow_outside(c, scene.lights[li]) &&
+                                      (view.receivers.empty() || view.receivers[li].may_shadow(c, wb)));
+          if (lit && casts)
             e *= shadow_factor;
           else
             e = kInf;
@@ -1356,7 +1386,8 @@ StatusOr<ProbeResult> CutSelection::select(const ProbeConfig& config) {
       config.calibration_quantile != state.calibration_quantile ||
       config.unreached_angle_allowance != state.unreached_angle_allowance)
     return Status::error("probe: a cut selection was prepared for another bound on unreached mirror and glass cells");
-  if (config.shadow_factor != state.shadow_factor || config.unseen_cells != state.unseen_cells)
+  if (config.shadow_factor != state.shadow_factor || config.unseen_cells != state.unseen_cells ||
+      config.shadow_receivers != state.shadow_receivers)
     return Status::error("probe: a cut selection was prepared for another shadow factor or rule for unseen cells");
   const auto t_select = std::chrono::steady_clock::now();
   ProbeResult result;

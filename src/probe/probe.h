@@ -138,10 +138,23 @@
 // camera rays met a back face (ProbeHit::back_facing) and some met the
 // store. With lights, an unseen cell whose shadow from some light may reach
 // the view (its box swept away from the light is not wholly outside one of
-// the frustum's planes: a separating plane) gets shadow_factor times the
-// estimate (its silhouette keeps shadows within a few pixels); one whose
-// shadows cannot, or any unseen cell without lights, is collapsed hard (need
-// = infinity) but for the ground's shadows below.
+// the frustum's planes: a separating plane) and that may lie between the
+// light and a surface the camera sees gets shadow_factor times the estimate
+// (its silhouette keeps shadows within a few pixels); one whose shadows
+// cannot reach the view or fall on nothing it sees, or any unseen cell
+// without lights, is collapsed hard (need = infinity) but for the ground's
+// shadows below. What the camera sees is where the view's test rays met a
+// mesh or the ground, each hit standing for the surface out to twice the
+// mean spacing of the test rays in the image (its footprint times that many
+// pixels): a cell matters for a light if some point of it is nearer the
+// light than such a surface and in line with it (ShadowReceivers,
+// cell_visibility.h: per light, the receivers binned on a grid across its
+// rays). The crank arm's eight random close-ups, lit by a key and a fill
+// light whose shadows reach every part in view, went from 6.5x-10.0x to
+// 7.2x-15.3x this way, each still above its noise floor (by 1.5 to 14.4 dB;
+// two lost 3.6 and 3.9 dB of their 13 to 18 dB margins, on a shadow's
+// edge), the pump cover's eight from 10.5x-32.2x to 10.7x-45.8x
+// (tools/MEASUREMENTS.md, "Shadows on what the camera sees").
 // (ProbeConfig::unseen_cells = false: only cells outside the view are
 // unseen, and they take shadow_factor wherever there are lights.)
 // Shadows on the ground, for every cell, reached or not: a light casts the
@@ -385,6 +398,11 @@ struct ProbeConfig {
   // the view count, and they keep shadow_factor wherever there are lights
   // (the rule before 2026-11-29).
   bool unseen_cells = true;
+  // With unseen_cells: an unseen cell keeps shadow_factor only where it may
+  // lie between a light and a surface the view's test rays met (the
+  // receivers of "Unseen cells", above). false: wherever its shadow may
+  // fall in the view's frustum (the rule before 2026-11-30).
+  bool shadow_receivers = true;
   bool progress = false;               // progress bar on stderr
   // Trace only test rays [first_ray, end_ray) of the `rays` (one rank's share
   // under mpirun; merge_traces joins the shares); end_ray 0 = all of them.
@@ -562,8 +580,9 @@ uint64_t store_fingerprint(const OctreeStore& store);
 // version was kept; 2: the deviation tests take the shift footprint
 // (ProbeHit::shift_footprint), 2026-11-28; 3: cells the camera cannot see
 // and no shadow brings into view collapse (ProbeConfig::unseen_cells),
-// 2026-11-29.
-inline constexpr uint32_t kCutRulesVersion = 3;
+// 2026-11-29; 4: their shadows count only where they may fall on a surface
+// the test rays met (ProbeConfig::shadow_receivers), 2026-11-30.
+inline constexpr uint32_t kCutRulesVersion = 4;
 
 // The cut's key: a hash of the store fingerprint, the camera, the scene's
 // specular set-up (materials, max depth, ground), the object's placements,

@@ -4,10 +4,13 @@
 // the image does not depend on the thread count or the tile schedule.
 #include "render/renderer.h"
 
+#include <unistd.h>
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstring>
+#include <fstream>
 #include <mutex>
 #include <optional>
 
@@ -113,7 +116,11 @@ Status write_pixels(const std::filesystem::path& path, EncodeRequest request, Im
       return Status::error(path.string() + ": the written image cannot be read back (disk full?): " + back.error);
     if (back.layout.width != request.layout.width || back.layout.height != request.layout.height ||
         back.layout.channels != request.layout.channels)
-      return Status::error(path.string() + ": the written image reads back with the wrong size (disk full?)");
+      return Status::error(path.string() + ": the written image reads back as " + std::to_string(back.layout.width) +
+                           " x " + std::to_string(back.layout.height) + " with " + std::to_string(back.layout.channels) +
+                           " channels, not the " + std::to_string(request.layout.width) + " x " +
+                           std::to_string(request.layout.height) + " with " + std::to_string(request.layout.channels) +
+                           " written (the format cannot hold this image, or the disk is full)");
     if (!back.error.empty()) return Status::error(path.string() + ": the written image is truncated (disk full?): " + back.error);
   }
   if (fault_point("image.before_rename"))
@@ -720,11 +727,74 @@ Status check_output_image_path(const std::filesystem::path& path) {
   return {};
 }
 
+namespace {
+
+// Whether the writer for path's extension writes a small image of the kind
+// raylod writes there (3 channels; floats for a float format, else 8-bit
+// sRGB) that reads back whole: some of OpenImageIO's writers exist but
+// cannot (.zfile takes 1 channel, OpenJPEG's .jp2 writes nothing), and
+// those failed only after the whole run. Written to a temporary file of
+// the system's temporary folder, then removed.
+Status check_writer_writes(const std::filesystem::path& path, const ImageCodec& codec) {
+  constexpr int kWidth = 64, kHeight = 48, kChannels = 3;
+  const bool floats = is_float_image_format(path);
+  std::vector<float> f(size_t(kWidth) * kHeight * kChannels);
+  std::vector<uint8_t> b(f.size());
+  for (size_t i = 0; i < f.size(); ++i) {  // a ramp, as a render has detail
+    b[i] = uint8_t(i * 7);
+    f[i] = float(b[i]) / 255.0f;
+  }
+  EncodeRequest request;
+  request.writer = image_writer_for(path);
+  request.layout = {kWidth, kHeight, kChannels, floats ? PixelType::Float : PixelType::UInt8};
+  request.pixels = floats ? static_cast<const void*>(f.data()) : static_cast<const void*>(b.data());
+  request.srgb = !floats;
+  if (!floats) request.png_filter = 0x08;
+  const std::filesystem::path trial =
+      temporary_folder() / ("raylod-writer-check-" + std::to_string(::getpid()) + path.extension().string());
+  request.file = trial.string();
+  const Encoded encoded = codec.encode(request);
+  std::string error = encoded.error;
+  if (error.empty() && encoded.in_memory) {
+    std::ofstream out(trial, std::ios::binary);
+    out.write(reinterpret_cast<const char*>(encoded.bytes.data()), std::streamsize(encoded.bytes.size()));
+    if (!out.flush()) error = "cannot write a trial image to " + trial.string();
+  }
+  if (error.empty()) {
+    const Decoded back = codec.decode(trial.string());
+    if (!back.error.empty()) error = "the image it wrote does not read back: " + back.error;
+    else if (back.layout.width != kWidth || back.layout.height != kHeight || back.layout.channels != kChannels)
+      error = "the image it wrote reads back as " + std::to_string(back.layout.width) + " x " +
+              std::to_string(back.layout.height) + " with " + std::to_string(back.layout.channels) + " channels";
+  }
+  std::error_code ec;
+  std::filesystem::remove(trial, ec);
+  if (!error.empty())
+    return Status::error(path.string() + ": OpenImageIO's writer for '" + path.extension().string() +
+                         "' files cannot write a " + std::to_string(kChannels) + "-channel " +
+                         (floats ? "float" : "8-bit") + " image (" + error +
+                         "); use PNG, JPEG, EXR, HDR, TIFF, PFM, BMP, TGA or PNM");
+  return {};
+}
+
+}  // namespace
+
 Status check_output_image(const std::filesystem::path& path) {
   RAYLOD_RETURN_IF_ERROR(check_output_image_path(path));
+  std::string ext = path.extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char ch) { return char(std::tolower(ch)); });
+  // OpenImageIO's "term" writer draws on the terminal (stdout) and its
+  // "null" writer discards the pixels: neither writes a file.
+  if (ext == ".term" || ext == ".null")
+    return Status::error(path.string() + ": '" + ext + "' is OpenImageIO's " +
+                         (ext == ".term" ? "terminal display" : "writer that discards the image") +
+                         ", not an image file; use PNG, JPEG, EXR, HDR, TIFF, PFM, BMP, TGA or PNM");
   RAYLOD_ASSIGN_OR_RETURN(const ImageCodec* codec, image_codec());
   if (!codec->has_writer(image_writer_for(path)))
     return Status::error(path.string() + ": no image writer for '" + path.extension().string() + "' files");
+  if (!is_extensionless_device(path)) {
+    RAYLOD_RETURN_IF_ERROR(check_writer_writes(path, *codec));
+  }
   return {};
 }
 

@@ -45,6 +45,17 @@ TEST(OutputsApart, TheSameFileByAnyNameIsRefused) {
   const Status both = check_outputs_apart({{dir / "a.png", "-o"}, {dir / "sub/../a.png", "--stats-json"}}, inputs);
   EXPECT_FALSE(both);
   EXPECT_NE(both.message().find("given as both -o and --stats-json"), std::string::npos) << both.message();
+  // A symlink to a file not made yet names that file: two outputs through
+  // it and beside it, or a chain of links, are one.
+  std::filesystem::create_symlink("new.png", dir / "alias.png");
+  std::filesystem::create_symlink("alias.png", dir / "alias2.png");
+  std::filesystem::create_symlink(dir / "sub" / ".." / "new.png", dir / "absolute.png");
+  for (const char* other : {"alias.png", "alias2.png", "absolute.png"}) {
+    const Status st = check_outputs_apart({{dir / "new.png", "-o"}, {dir / other, "--stats-json"}}, inputs);
+    EXPECT_FALSE(st) << other;
+    EXPECT_NE(st.message().find("given as both -o and --stats-json"), std::string::npos) << st.message();
+  }
+  EXPECT_TRUE(check_outputs_apart({{dir / "other.png", "-o"}, {dir / "alias.png", "--stats-json"}}, inputs));
   // Empty paths (an option not given) are left out.
   EXPECT_TRUE(check_outputs_apart({{"", "-o"}}, {{"", "the mesh"}}));
 }
@@ -149,6 +160,8 @@ TEST(OutputsApart, UnwritableOutputsFailBeforeRendering) {
   std::ofstream(dir / "scene.json") << R"({"camera": {"eye": [2, 1.5, 3], "look_at": [0.3, 0.3, 0.3], "fov_y": 40, "width": 64, "height": 48},
        "materials": {"m": {"type": "diffuse", "color": [0.8, 0.3, 0.2]}},
        "objects": [{"mesh": "tetra.ply", "material": "m"}], "spp": 1})";
+  std::ofstream(dir / "big.json") << R"([{"eye": [2, 1.5, 3], "look_at": [0.3, 0.3, 0.3]},
+       {"eye": [2, 1.5, 3], "look_at": [0.3, 0.3, 0.3], "width": 8000, "height": 8000}])";
   std::filesystem::create_directories(dir / "d.png");
   std::filesystem::create_directories(dir / "o.normal.exr");
   std::filesystem::create_directories(dir / "c.full.png");
@@ -186,6 +199,16 @@ TEST(OutputsApart, UnwritableOutputsFailBeforeRendering) {
       // when renamed into place, after the render).
       {"render scene.json -o " + std::string(252, 'c') + ".png -q", "the file name is 256 bytes"},
       {"probe scene.json -o " + std::string(252, 'c') + ".cut -q", "the cut (-o): the file name is 256 bytes"},
+      // Writers OpenImageIO has that cannot write raylod's images, or write
+      // no file: before any work, not after the render.
+      {"render scene.json -o x.zfile -q", "x.zfile: OpenImageIO's writer for '.zfile' files cannot write a 3-channel"},
+      {"run scene.json --no-cache -o x.zfile -q", "x.zfile: OpenImageIO's writer for '.zfile' files cannot write"},
+      {"render scene.json -o x.term -q", "'.term' is OpenImageIO's terminal display, not an image file"},
+      {"render scene.json -o x.null -q", "'.null' is OpenImageIO's writer that discards the image"},
+      // A view of a views file too large for the memory limit: named, before
+      // the views before it are rendered.
+      {"run scene.json --no-cache --views big.json -o v_#.png --memory-limit 300M -q",
+       "big.json: [1]: the 8000 x 8000 image needs about"},
       // Empty names: said so, not an internal error.
       {"scene tetra.ply -o '' -q", "the scene (-o): no file name given"},
       {"build '' -q", "the mesh: no file name given"},
@@ -198,6 +221,7 @@ TEST(OutputsApart, UnwritableOutputsFailBeforeRendering) {
     EXPECT_EQ(r.out.find("render:"), r.out.rfind("render:")) << "one line, no progress: " << r.out;
   }
   EXPECT_FALSE(std::filesystem::exists(dir / "o.png"));
+  EXPECT_FALSE(std::filesystem::exists(dir / "x.zfile"));
   EXPECT_FALSE(std::filesystem::exists(dir / "o.depth.exr"));
   EXPECT_FALSE(std::filesystem::exists(dir / "c.png"));
   EXPECT_FALSE(std::filesystem::exists(dir / "v_0.png"));

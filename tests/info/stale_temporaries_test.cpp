@@ -166,6 +166,30 @@ TEST(StaleTemporaries, TerminatedProcessRemovesItsLiveTemporaries) {
   std::filesystem::remove_all(dir);
 }
 
+// A file of the process's own that it removes itself (a staged simplified
+// mesh in the cache folder, pipeline.h's ScratchFiles) goes with SIGTERM as
+// the temporaries do, while it is registered; one given back stays.
+TEST(StaleTemporaries, TerminatedProcessRemovesItsRegisteredScratchFiles) {
+  const std::filesystem::path dir = test::scratch_dir("sigterm-scratch");
+  EXPECT_EXIT(
+      {
+        std::ofstream(dir / "staged.drc") << "mesh";
+        std::ofstream(dir / "kept.drc") << "mesh";
+        int staged = register_scratch_file(dir / "staged.drc");
+        int kept = register_scratch_file(dir / "kept.drc");
+        if (staged < 0 || kept < 0) std::_Exit(1);
+        release_scratch_file(kept);
+        if (kept != -1) std::_Exit(3);
+        std::raise(SIGTERM);
+        std::_Exit(2);
+      },
+      testing::KilledBySignal(SIGTERM), "");
+  std::vector<std::string> left;
+  for (const auto& e : std::filesystem::directory_iterator(dir)) left.push_back(e.path().filename().string());
+  EXPECT_EQ(left, std::vector<std::string>{"kept.drc"});
+  std::filesystem::remove_all(dir);
+}
+
 TEST(StaleTemporaries, RunRemovesMeshesStagedInTheTempFolderByKilledRuns) {
   // run --no-cache stages its simplified mesh in the system temp folder; a
   // run killed before it removed it leaves it there, and the next run clears

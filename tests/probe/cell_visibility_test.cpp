@@ -185,5 +185,70 @@ TEST(CellVisibility, FacingAwayBoundsTheAreaThatFacesTheEye) {
   EXPECT_GT(away, 200);
 }
 
+Bbox box_around(const Vec3d& c, double half) { return Bbox{c - Vec3d(half), c + Vec3d(half)}; }
+
+bool may_shadow(const ShadowReceivers& r, const Bbox& b) { return r.may_shadow(corners(b), b); }
+
+TEST(ShadowReceivers, BoxesBetweenTheLightAndWhatIsSeen) {
+  // Receivers on the plane y = 0 near the origin, each reaching 0.1.
+  std::vector<ShadowReceiver> seen;
+  for (int i = -5; i <= 5; ++i)
+    for (int k = -5; k <= 5; ++k) seen.push_back({Vec3d(0.2 * i, 0, 0.2 * k), 0.1});
+  const ShadowReceivers sun = ShadowReceivers::make(directional(Vec3d(0, -1, 0)), seen);
+  EXPECT_TRUE(may_shadow(sun, box_around(Vec3d(0.3, 2, -0.4), 0.05)));   // above them
+  EXPECT_FALSE(may_shadow(sun, box_around(Vec3d(0.3, -2, -0.4), 0.05)));  // below: the light is above
+  EXPECT_FALSE(may_shadow(sun, box_around(Vec3d(5, 2, 0), 0.05)));       // above, beside them
+  EXPECT_TRUE(may_shadow(sun, box_around(Vec3d(5, 2, 0), 4.0)));         // a box reaching over them
+  // A slanted sun: the shadow of a box at height 2 falls 2 units along x.
+  const ShadowReceivers slant = ShadowReceivers::make(directional(Vec3d(1, -1, 0)), seen);
+  EXPECT_TRUE(may_shadow(slant, box_around(Vec3d(-2, 2, 0), 0.05)));
+  EXPECT_FALSE(may_shadow(slant, box_around(Vec3d(2, 2, 0), 0.05)));
+  // A point light above: between it and the receivers, not beyond it.
+  const ShadowReceivers bulb = ShadowReceivers::make(point(Vec3d(0, 10, 0)), seen);
+  EXPECT_TRUE(may_shadow(bulb, box_around(Vec3d(0.1, 5, 0.1), 0.05)));
+  EXPECT_FALSE(may_shadow(bulb, box_around(Vec3d(0.1, 12, 0.1), 0.05)));  // behind the light
+  EXPECT_FALSE(may_shadow(bulb, box_around(Vec3d(3, 5, 0), 0.05)));       // off the cone to them
+  EXPECT_FALSE(may_shadow(bulb, box_around(Vec3d(0, -1, 0), 0.05)));      // farther than them
+  EXPECT_TRUE(may_shadow(bulb, box_around(Vec3d(0, 10, 0), 0.05)));       // holding the light
+  // Nothing seen: no shadow shows.
+  EXPECT_FALSE(may_shadow(ShadowReceivers::make(directional(Vec3d(0, -1, 0)), {}), box_around(Vec3d(0), 1)));
+  // A point light among the receivers (seen all around it): every box may shadow.
+  std::vector<ShadowReceiver> around;
+  for (int a = 0; a < 8; ++a) around.push_back({Vec3d(std::cos(a * 0.785), 0, std::sin(a * 0.785)), 0.01});
+  EXPECT_TRUE(may_shadow(ShadowReceivers::make(point(Vec3d(0)), around), box_around(Vec3d(0, 5, 0), 0.01)));
+}
+
+// Brute force: a box around any point between the light and a point within
+// a receiver's reach must be said to may shadow.
+TEST(ShadowReceivers, EveryBoxOnASegmentToTheLightMayShadow) {
+  std::mt19937_64 rng(23);
+  std::uniform_real_distribution<double> u(-1, 1), unit(0, 1);
+  int said_no = 0, checked = 0;
+  for (int trial = 0; trial < 200; ++trial) {
+    const bool is_point = trial % 2 == 1;
+    const Vec3d centre(10 * u(rng), 10 * u(rng), 10 * u(rng));
+    const Light l = is_point ? point(centre + (20 + 20 * unit(rng)) * test::random_unit(rng))
+                             : directional(test::random_unit(rng));
+    std::vector<ShadowReceiver> rs;
+    const int n = 1 + int(200 * unit(rng));
+    for (int i = 0; i < n; ++i)
+      rs.push_back({centre + 3.0 * Vec3d(u(rng), u(rng), u(rng)), 0.2 * unit(rng) * unit(rng)});
+    const ShadowReceivers sr = ShadowReceivers::make(l, rs);
+    for (int k = 0; k < 200; ++k) {
+      const ShadowReceiver& r = rs[size_t(rng() % rs.size())];
+      const Vec3d q = r.point + r.radius * unit(rng) * test::random_unit(rng);
+      const Vec3d to_light = is_point ? l.position - q : -l.direction * 50.0;
+      const Vec3d x = q + unit(rng) * to_light;
+      const double half = 1e-3 + unit(rng) * unit(rng);
+      ++checked;
+      EXPECT_TRUE(may_shadow(sr, box_around(x, half))) << "trial " << trial << " k " << k;
+    }
+    // And boxes anywhere: some are said to shadow nothing (the test can fail).
+    for (int k = 0; k < 50; ++k) said_no += !may_shadow(sr, box_around(centre + 30.0 * Vec3d(u(rng), u(rng), u(rng)), 0.1));
+  }
+  EXPECT_EQ(checked, 200 * 200);
+  EXPECT_GT(said_no, 2000);
+}
+
 }  // namespace
 }  // namespace raylod
