@@ -234,11 +234,7 @@ Status run_run(int argc, char** argv, bool& help) {
       RAYLOD_ASSIGN_OR_RETURN(int64_t n, args.get_int("--orbit", 0, 1, 100000));
       RAYLOD_ASSIGN_OR_RETURN(cameras, orbit_cameras(scene.camera, int(n)));
     }
-    // Each view's image, now that their number is known: a path a view
-    // could not be written to (a directory there) would fail the run after
-    // the views before it were written. And against the statistics file
-    // (view 0's was checked with the others above).
-    // And each view's frame against the memory limit, as the run checks it
+    // Each view's frame against the memory limit, as the run checks it
     // (select_fitting_cuts, within what keep_pages_between_views leaves a
     // view: 7/8 of the working memory), so that a view too large for it
     // fails before the views before it are rendered.
@@ -257,6 +253,10 @@ Status run_run(int argc, char** argv, bool& help) {
                              " leaves after the program's own " + format_bytes(budget.baseline) +
                              "; render a smaller image or raise --memory-limit");
     }
+    // Each view's image, now that their number is known: a path a view
+    // could not be written to (a directory there) would fail the run after
+    // the views before it were written. And against the statistics file
+    // (view 0's was checked with the others above).
     for (size_t i = 1; i < cameras.size(); ++i) {
       RAYLOD_RETURN_IF_ERROR(check_output_image_path(numbered_image_path(output, i)));
       if (args.has("--stats-json"))
