@@ -75,6 +75,8 @@ Status run_render(int argc, char** argv, bool& help) {
       else if (aov == "triangle-id") opts.aov_triangle_id = true;
       else return Status::error("--aov: '" + aov + "' is not one of depth, normal, triangle-id");
     }
+    if (!opts.aov_depth && !opts.aov_normal && !opts.aov_triangle_id)
+      return Status::error("--aov: no AOV named; give one or more of depth, normal, triangle-id");
   }
 
   RAYLOD_ASSIGN_OR_RETURN(Scene scene, scene_from_args(args));

@@ -231,7 +231,7 @@ Status run_run(int argc, char** argv, bool& help) {
     if (args.has("--views")) {
       RAYLOD_ASSIGN_OR_RETURN(cameras, load_views(args.get("--views"), scene.camera));
     } else {
-      RAYLOD_ASSIGN_OR_RETURN(int64_t n, args.get_int("--orbit", 0, 1, 100000));
+      RAYLOD_ASSIGN_OR_RETURN(int64_t n, args.get_int("--orbit", 0, 1, kMaxViews));
       RAYLOD_ASSIGN_OR_RETURN(cameras, orbit_cameras(scene.camera, int(n)));
     }
     // Each view's frame against the memory limit, as the run checks it

@@ -553,6 +553,10 @@ Status AtomicOutput::commit() {
   ::close(fd);
   if (!synced)
     return Status::write_failed(dest_.string(), dest_.string() + ": could not flush to disk (disk full?)", sync_errno);
+  // A file replaced gives the new one its permissions (a read-only image
+  // stays read-only), as a folder replaced does (AtomicDirectory).
+  struct stat old {};
+  if (::stat(target_.c_str(), &old) == 0 && S_ISREG(old.st_mode)) ::chmod(temp_.c_str(), old.st_mode & 07777);
   std::error_code ec;
   std::filesystem::rename(temp_, target_, ec);
   if (ec)

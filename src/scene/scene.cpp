@@ -552,6 +552,9 @@ StatusOr<std::vector<Camera>> parse_views(const std::string& json_text, const Ca
   json j;
   RAYLOD_RETURN_IF_ERROR(parse_json(p, json_text, "views", j));
   if (!j.is_array() || j.empty()) return Status::error(source_name + ": expected a non-empty JSON array of cameras");
+  if (j.size() > size_t(kMaxViews))
+    return Status::error(source_name + ": " + std::to_string(j.size()) + " cameras, more than the " +
+                         std::to_string(kMaxViews) + " a run renders");
   std::vector<Camera> views;
   for (size_t i = 0; i < j.size(); ++i) {
     Camera cam = defaults;

@@ -149,6 +149,8 @@ std::string object_context(const Scene& scene, size_t object);
 // scene's camera fields; the fields an element leaves out (up, fov_y, width,
 // height) are taken from `defaults` (the scene's camera). Errors name the
 // source and the element ("views.json: [3].eye: expected an array of 3 numbers").
+// At most kMaxViews cameras (as `run --orbit N` takes).
+inline constexpr int kMaxViews = 100000;
 StatusOr<std::vector<Camera>> parse_views(const std::string& json_text, const Camera& defaults,
                                           const std::string& source_name);
 StatusOr<std::vector<Camera>> load_views(const std::filesystem::path& path, const Camera& defaults);

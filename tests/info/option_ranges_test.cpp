@@ -30,6 +30,9 @@ TEST(OptionRanges, ZeroSizesSamplesAndErrorsAreRefused) {
       {"probe --unreached-angle 0 -o unused.cut", "--unreached-angle must be a finite multiple of --angle-tolerance"},
       {"run --unreached-angle -1 -o unused.png", "--unreached-angle must be a finite multiple of --angle-tolerance"},
       {"run --criterion diagonal --unreached-angle 4 -o unused.png", "--unreached-angle bounds the deviation criterion"},
+      {"render --aov '' -o unused.png", "--aov: no AOV named; give one or more of depth, normal, triangle-id"},
+      {"run --width 0 -o unused.png", "--width must be between 1 and 32768"},
+      {"run --orbit 100001 -o unused_#.png", "--orbit must be between 1 and 100000"},
   };
   for (const Case& c : cases) {
     std::string out;

@@ -70,6 +70,12 @@ TEST(Views, ErrorsNameTheFileAndTheElement) {
             "views.json: [0].up: is zero or parallel to the viewing direction");
   EXPECT_EQ(error(R"([3])"), "views.json: [0]: expected an object");
   EXPECT_EQ(error(R"([])"), "views.json: expected a non-empty JSON array of cameras");
+  {  // as many as --orbit takes, and no more
+    std::string many = "[";
+    for (int i = 0; i <= kMaxViews; ++i) many += (i ? ",{}" : "{}");
+    many += "]";
+    EXPECT_EQ(error(many), "views.json: 100001 cameras, more than the 100000 a run renders");
+  }
   EXPECT_EQ(error(R"({"eye": [0, 0, 5], "look_at": [0, 0, 0]})"), "views.json: expected a non-empty JSON array of cameras");
   EXPECT_EQ(error("[{").rfind("views.json: not valid JSON: ", 0), 0u);
   EXPECT_EQ(error(R"([{"eye": [0, 0, 5], "look_at": [0, 0, 0]}, {"eye": [1e400, 0, 5], "look_at": [0, 0, 0]}])"),

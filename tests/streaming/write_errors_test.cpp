@@ -100,6 +100,21 @@ TEST_F(WriteErrors, SymlinkStaysAndItsFileIsReplaced) {
   EXPECT_EQ(std::distance(fs::directory_iterator(dir_ / "sub"), fs::directory_iterator{}), 1);  // no temporary left
 }
 
+// A file replaced keeps its permissions: a read-only image stays read-only,
+// a group-readable one group-readable; a new file takes the umask's.
+TEST_F(WriteErrors, AReplacedFileKeepsItsPermissions) {
+  for (const fs::perms mode : {fs::perms(0444), fs::perms(0640), fs::perms(0600)}) {
+    const fs::path p = dir_ / "image.json";
+    fs::remove(p);
+    std::ofstream(p) << "old";
+    fs::permissions(p, mode, fs::perm_options::replace);
+    ASSERT_TRUE(write_file_atomic(p, "new").is_ok());
+    EXPECT_EQ(fs::status(p).permissions() & fs::perms::all, mode);
+    std::ifstream in(p);
+    EXPECT_EQ(std::string(std::istreambuf_iterator<char>(in), {}), "new");
+  }
+}
+
 // A device is written into, never replaced (as root a rename would swap
 // /dev/null for a regular file): through a link to /dev/null, and
 // /dev/full's "disk full" is reported.
