@@ -234,10 +234,11 @@ Status run_run(int argc, char** argv, bool& help) {
       RAYLOD_ASSIGN_OR_RETURN(int64_t n, args.get_int("--orbit", 0, 1, kMaxViews));
       RAYLOD_ASSIGN_OR_RETURN(cameras, orbit_cameras(scene.camera, int(n)));
     }
-    // Each view's frame against the memory limit, as the run checks it
-    // (select_fitting_cuts, within what keep_pages_between_views leaves a
-    // view: 7/8 of the working memory), so that a view too large for it
-    // fails before the views before it are rendered.
+    // Each view's frame against the memory limit, so that a view too large
+    // for it fails before the views before it are rendered: against 7/8 of
+    // the working memory, what keep_pages_between_views leaves a view before
+    // it also takes out the node tables it keeps (the stores are not open
+    // yet), so a frame that passes here may still fail there, at its view.
     const MemoryBudget budget = MemoryBudget::of(opts.memory_limit);
     const uint64_t per_view = budget.working() - budget.working() / 8;
     RenderOptions frame;

@@ -490,6 +490,11 @@ bool is_pass_through_output(const std::filesystem::path& path) {
 }
 
 int register_scratch_file(const std::filesystem::path& path) {
+  // A quarter of the slots stay for AtomicOutput's and AtomicDirectory's
+  // temporaries: a scene of many stores stages a mesh for each.
+  int used = 0;
+  for (const TemporarySlot& slot : g_temporaries) used += slot.state.load(std::memory_order_acquire) != kFree;
+  if (used >= int(std::size(g_temporaries)) * 3 / 4) return -1;
   install_temporary_handlers();
   return register_temporary(path);
 }
@@ -556,7 +561,7 @@ Status AtomicOutput::commit() {
   // A file replaced gives the new one its permissions (a read-only image
   // stays read-only), as a folder replaced does (AtomicDirectory).
   struct stat old {};
-  if (::stat(target_.c_str(), &old) == 0 && S_ISREG(old.st_mode)) ::chmod(temp_.c_str(), old.st_mode & 07777);
+  if (::stat(target_.c_str(), &old) == 0 && S_ISREG(old.st_mode)) ::chmod(temp_.c_str(), old.st_mode & 0777);
   std::error_code ec;
   std::filesystem::rename(temp_, target_, ec);
   if (ec)
@@ -661,7 +666,7 @@ Status AtomicDirectory::commit() {
   // The folder replaced keeps its permissions (the new one was made with
   // the process's umask).
   if (struct stat old; replace && ::stat(target_.c_str(), &old) == 0 && S_ISDIR(old.st_mode))
-    ::chmod(temp_.c_str(), old.st_mode & 07777);
+    ::chmod(temp_.c_str(), old.st_mode & 0777);
   int err = 0;
   bool old_at_temp = false;  // the folder replaced is now at temp_
   fs::path aside;            // ...or there

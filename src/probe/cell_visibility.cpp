@@ -103,6 +103,7 @@ ShadowReceivers::Rect ShadowReceivers::project(const std::array<Vec3d, 8>& c) co
     double x = glm::dot(d, u_), y = glm::dot(d, v_);
     if (point_) {
       const double z = glm::dot(d, w_);
+      if (std::isnan(z)) return Rect{Rect::kStraddles};  // not a point: nothing is ruled out
       if (!(z > 0)) { ++behind; continue; }
       x /= z;
       y /= z;
@@ -164,6 +165,8 @@ ShadowReceivers ShadowReceivers::make(const Light& light, std::span<const Shadow
   }
   s.x0_ = x0;
   s.y0_ = y0;
+  s.x1_ = x1;
+  s.y1_ = y1;
   s.bin_ = std::max(x1 - x0, y1 - y0) / kGrid;
   if (!(s.bin_ > 0)) s.bin_ = std::max({std::abs(x0), std::abs(y0), 1.0}) * 1e-12;
   std::vector<float> grid(size_t(kGrid) * kGrid, std::numeric_limits<float>::infinity());
@@ -201,8 +204,7 @@ bool ShadowReceivers::may_shadow(const std::array<Vec3d, 8>& c, const Bbox& wb) 
   if (point_) near = -glm::length(glm::clamp(origin_, wb.lo, wb.hi) - origin_);
   else
     for (const Vec3d& q : c) near = std::max(near, glm::dot(q, w_));
-  const double span = kGrid * bin_;
-  if (r.x1 < x0_ || r.y1 < y0_ || r.x0 > x0_ + span || r.y0 > y0_ + span) return false;
+  if (r.x1 < x0_ || r.y1 < y0_ || r.x0 > x1_ || r.y0 > y1_) return false;  // beside every receiver
   // The finest level at which the rectangle spans at most two bins a side.
   const double extent = std::max(r.x1 - r.x0, r.y1 - r.y0);
   size_t level = 0;
@@ -214,7 +216,7 @@ bool ShadowReceivers::may_shadow(const std::array<Vec3d, 8>& c, const Bbox& wb) 
   const int bx1 = bin(r.x1 - x0_), by1 = bin(r.y1 - y0_);
   for (int y = bin(r.y0 - y0_); y <= by1; ++y)
     for (int x = bin(r.x0 - x0_); x <= bx1; ++x)
-      if (near > double(g[size_t(y) * size_t(n) + size_t(x)])) return true;
+      if (near >= double(g[size_t(y) * size_t(n) + size_t(x)])) return true;
   return false;
 }
 

@@ -82,6 +82,7 @@ class ShadowReceivers {
   bool always_ = false, empty_ = true, point_ = false;
   Vec3d origin_{0}, u_{0}, v_{0}, w_{0};  // w: towards a directional light; a point light's axis
   double x0_ = 0, y0_ = 0, bin_ = 1;      // the grid's corner and its bins' side
+  double x1_ = 0, y1_ = 0;                // the receivers' farthest projected extent
   // levels_[k]: (kGrid >> k)^2 bins, each the least nearness to the light
   // (along w for a directional light, minus the distance from a point
   // light) of the receivers' reach over it, rounded down; +inf where none.

@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdlib>
 #include <cstring>
 #include <fstream>
 #include <mutex>
@@ -733,8 +734,10 @@ namespace {
 // raylod writes there (3 channels; floats for a float format, else 8-bit
 // sRGB) that reads back whole: some of OpenImageIO's writers exist but
 // cannot (.zfile takes 1 channel, OpenJPEG's .jp2 writes nothing), and
-// those failed only after the whole run. Written to a temporary file of
-// the system's temporary folder, then removed.
+// those failed only after the whole run. Written into a folder of this
+// process's own in the system's temporary folder (mkdtemp: no name another
+// user can foresee or link), then removed; if no such folder can be made,
+// the trial is left out (the write itself still checks what it wrote).
 Status check_writer_writes(const std::filesystem::path& path, const ImageCodec& codec) {
   constexpr int kWidth = 64, kHeight = 48, kChannels = 3;
   const bool floats = is_float_image_format(path);
@@ -750,8 +753,9 @@ Status check_writer_writes(const std::filesystem::path& path, const ImageCodec& 
   request.pixels = floats ? static_cast<const void*>(f.data()) : static_cast<const void*>(b.data());
   request.srgb = !floats;
   if (!floats) request.png_filter = 0x08;
-  const std::filesystem::path trial =
-      temporary_folder() / ("raylod-writer-check-" + std::to_string(::getpid()) + path.extension().string());
+  std::string folder = (temporary_folder() / "raylod-writer-check-XXXXXX").string();
+  if (!::mkdtemp(folder.data())) return {};
+  const std::filesystem::path trial = std::filesystem::path(folder) / ("trial" + path.extension().string());
   request.file = trial.string();
   const Encoded encoded = codec.encode(request);
   std::string error = encoded.error;
@@ -768,7 +772,7 @@ Status check_writer_writes(const std::filesystem::path& path, const ImageCodec& 
               std::to_string(back.layout.height) + " with " + std::to_string(back.layout.channels) + " channels";
   }
   std::error_code ec;
-  std::filesystem::remove(trial, ec);
+  std::filesystem::remove_all(folder, ec);
   if (!error.empty())
     return Status::error(path.string() + ": OpenImageIO's writer for '" + path.extension().string() +
                          "' files cannot write a " + std::to_string(kChannels) + "-channel " +

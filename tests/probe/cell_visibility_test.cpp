@@ -5,6 +5,7 @@
 
 #include <array>
 #include <cmath>
+#include <limits>
 #include <random>
 #include <vector>
 
@@ -216,6 +217,29 @@ TEST(ShadowReceivers, BoxesBetweenTheLightAndWhatIsSeen) {
   std::vector<ShadowReceiver> around;
   for (int a = 0; a < 8; ++a) around.push_back({Vec3d(std::cos(a * 0.785), 0, std::sin(a * 0.785)), 0.01});
   EXPECT_TRUE(may_shadow(ShadowReceivers::make(point(Vec3d(0)), around), box_around(Vec3d(0, 5, 0), 0.01)));
+}
+
+// At the edges: a box that touches a receiver of radius 0 (the point itself
+// is on its segment to the light), a box beside the receivers whose edge is
+// their farthest extent (the grid's far edge, which rounding may put an ulp
+// short of it), and a box with corners that are not numbers.
+TEST(ShadowReceivers, BoxesTouchingTheReceiversExactly) {
+  const std::vector<ShadowReceiver> one = {{Vec3d(0), 0.0}};
+  const ShadowReceivers sun = ShadowReceivers::make(directional(Vec3d(0, -1, 0)), one);
+  EXPECT_TRUE(may_shadow(sun, Bbox{Vec3d(-0.5, -1, -0.5), Vec3d(0.5, 0, 0.5)}));
+  EXPECT_FALSE(may_shadow(sun, Bbox{Vec3d(-0.5, -1, -0.5), Vec3d(0.5, -1e-9, 0.5)}));
+  const double a = -3.0548189331792045e-05, b = 9.362523639122675e-06;
+  const std::vector<ShadowReceiver> two = {{Vec3d(0, 0, a), 0.0}, {Vec3d(0, 0, b), 0.0}};
+  const ShadowReceivers edge = ShadowReceivers::make(directional(Vec3d(0, -1, 0)), two);
+  EXPECT_TRUE(may_shadow(edge, Bbox{Vec3d(-1e-6, 1e-3, b), Vec3d(1e-6, 2e-3, b + 1e-6)}));
+  EXPECT_TRUE(may_shadow(edge, Bbox{Vec3d(-1e-6, 1e-3, a - 1e-6), Vec3d(1e-6, 2e-3, a)}));
+  for (const Light& l : {directional(Vec3d(0, -1, 0)), point(Vec3d(0, 1, 0))}) {
+    const ShadowReceivers sr = ShadowReceivers::make(l, two);
+    const double nan = std::numeric_limits<double>::quiet_NaN();
+    std::array<Vec3d, 8> bad;
+    bad.fill(Vec3d(nan));
+    EXPECT_TRUE(sr.may_shadow(bad, Bbox{Vec3d(nan), Vec3d(nan)}));
+  }
 }
 
 // Brute force: a box around any point between the light and a point within
