@@ -170,7 +170,8 @@ ShadowReceivers ShadowReceivers::make(const Light& light, std::span<const Shadow
   s.bin_ = std::max(x1 - x0, y1 - y0) / kGrid;
   if (!(s.bin_ > 0)) s.bin_ = std::max({std::abs(x0), std::abs(y0), 1.0}) * 1e-12;
   std::vector<float> grid(size_t(kGrid) * kGrid, std::numeric_limits<float>::infinity());
-  auto bin = [&](double t) { return std::clamp(int(std::floor(t / s.bin_)), 0, kGrid - 1); };
+  // Clamped as doubles: a quotient past int's range is not converted.
+  auto bin = [&](double t) { return int(std::clamp(std::floor(t / s.bin_), 0.0, double(kGrid - 1))); };
   for (size_t i = 0; i < receivers.size(); ++i) {
     const int bx1 = bin(rects[i].x1 - x0), by1 = bin(rects[i].y1 - y0);
     for (int y = bin(rects[i].y0 - y0); y <= by1; ++y)
@@ -211,7 +212,9 @@ bool ShadowReceivers::may_shadow(const std::array<Vec3d, 8>& c, const Bbox& wb) 
   while (level + 1 < levels_.size() && extent > bin_ * double(size_t(1) << level)) ++level;
   const int n = kGrid >> level;
   const double side = bin_ * double(size_t(1) << level);
-  auto bin = [&](double t) { return std::clamp(int(std::floor(t / side)), 0, n - 1); };
+  // Clamped as doubles: a box far wider than the receivers' spread (one
+  // receiver has none) gives quotients past int's range.
+  auto bin = [&](double t) { return int(std::clamp(std::floor(t / side), 0.0, double(n - 1))); };
   const std::vector<float>& g = levels_[level];
   const int bx1 = bin(r.x1 - x0_), by1 = bin(r.y1 - y0_);
   for (int y = bin(r.y0 - y0_); y <= by1; ++y)
