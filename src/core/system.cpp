@@ -237,6 +237,8 @@ bool pid_prefix_is_dead(const std::string& rest) {
 
 namespace {
 
+std::filesystem::path follow_symlinks(std::filesystem::path p);  // below
+
 // Whether a and b name one file: the same device and inode if both exist,
 // else the same absolute, normalised path.
 bool same_file(const std::filesystem::path& a, const std::filesystem::path& b) {
@@ -246,16 +248,10 @@ bool same_file(const std::filesystem::path& a, const std::filesystem::path& b) {
     if (!ec) return same;
   }
   // A symlink whose target does not exist yet names that target (an output
-  // written through it lands there): followed by hand, as weakly_canonical
+  // written through it lands there): followed first, as weakly_canonical
   // leaves a component that does not exist as it is.
-  auto resolved = [&](std::filesystem::path p) {
-    p = std::filesystem::absolute(p, ec);
-    for (int hops = 0; hops < 40 && std::filesystem::is_symlink(p, ec); ++hops) {
-      const std::filesystem::path to = std::filesystem::read_symlink(p, ec);
-      if (ec) break;
-      p = to.is_absolute() ? to : p.parent_path() / to;
-    }
-    return std::filesystem::weakly_canonical(p, ec).lexically_normal();
+  auto resolved = [&](const std::filesystem::path& p) {
+    return std::filesystem::weakly_canonical(follow_symlinks(std::filesystem::absolute(p, ec)), ec).lexically_normal();
   };
   return resolved(a) == resolved(b);
 }

@@ -132,12 +132,6 @@ bool is_dead_process_temporary(const std::string& filename);
 // (AtomicOutput).
 bool is_pass_through_output(const std::filesystem::path& path);
 
-// An output written whole or not at all: to a temporary, then renamed over
-// the destination. A symlink is followed to the file it names, which is
-// replaced in its own directory (the link stays). A destination that exists
-// and is neither a regular file nor a directory (a device such as
-// /dev/null, a FIFO, /dev/stdout's terminal or pipe) is never replaced: the
-// temporary, then in the system's temporary directory, is copied into it.
 // A file of this process's own, not a temporary of AtomicOutput's (a staged
 // simplified mesh, a link to a cached one), that SIGTERM, SIGINT or SIGHUP
 // removes as they remove AtomicOutput's temporaries while it is registered.
@@ -146,6 +140,12 @@ bool is_pass_through_output(const std::filesystem::path& path);
 int register_scratch_file(const std::filesystem::path& path);
 void release_scratch_file(int& slot);
 
+// An output written whole or not at all: to a temporary, then renamed over
+// the destination. A symlink is followed to the file it names, which is
+// replaced in its own directory (the link stays). A destination that exists
+// and is neither a regular file nor a directory (a device such as
+// /dev/null, a FIFO, /dev/stdout's terminal or pipe) is never replaced: the
+// temporary, then in the system's temporary directory, is copied into it.
 class AtomicOutput {
  public:
   explicit AtomicOutput(std::filesystem::path destination);

@@ -61,9 +61,19 @@ void strata(int spp, int& sx, int& sy) {
 
 }  // namespace
 
-bool is_float_image_format(const std::filesystem::path& path) {
+namespace {
+
+// path's extension in lower case (".PNG" -> ".png"): what formats are told by.
+std::string lower_case_extension(const std::filesystem::path& path) {
   std::string ext = path.extension().string();
   std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char ch) { return char(std::tolower(ch)); });
+  return ext;
+}
+
+}  // namespace
+
+bool is_float_image_format(const std::filesystem::path& path) {
+  const std::string ext = lower_case_extension(path);
   return ext == ".exr" || ext == ".hdr" || ext == ".tif" || ext == ".tiff" || ext == ".pfm";
 }
 
@@ -785,8 +795,7 @@ Status check_writer_writes(const std::filesystem::path& path, const ImageCodec& 
 
 Status check_output_image(const std::filesystem::path& path) {
   RAYLOD_RETURN_IF_ERROR(check_output_image_path(path));
-  std::string ext = path.extension().string();
-  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char ch) { return char(std::tolower(ch)); });
+  const std::string ext = lower_case_extension(path);
   // OpenImageIO's "term" writer draws on the terminal (stdout) and its
   // "null" writer discards the pixels: neither writes a file.
   if (ext == ".term" || ext == ".null")
@@ -804,8 +813,7 @@ Status check_output_image(const std::filesystem::path& path) {
 
 Status check_output_image_early(const std::filesystem::path& path) {
   RAYLOD_RETURN_IF_ERROR(check_output_image_path(path));
-  std::string ext = path.extension().string();
-  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char ch) { return char(std::tolower(ch)); });
+  const std::string ext = lower_case_extension(path);
   for (const char* common : {".png", ".jpg", ".jpeg", ".exr", ".hdr", ".tif", ".tiff", ".pfm", ".bmp", ".tga", ".ppm",
                              ".pgm", ".pnm"})
     if (ext == common) return {};
