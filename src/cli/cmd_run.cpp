@@ -239,11 +239,11 @@ Status run_run(int argc, char** argv, bool& help) {
     // the working memory, what keep_pages_between_views leaves a view before
     // it also takes out the node tables it keeps (the stores are not open
     // yet), so a frame that passes here may still fail there, at its view.
-    const MemoryBudget budget = MemoryBudget::of(opts.memory_limit);
-    const uint64_t per_view = budget.working() - budget.working() / 8;
+    const MemoryBudget views_budget = MemoryBudget::of(opts.memory_limit);
+    const uint64_t per_view = views_budget.working() - views_budget.working() / 8;
     RenderOptions frame;
     frame.srgb_color = opts.srgb_color;
-    for (size_t i = 0; i < cameras.size() && budget.limited(); ++i) {
+    for (size_t i = 0; i < cameras.size() && views_budget.limited(); ++i) {
       const uint64_t image = estimate_image_memory(cameras[i].width, cameras[i].height, frame);
       if (image >= per_view)
         return Status::error((args.has("--views") ? args.get("--views") + ": [" + std::to_string(i) + "]"

@@ -82,6 +82,9 @@ int run_simplify(int argc, char** argv) {
                                      "                              (within a degree of the cell's mean; by default where there are\n"
                                      "                              fold passes and the cut records raylod run's settings, as run does)",
               false, ""},
+             {"--no-unfold", "", "leave turned-over triangles as the collapse made them (by default their\n"
+                                 "                              representatives slide, or their edges collapse, within the\n"
+                                 "                              cells' deviation)", false, ""},
              quiet_option()});
   if (Status st = args.parse(argc, argv); !st) return fail("simplify", st);
   if (args.help_requested()) {
@@ -160,6 +163,7 @@ int run_simplify(int argc, char** argv) {
   config.fold_passes = args.has("--fold-passes") ? int(*fold_passes) : pipeline.fold_passes;
   config.exact_normals =
       args.has("--exact-normals") || (pipeline.recorded && exact_normals_for(config.fold_passes));
+  config.unfold = !args.has("--no-unfold");
   config.progress = !apply_quiet(args);
   auto result = simplify(**store, *cut, config);
   if (!result) return fail("simplify", result.status().with_context(store_path.string()));
@@ -221,8 +225,10 @@ int run_simplify(int argc, char** argv) {
               ull(s.dropped_collapsed), ull(s.inside_cell), ull(s.dropped_zero_area), ull(s.dropped_duplicate),
               ull(s.reverse_twins));
   if (r.fold_passes || s.folded)
-    summary("  folds      %llu cells refined in %llu more passes for triangles turned over; %llu turned over left\n",
-                ull(r.fold_cells_refined), ull(r.fold_passes), ull(s.folded));
+    summary("  folds      %llu cells refined in %llu more passes for triangles turned over; %llu turned over, "
+            "unfolded by %llu slides and %llu merges (%llu triangles fewer); %llu left\n",
+            ull(r.fold_cells_refined), ull(r.fold_passes), ull(s.folded), ull(s.unfold_moved), ull(s.unfold_merged),
+            ull(s.unfold_dropped), ull(s.folded_after_unfold));
   if (r.fold_passes_undone)
     summary("  folds      a refinement taken back: it left no fewer triangles turned over\n");
   if (r.folds_stopped_by_memory)

@@ -183,8 +183,9 @@ std::string SimplifiedCache::key_for(const Cut& cut, double crease_angle_deg, bo
   // Version 2 of the normal rule: crease-angle normals (geometry/crease_normals.h);
   // 3: the same with exact normals at representatives (simplify/collapse.h);
   // 4: exact normals, and fold passes (which come with them in raylod run)
-  // take back a refinement that leaves no fewer triangles turned over.
-  const uint32_t normal_rule = exact_normals ? 4 : 2;
+  // take back a refinement that leaves no fewer triangles turned over;
+  // 5 and 6: 2 and 4 with turned-over triangles unfolded (simplify/unfold.h).
+  const uint32_t normal_rule = exact_normals ? 6 : 5;
   uint64_t h = fnv1a64(&cut.store_hash, sizeof cut.store_hash);
   h = fnv1a64(&normal_rule, sizeof normal_rule, h);
   h = fnv1a64(&crease_angle_deg, sizeof crease_angle_deg, h);

@@ -31,6 +31,7 @@
 #include "core/parallelism.h"
 #include "core/progress.h"
 #include "core/system.h"
+#include "simplify/unfold.h"
 
 namespace raylod {
 namespace {
@@ -104,20 +105,6 @@ std::array<uint32_t, 3> rotate_min_first(const std::array<uint32_t, 3>& t) {
   return t;
 }
 
-// The float nearest v that lies in [lo, hi] if one within an ulp does: the
-// output mesh is float, and rounding must not push a vertex out of its cell.
-float float_inside(double v, double lo, double hi) {
-  float f = float(v);
-  if (double(f) < lo) {
-    const float g = std::nextafter(f, std::numeric_limits<float>::infinity());
-    if (double(g) <= hi) f = g;
-  } else if (double(f) > hi) {
-    const float g = std::nextafter(f, -std::numeric_limits<float>::infinity());
-    if (double(g) >= lo) f = g;
-  }
-  return f;
-}
-
 }  // namespace
 
 Representative make_representative(const NodeRecord& node, const Bbox& cell_bounds_world, const Vec3d& origin,
@@ -134,7 +121,12 @@ Representative make_representative(const NodeRecord& node, const Bbox& cell_boun
   r.normal_sum = 6.0 * node.normal_sum;  // area / 3 per corner -> twice the area
   r.has_normal_sum = true;
   r.side = cell_bounds_world.hi.x - cell_bounds_world.lo.x;
+  r.cell_lo = cell_bounds_world.lo;
   r.corner_count = node.corner_count;
+  // The cut's deviation at the representative (collapse_deviation.h): the
+  // chord error of the RMS distance from the cell's planes.
+  const double w = quadric_weight(node.quadric);
+  if (w > 0) r.deviation = std::sqrt(12.0 * std::max(0.0, quadric_error(node.quadric, s.position)) / w);
   return r;
 }
 
@@ -650,6 +642,36 @@ IndexedMesh CollapseBuilder::finish(CollapseStats* stats_out) {
     if (w > 1e-9 * (glm::length(reps_[v].normal_sum) + glm::length(reached_sum_[v])))
       clusters_.add_to_nearest(v, inside / w, w);
   }
+  // Cells that hold one vertex (every corner of the cell at one position):
+  // that vertex, kept (collapse.h).
+  std::vector<uint8_t> one_vertex(rep_corners_seen_.size(), 0);
+  for (uint32_t v = 0; v < one_vertex.size(); ++v) {
+    const uint32_t seen = rep_corners_seen_[v];
+    if (seen == kSeveralPositions || seen == 0 || seen != reps_[v].corner_count) continue;
+    one_vertex[v] = 1;
+    rep_pos_[v] = rep_first_position_[v];
+    ++stats_.one_vertex_cells;
+  }
+  // Turned-over triangles: their corners slide, or their edges collapse,
+  // within their cells' deviation (unfold.h).
+  std::vector<uint8_t> unfold_dead;
+  std::vector<std::pair<uint64_t, uint32_t>> renamed;  // corners merges moved: their normals' vertex
+  stats_.folded_after_unfold = stats_.folded;
+  if (unfold_) {
+    const UnfoldStats u = unfold_representatives(
+        tris_, keys_, rep_pos_, kept_pos_,
+        [&](uint32_t v) { return !(v < one_vertex.size() && one_vertex[v]) && reps_[v].side > 0; },
+        [&](uint32_t v) {
+          const Representative& r = reps_[v];
+          const double allowance = std::max(kUnfoldDeviationFactor * r.deviation, kUnfoldFlatAllowance * r.side);
+          return UnfoldLimit{Bbox{r.cell_lo, r.cell_lo + Vec3d(r.side)}, r.fallback_normal, allowance};
+        },
+        unfold_dead, renamed);
+    stats_.unfold_moved = u.moved;
+    stats_.unfold_merged = u.merged;
+    stats_.unfold_dropped = u.dropped;
+    stats_.folded_after_unfold = u.folded_after;
+  }
   // Same-orientation duplicates: sort the triangles by their rotation that
   // starts at the smallest id, then by their index, so the first occurrence
   // comes first (a total order: any parallel sort gives the same result).
@@ -674,6 +696,10 @@ IndexedMesh CollapseBuilder::finish(CollapseStats* stats_out) {
   std::vector<bool> keep(tris_.size(), true);
   size_t unique = 0;  // the distinct keys, compacted to the front of `sorted`
   for (size_t j = 0; j < sorted.size(); ++j) {
+    if (!unfold_dead.empty() && unfold_dead[sorted[j].triangle]) {
+      keep[sorted[j].triangle] = false;
+      continue;
+    }
     if (unique > 0 && sorted[j].same_key(sorted[unique - 1])) {
       keep[sorted[j].triangle] = false;
       ++stats_.dropped_duplicate;
@@ -705,16 +731,6 @@ IndexedMesh CollapseBuilder::finish(CollapseStats* stats_out) {
   }
   std::vector<uint8_t> took(exact.size(), 0);  // representatives a corner took the sample of
 
-  // Cells that hold one vertex (every corner of the cell at one position):
-  // that vertex, kept (collapse.h).
-  std::vector<uint8_t> one_vertex(rep_corners_seen_.size(), 0);
-  for (uint32_t v = 0; v < one_vertex.size(); ++v) {
-    const uint32_t seen = rep_corners_seen_[v];
-    if (seen == kSeveralPositions || seen == 0 || seen != reps_[v].corner_count) continue;
-    one_vertex[v] = 1;
-    rep_pos_[v] = rep_first_position_[v];
-    ++stats_.one_vertex_cells;
-  }
   // Resolve every corner's normal, then split each provisional vertex by the
   // distinct normals its corners got; output vertices in order of first use.
   IndexedMesh mesh;
@@ -768,6 +784,18 @@ IndexedMesh CollapseBuilder::finish(CollapseStats* stats_out) {
     }
     return Vec3(nd);
   };
+  // A corner an unfolding merge moved takes its new vertex's normal (the
+  // surface is smooth there), unless that lies beyond the crease angle of
+  // its face (the merge crossed a crease): then the normal of the vertex it
+  // had (unfold.h).
+  const auto corner_normal = [&](size_t i, int k, const Vec3d& key) -> Vec3 {
+    const Vec3 n = resolve_corner(tris_[i][size_t(k)], key);
+    if (renamed.empty() || !(glm::length(key) > 0) || glm::dot(Vec3d(n), key) >= cos_crease_) return n;
+    const uint64_t corner = 3 * uint64_t(i) + uint64_t(k);
+    const auto it = std::lower_bound(renamed.begin(), renamed.end(), std::pair<uint64_t, uint32_t>(corner, 0));
+    if (it == renamed.end() || it->first != corner) return n;
+    return resolve_corner(it->second, key);
+  };
   constexpr size_t kChunk = size_t(1) << 18;  // triangles
   std::vector<Vec3> units(3 * std::min(kChunk, tris_.size()));
   for (size_t c0 = 0; c0 < tris_.size(); c0 += kChunk) {
@@ -776,7 +804,7 @@ IndexedMesh CollapseBuilder::finish(CollapseStats* stats_out) {
       for (size_t i = r.begin(); i != r.end(); ++i) {
         if (!keep[i]) continue;
         const Vec3d key(keys_[i]);
-        for (int k = 0; k < 3; ++k) units[3 * (i - c0) + size_t(k)] = resolve_corner(tris_[i][size_t(k)], key);
+        for (int k = 0; k < 3; ++k) units[3 * (i - c0) + size_t(k)] = corner_normal(i, k, key);
       }
     });
     for (size_t i = c0; i < c1; ++i) {
@@ -1270,6 +1298,7 @@ StatusOr<SimplifyResult> simplify(const OctreeStore& store, const Cut& cut, cons
     RAYLOD_RETURN_IF_ERROR(collapse_pass(store, keys, config, estimate, *first, result.pages_read, result.pages_skipped));
   }
   const auto finish_start = std::chrono::steady_clock::now();
+  first->set_unfold(config.unfold);
   result.mesh = first->finish(&result.stats);
   result.finish_seconds = seconds_since(finish_start);
   for (const Representative& r : reps) result.clamped_representatives += r.clamped;

@@ -73,6 +73,12 @@
 //     counts only if its point lies within 1/16 of the cell's side (a page wholly
 //     inside the cell is not read, so the nearest point found may be a far
 //     one: the mean is kept then).
+//   * Triangles turned over against their input triangles (a
+//     representative beyond the far edge of a triangle it joins) are
+//     unfolded before the output is indexed (unfold.h): the representatives
+//     slide within their cells, or an edge of the turned-over triangle
+//     collapses, within a few times the deviation the cut allowed the cell.
+//     Fold passes (SimplifyConfig::fold_passes) refine what is left first.
 //   * Output is indexed: kept vertices with bit-identical position (and
 //     input normal, where the input has normals) are one vertex, then every
 //     vertex is split by the distinct normals its corners got. Vertex and
@@ -109,6 +115,8 @@ struct Representative {
   int rank = 0;              // rank of the QEM solve (qem_solve.h)
   bool clamped = false;
   double side = 0;           // the cell's edge length (world units); 0 = unknown
+  Vec3d cell_lo{0};          // the cell's lowest corner (world), with `side` its box
+  double deviation = 0;      // sqrt(12) times its RMS distance from the cell's planes (world)
   // The cell's triangle corners (NodeRecord::corner_count); 0 = unknown. A
   // cell whose corners all lie at one input position holds one vertex, and
   // its collapse changes nothing: it is then output as a kept vertex.
@@ -161,6 +169,10 @@ struct CollapseStats {
   uint64_t normal_fallbacks = 0;      // corners whose normals cancelled (quadric's normal or +Y used)
   uint64_t exact_normals = 0;         // representatives given the input's normal at their nearest input point
   uint64_t folded = 0;                // kept triangles turned over: facing against their input triangle
+  uint64_t unfold_moved = 0;          // representatives slid to unfold them (unfold.h)
+  uint64_t unfold_merged = 0;         // representatives merged into a neighbour to unfold them
+  uint64_t unfold_dropped = 0;        // triangles those merges removed
+  uint64_t folded_after_unfold = 0;   // turned over after unfolding (folded without it)
   uint64_t peak_bytes = 0;          // largest memory_bytes() seen
 };
 
@@ -267,8 +279,10 @@ class CollapseBuilder {
   std::span<const Vec3> representative_positions() const { return rep_pos_; }
   // Pre-sizes the buffers (avoids rehashing the vertex table while streaming).
   void reserve(uint64_t vertices, uint64_t triangles);
-  // Drops duplicates, compacts, resolves the normals and returns the mesh
-  // (normals always filled).
+  // Whether finish() unfolds turned-over triangles (unfold.h; default on).
+  void set_unfold(bool on) { unfold_ = on; }
+  // Unfolds turned-over triangles, drops duplicates, compacts, resolves the
+  // normals and returns the mesh (normals always filled).
   IndexedMesh finish(CollapseStats* stats = nullptr);
   // Bytes held by the mesh under construction (capacity of its buffers).
   uint64_t memory_bytes() const;
@@ -305,6 +319,7 @@ class CollapseBuilder {
   std::vector<uint32_t> rep_corners_seen_;
   std::vector<Vec3> rep_first_position_;
   NormalClusterPool one_vertex_clusters_;
+  bool unfold_ = true;
   CollapseStats stats_;
 };
 
@@ -355,6 +370,10 @@ struct SimplifyConfig {
   // mirror or glass material, whose reflected and refracted rays turn with
   // every error in the normal.
   bool exact_normals = false;
+  // Turned-over triangles left (after any fold passes) are unfolded: their
+  // representatives slide, or their edges collapse, within their cells'
+  // deviation (unfold.h). Off: `raylod simplify --no-unfold`, to compare.
+  bool unfold = true;
 };
 
 struct SimplifyEstimate {

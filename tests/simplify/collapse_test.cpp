@@ -28,7 +28,7 @@ struct Collapsed {
   std::vector<CellKey> keys;
 };
 Collapsed collapse_level(const TriangleBatch& soup, const test::MemoryNodes& nodes, std::vector<uint64_t> codes = {},
-                         double crease_angle_deg = kDefaultCreaseAngleDeg) {
+                         double crease_angle_deg = kDefaultCreaseAngleDeg, bool unfold = true) {
   Collapsed out;
   if (codes.empty()) for (const auto& [c, r] : nodes.nodes) codes.push_back(c);
   for (uint64_t c : codes) {
@@ -40,6 +40,7 @@ Collapsed collapse_level(const TriangleBatch& soup, const test::MemoryNodes& nod
   std::vector<uint32_t> cell(soup.positions.size());
   for (size_t i = 0; i < cell.size(); ++i) cell[i] = lookup.find(Vec3d(soup.positions[i]));
   builder.add(soup, cell);
+  builder.set_unfold(unfold);
   out.mesh = builder.finish(&out.stats);
   return out;
 }
@@ -538,8 +539,15 @@ TEST(VertexClusteringDifferential, UniformCutEqualsReferenceClustering) {
     for (const TriangleBatch* soup : {&mesh, &box}) {
       const test::MemoryNodes nodes = test::accumulate_nodes(*soup, root_lo, root_size, level, origin);
       // A crease angle of 180 degrees smooths everything: the reference's
-      // one area-weighted normal per representative.
-      const Collapsed c = collapse_level(*soup, nodes, {}, 180.0);
+      // one area-weighted normal per representative. The reference clusters
+      // only: no unfolding (unfold.h), which may only take triangles away.
+      const Collapsed c = collapse_level(*soup, nodes, {}, 180.0, false);
+      const Collapsed unfolded = collapse_level(*soup, nodes, {}, 180.0, true);
+      EXPECT_LE(unfolded.mesh.triangle_count(), c.mesh.triangle_count()) << "level " << level;
+      EXPECT_LE(unfolded.stats.folded_after_unfold, c.stats.folded) << "level " << level;
+      if (c.stats.folded == 0) {
+        EXPECT_EQ(unfolded.mesh.positions, c.mesh.positions) << "level " << level;
+      }
       VertexClusteringConfig cfg;
       cfg.root_lo = root_lo;
       cfg.root_size = root_size;

@@ -266,6 +266,36 @@ TEST(SimplifyStore, CellsThatTurnTrianglesOverAreRefined) {
   }
 }
 
+// Without fold passes (opaque meshes) the triangles the collapse turns over
+// are unfolded in place (simplify/unfold.h): representatives slide, or
+// edges collapse, within their cells' deviation. The thin wall's folds
+// mostly go, and the mesh only loses triangles.
+TEST(SimplifyStore, TurnedOverTrianglesAreUnfoldedWithoutRefining) {
+  const TriangleBatch shell = thin_glass_wall();
+  BuiltStore b = build(shell, "unfold");
+  ASSERT_TRUE(b.store);
+  const Cut cut = thin_wall_cut(*b.store);
+  SimplifyConfig off;
+  off.unfold = false;
+  auto raw = simplify(*b.store, cut, off);
+  ASSERT_TRUE(raw.is_ok()) << raw.status().message();
+  ASSERT_GT(raw->stats.folded, 10u) << "the case must turn triangles over to test anything";
+  EXPECT_EQ(raw->stats.folded_after_unfold, raw->stats.folded);
+  EXPECT_EQ(raw->stats.unfold_moved + raw->stats.unfold_merged, 0u);
+  auto got = simplify(*b.store, cut, SimplifyConfig{});
+  ASSERT_TRUE(got.is_ok()) << got.status().message();
+  EXPECT_EQ(got->stats.folded, raw->stats.folded);  // counted as built
+  EXPECT_GT(got->stats.unfold_moved + got->stats.unfold_merged, 0u);
+  EXPECT_LT(got->stats.folded_after_unfold * 2, raw->stats.folded);
+  EXPECT_EQ(got->fold_passes, 0u);
+  EXPECT_LE(got->mesh.triangle_count(), raw->mesh.triangle_count());
+  // The same bytes at any thread count is the pipeline's test; here: again.
+  auto again = simplify(*b.store, cut, SimplifyConfig{});
+  ASSERT_TRUE(again.is_ok());
+  EXPECT_EQ(again->mesh.indices, got->mesh.indices);
+  EXPECT_EQ(again->mesh.positions, got->mesh.positions);
+}
+
 // A folding cell at the store's finest level is not collapsed: its input
 // triangles stay, and they can turn over against the representatives of
 // the cells beside it. Then refining leaves no fewer triangles turned over
