@@ -225,10 +225,12 @@ int run_simplify(int argc, char** argv) {
               ull(s.dropped_collapsed), ull(s.inside_cell), ull(s.dropped_zero_area), ull(s.dropped_duplicate),
               ull(s.reverse_twins));
   if (r.fold_passes || s.folded)
-    summary("  folds      %llu cells refined in %llu more passes for triangles turned over; %llu turned over, "
-            "unfolded by %llu slides and %llu merges (%llu triangles fewer); %llu left\n",
-            ull(r.fold_cells_refined), ull(r.fold_passes), ull(s.folded), ull(s.unfold_moved), ull(s.unfold_merged),
-            ull(s.unfold_dropped), ull(s.folded_after_unfold));
+    summary("  folds      %llu cells refined in %llu more passes for triangles turned over; %llu turned over\n",
+            ull(r.fold_cells_refined), ull(r.fold_passes), ull(s.folded));
+  if (s.folded_before_unfold)
+    summary("  unfolded   %llu slides and %llu merges (%llu triangles fewer): %llu -> %llu turned over\n",
+            ull(s.unfold_moved), ull(s.unfold_merged), ull(s.unfold_dropped), ull(s.folded_before_unfold),
+            ull(s.folded_after_unfold));
   if (r.fold_passes_undone)
     summary("  folds      a refinement taken back: it left no fewer triangles turned over\n");
   if (r.folds_stopped_by_memory)

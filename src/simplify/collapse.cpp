@@ -654,9 +654,7 @@ IndexedMesh CollapseBuilder::finish(CollapseStats* stats_out) {
   }
   // Turned-over triangles: their corners slide, or their edges collapse,
   // within their cells' deviation (unfold.h).
-  std::vector<uint8_t> unfold_dead;
-  std::vector<std::pair<uint64_t, uint32_t>> renamed;  // corners merges moved: their normals' vertex
-  stats_.folded_after_unfold = stats_.folded;
+  UnfoldResult unfolded;
   if (unfold_) {
     const UnfoldStats u = unfold_representatives(
         tris_, keys_, rep_pos_, kept_pos_,
@@ -664,14 +662,20 @@ IndexedMesh CollapseBuilder::finish(CollapseStats* stats_out) {
         [&](uint32_t v) {
           const Representative& r = reps_[v];
           const double allowance = std::max(kUnfoldDeviationFactor * r.deviation, kUnfoldFlatAllowance * r.side);
-          return UnfoldLimit{Bbox{r.cell_lo, r.cell_lo + Vec3d(r.side)}, r.fallback_normal, allowance};
+          // A cell without a quadric (rank 0) has no plane to keep to.
+          return UnfoldLimit{Bbox{r.cell_lo, r.cell_lo + Vec3d(r.side)}, r.rank > 0 ? r.fallback_normal : Vec3d(0),
+                             allowance};
         },
-        unfold_dead, renamed);
+        unfolded);
+    stats_.folded_before_unfold = u.folded_before;
+    stats_.folded_after_unfold = u.folded_after;
     stats_.unfold_moved = u.moved;
     stats_.unfold_merged = u.merged;
     stats_.unfold_dropped = u.dropped;
-    stats_.folded_after_unfold = u.folded_after;
+    stats_.peak_bytes = std::max(stats_.peak_bytes, memory_bytes() + u.peak_bytes);
   }
+  const std::vector<uint32_t>& unfold_dead = unfolded.dead;
+  const std::vector<std::pair<uint64_t, uint32_t>>& renamed = unfolded.renamed;
   // Same-orientation duplicates: sort the triangles by their rotation that
   // starts at the smallest id, then by their index, so the first occurrence
   // comes first (a total order: any parallel sort gives the same result).
@@ -696,7 +700,7 @@ IndexedMesh CollapseBuilder::finish(CollapseStats* stats_out) {
   std::vector<bool> keep(tris_.size(), true);
   size_t unique = 0;  // the distinct keys, compacted to the front of `sorted`
   for (size_t j = 0; j < sorted.size(); ++j) {
-    if (!unfold_dead.empty() && unfold_dead[sorted[j].triangle]) {
+    if (!unfold_dead.empty() && std::binary_search(unfold_dead.begin(), unfold_dead.end(), sorted[j].triangle)) {
       keep[sorted[j].triangle] = false;
       continue;
     }
@@ -729,6 +733,9 @@ IndexedMesh CollapseBuilder::finish(CollapseStats* stats_out) {
     const double reach = reps_[v].side / 16;
     exact[v] = std::isfinite(sample_d2_[v]) && double(sample_d2_[v]) <= reach * reach;
   }
+  // A representative unfolding slid left the point its sample was taken for.
+  for (uint32_t v : unfolded.slid)
+    if (v < exact.size()) exact[v] = 0;
   std::vector<uint8_t> took(exact.size(), 0);  // representatives a corner took the sample of
 
   // Resolve every corner's normal, then split each provisional vertex by the
@@ -835,7 +842,7 @@ IndexedMesh CollapseBuilder::finish(CollapseStats* stats_out) {
     }
   }
   stats_.normal_fallbacks += fallbacks.load();
-  for (uint8_t t : took) stats_.exact_normals += t;
+  for (size_t v = 0; v < took.size(); ++v) stats_.exact_normals += took[v] && first_out[v] != kKeepVertex;  // output ones
   stats_.output_triangles = mesh.triangle_count();
   stats_.output_vertices = mesh.positions.size();
   stats_.peak_bytes = std::max(stats_.peak_bytes, memory_bytes() + first_out.size() * 4 + next_out.capacity() * 4 +

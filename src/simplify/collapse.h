@@ -169,10 +169,13 @@ struct CollapseStats {
   uint64_t normal_fallbacks = 0;      // corners whose normals cancelled (quadric's normal or +Y used)
   uint64_t exact_normals = 0;         // representatives given the input's normal at their nearest input point
   uint64_t folded = 0;                // kept triangles turned over: facing against their input triangle
-  uint64_t unfold_moved = 0;          // representatives slid to unfold them (unfold.h)
-  uint64_t unfold_merged = 0;         // representatives merged into a neighbour to unfold them
+  // Unfolding (unfold.h), counted over the whole mesh as it stands (after
+  // cells of one vertex are output as kept): 0 when it is off.
+  uint64_t folded_before_unfold = 0;  // turned over before unfolding
+  uint64_t folded_after_unfold = 0;   // and after
+  uint64_t unfold_moved = 0;          // representatives slid
+  uint64_t unfold_merged = 0;         // representatives merged into a neighbour
   uint64_t unfold_dropped = 0;        // triangles those merges removed
-  uint64_t folded_after_unfold = 0;   // turned over after unfolding (folded without it)
   uint64_t peak_bytes = 0;          // largest memory_bytes() seen
 };
 

@@ -21,16 +21,21 @@ struct Case {
   std::vector<Vec3> reps;
   std::vector<Vec3> kept;
   std::vector<UnfoldLimit> limits;  // per representative
-  std::vector<uint8_t> dead;
-  std::vector<std::pair<uint64_t, uint32_t>> renamed;
+  std::vector<uint8_t> dead;  // per triangle, from UnfoldResult::dead
+  UnfoldResult result;
 
   UnfoldStats run() {
-    return unfold_representatives(
+    const UnfoldStats s = unfold_representatives(
         tris, keys, reps, kept, [&](uint32_t v) { return v < limits.size(); },
-        [&](uint32_t v) { return limits[v]; }, dead, renamed);
+        [&](uint32_t v) { return limits[v]; }, result);
+    dead.assign(tris.size(), 0);
+    for (uint32_t t : result.dead) dead[t] = 1;
+    return s;
   }
   Vec3d pos(uint32_t v) const { return v < reps.size() ? Vec3d(reps[v]) : Vec3d(kept[v - reps.size()]); }
-  bool folded(size_t t) const { return faces_against(pos(tris[t][0]), pos(tris[t][1]), pos(tris[t][2]), Vec3d(keys[t])); }
+  bool folded(size_t t) const {
+    return keys[t] != Vec3(0) && faces_against(pos(tris[t][0]), pos(tris[t][1]), pos(tris[t][2]), Vec3d(keys[t]));
+  }
   size_t live() const {
     size_t n = 0;
     for (size_t t = 0; t < tris.size(); ++t) n += dead.empty() || !dead[t];
@@ -70,6 +75,7 @@ TEST(Unfold, ARepresentativeOutsideItsFanSlidesBackWithinItsCellAndPlane) {
   EXPECT_EQ(s.folded_after, 0u);
   EXPECT_EQ(s.moved, 1u);
   EXPECT_EQ(s.merged, 0u);
+  EXPECT_EQ(c.result.slid, std::vector<uint32_t>{0});
   EXPECT_EQ(c.live(), 6u);
   EXPECT_EQ(c.live_folded(), 0u);
   EXPECT_EQ(c.reps[0].z, 0.0f);
@@ -95,8 +101,8 @@ TEST(Unfold, WhereNoPointOfTheCellHelpsAnEdgeCollapsesOntoAKeptCorner) {
   EXPECT_EQ(c.live(), 4u);
   EXPECT_EQ(c.live_folded(), 0u);
   // The four moved corners keep the representative's name for their normals.
-  ASSERT_EQ(c.renamed.size(), 4u);
-  for (const auto& [corner, was] : c.renamed) {
+  ASSERT_EQ(c.result.renamed.size(), 4u);
+  for (const auto& [corner, was] : c.result.renamed) {
     EXPECT_FALSE(c.dead[corner / 3]);
     EXPECT_EQ(was, 0u);
     EXPECT_NE(c.tris[corner / 3][corner % 3], 0u);
@@ -148,6 +154,49 @@ TEST(Unfold, AVertexOnAnOpenOutlineStays) {
   EXPECT_EQ(s.moved + s.merged, 0u);
   EXPECT_EQ(c.reps, before.reps);
   EXPECT_EQ(c.tris, before.tris);
+}
+
+TEST(Unfold, AnInputTriangleWithoutAreaIsNeverTurnedOverButKeepsSomeArea) {
+  // The hexagon fan with its first triangle split at the middle of its
+  // outer edge, one half's input without area (its key zero): that half
+  // counts as neither turned over nor upright, so it neither starts a move
+  // nor blocks one, but a move may not flatten it.
+  Case c = hexagon_fan({1.4f, 0.1f, 0}, Bbox{{-0.5, -0.5, -0.5}, {1.5, 0.5, 0.5}}, {0, 0, 1}, 1e-6);
+  c.kept.push_back(0.5f * (c.kept[0] + c.kept[1]));
+  c.tris[0] = {0, 1, 7};
+  c.keys[0] = Vec3(0);
+  c.tris.push_back({0, 7, 2});
+  c.keys.push_back({0, 0, 1});
+  const size_t keyed_folded = c.live_folded();
+  const UnfoldStats s = c.run();
+  EXPECT_EQ(s.folded_before, keyed_folded) << "the zero-key triangle is not counted";
+  EXPECT_EQ(s.folded_after, 0u);
+  EXPECT_EQ(s.moved, 1u);
+  const Vec3d a = c.pos(0), b = c.pos(7), d = c.pos(1);
+  EXPECT_GT(glm::length(glm::cross(b - a, d - a)), 0.0);
+}
+
+TEST(Unfold, AMergeThatWouldDoubleATriangleIsNotMade) {
+  // A tetrahedron's corner: representative 0 over the kept triangle
+  // (1, 2, 3), its three triangles around it, and the base (1, 3, 2) seen
+  // from below. Collapsing 0 onto 1 would leave (1, 2, 3) beside its reverse
+  // (1, 3, 2): two coincident layers, no better than the fold. 0 is pushed
+  // through the base so that its triangles turn over.
+  Case c;
+  c.reps = {Vec3(0.3f, 0.3f, -0.5f)};
+  c.kept = {Vec3(0, 0, 0), Vec3(1, 0, 0), Vec3(0, 1, 0)};
+  c.tris = {{0, 1, 2}, {0, 2, 3}, {0, 3, 1}, {1, 3, 2}};
+  const Vec3d top(0.3, 0.3, 0.5);
+  const auto face = [&](const Vec3d& a, const Vec3d& b, const Vec3d& d) { return Vec3(glm::normalize(glm::cross(b - a, d - a))); };
+  c.keys = {face(top, Vec3d(0, 0, 0), Vec3d(1, 0, 0)), face(top, Vec3d(1, 0, 0), Vec3d(0, 1, 0)),
+            face(top, Vec3d(0, 1, 0), Vec3d(0, 0, 0)), Vec3(0, 0, -1)};
+  c.limits = {UnfoldLimit{Bbox{{-1, -1, -1}, {1, 1, -0.4}}, {0, 0, 0}, 10.0}};
+  ASSERT_GT(c.live_folded(), 0u);
+  const Case before = c;
+  const UnfoldStats s = c.run();
+  EXPECT_EQ(s.merged, 0u);
+  EXPECT_EQ(c.tris, before.tris);
+  EXPECT_EQ(c.live(), 4u);
 }
 
 // A planar n x n grid whose every vertex is a representative jittered
