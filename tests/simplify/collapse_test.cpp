@@ -131,6 +131,62 @@ TEST(CollapseBuilder, FlagsTheRepresentativesOfTrianglesTurnedOver) {
   EXPECT_EQ(st.folded, 1u);
 }
 
+TEST(CollapseBuilder, AMergeAcrossACreaseKeepsEachSidesNormal) {
+  // A vertex c on a 90-degree crease: three triangles on the top face
+  // (z = 0, normal +z) and three on the side wall (y = 0, normal -y). Its
+  // cell's representative lands below the wall's bottom edge, turning the
+  // wall triangle (c, qa, qb) over, and the cell is too small for it to
+  // slide back: unfolding collapses its shortest edge, onto the wall's
+  // corner qb, whose own normals are all the wall's. The top triangles then
+  // meet at qb; their corners there keep the top's normal (the
+  // representative's cluster within the crease angle), not the wall's.
+  const Vec3 c(0, 0, 0), ep(1, 0, 0), em(-1, 0, 0), pa(0.5f, 1, 0), pb(-0.5f, 1, 0), qa(-0.5f, 0, -1),
+      qb(0.5f, 0, -1);
+  TriangleBatch soup;
+  add_tri(soup, c, ep, pa);
+  add_tri(soup, c, pa, pb);
+  add_tri(soup, c, pb, em);
+  add_tri(soup, c, em, qa);
+  add_tri(soup, c, qa, qb);
+  add_tri(soup, c, qb, ep);
+  std::vector<Representative> reps(1);
+  reps[0].position = Vec3d(0.4, 0, -1.1);
+  reps[0].side = 0.1;
+  reps[0].cell_lo = Vec3d(0.35, -0.05, -1.15);
+  reps[0].deviation = 1.0;  // lets the merge move the surface by 0.1
+  std::vector<uint32_t> cell(soup.positions.size(), kKeepVertex);
+  for (size_t t = 0; t < 6; ++t) cell[3 * t] = 0;
+  for (const bool unfold : {false, true}) {
+    CollapseBuilder b(reps, false);
+    b.add(soup, cell);
+    b.set_unfold(unfold);
+    CollapseStats st;
+    const IndexedMesh m = b.finish(&st);
+    EXPECT_EQ(st.folded, 1u);
+    if (!unfold) {
+      EXPECT_EQ(m.triangle_count(), 6u);
+      continue;
+    }
+    EXPECT_EQ(st.unfold_moved, 0u);
+    EXPECT_EQ(st.unfold_merged, 1u);
+    EXPECT_EQ(st.unfold_dropped, 2u);
+    EXPECT_EQ(st.folded_after_unfold, 0u);
+    ASSERT_EQ(m.triangle_count(), 4u);
+    int top_corners_at_qb = 0;
+    for (size_t t = 0; t < 4; ++t) {  // in input order: the three top ones, then the wall's (c, em, qa)
+      const uint32_t* i = &m.indices[3 * t];
+      const bool top = t < 3;
+      for (int k = 0; k < 3; ++k) {
+        EXPECT_NE(m.positions[i[k]], Vec3(reps[0].position)) << "the representative is merged away";
+        if (m.positions[i[k]] != qb) continue;
+        top_corners_at_qb += top;
+        EXPECT_GT(glm::dot(m.normals[i[k]], top ? Vec3(0, 0, 1) : Vec3(0, -1, 0)), 0.999f) << "triangle " << t;
+      }
+    }
+    EXPECT_EQ(top_corners_at_qb, 3);
+  }
+}
+
 TEST(CollapseBuilder, TrianglesWhollyInsideACellGiveTheirNormalsThroughTheCellsSum) {
   // Triangle A reaches from the cell (its corner at the origin) to two kept
   // corners and faces +z. Triangle B lies wholly inside the cell, tilted by
