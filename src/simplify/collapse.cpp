@@ -95,8 +95,10 @@ InputFace input_face(const Vec3* p) {
 // A kept triangle with a representative corner (`collapsed`) is turned over
 // when it faces against its input triangle.
 bool turned_over(const Vec3& a, const Vec3& b, const Vec3& c, const InputFace& f, bool collapsed) {
+  // Finite corners and a unit normal (the input has area): faces_against's
+  // test, which unfolding applies to the collapsed mesh.
   if (!collapsed || !(f.area2 > 0)) return false;
-  return glm::dot(glm::cross(Vec3d(b) - Vec3d(a), Vec3d(c) - Vec3d(a)), f.unit) <= 0;
+  return faces_against(Vec3d(a), Vec3d(b), Vec3d(c), f.unit);
 }
 
 std::array<uint32_t, 3> rotate_min_first(const std::array<uint32_t, 3>& t) {

@@ -174,10 +174,11 @@ bool slide(const UnfoldMesh& m, uint32_t v, std::span<const uint32_t> fan, const
   Vec3 q;
   for (int a = 0; a < 3; ++a) q[a] = float_inside(p0[a] + p[a], lim.cell.lo[a], lim.cell.hi[a]);
   const Vec3d d = Vec3d(q) - p0;
-  for (uint32_t t : fan)
-    if (!m.within(t, d, lim.allowance) || !(m.twice_area_with(t, v, Vec3d(q)) >= 0.25 * m.needed(t, v, kUnfoldMinHeight)) ||
-        !(m.twice_area_with(t, v, Vec3d(q)) > 0))
+  for (uint32_t t : fan) {
+    const double area = m.twice_area_with(t, v, Vec3d(q));
+    if (!m.within(t, d, lim.allowance) || !(area >= 0.25 * m.needed(t, v, kUnfoldMinHeight)) || !(area > 0))
       return false;
+  }
   m.rep_pos[v] = q;
   return true;
 }
@@ -255,10 +256,6 @@ float float_inside(double v, double lo, double hi) {
     if (double(g) >= lo) f = g;
   }
   return f;
-}
-
-bool faces_against(const Vec3d& a, const Vec3d& b, const Vec3d& c, const Vec3d& key) {
-  return !(glm::dot(glm::cross(b - a, c - a), key) > 0);
 }
 
 UnfoldStats unfold_representatives(std::span<std::array<uint32_t, 3>> tris, std::span<const Vec3> keys,

@@ -88,7 +88,9 @@ float float_inside(double v, double lo, double hi);
 // (or has no area). A zero key (an input triangle without area) faces
 // nothing: unfold never counts it turned over, and only asks it to keep
 // some area.
-bool faces_against(const Vec3d& a, const Vec3d& b, const Vec3d& c, const Vec3d& key);
+inline bool faces_against(const Vec3d& a, const Vec3d& b, const Vec3d& c, const Vec3d& key) {
+  return !(glm::dot(glm::cross(b - a, c - a), key) > 0);
+}
 
 // tris: provisional vertex ids, the first rep_pos.size() being
 // representatives and the rest kept vertices (kept_pos); keys: per triangle,
